@@ -1,0 +1,69 @@
+//! What both hosts share: configuration and errors.
+
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::stats::HostStats;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HostConfig {
+    /// Seeds every module's RNG (and, on the lockstep host, the processing-time models).
+    pub seed: u64,
+    /// The span over which min/max rates are measured.
+    #[serde(with = "crate::serde_duration")]
+    pub stats_window: Duration,
+}
+
+impl Default for HostConfig {
+    fn default() -> Self {
+        HostConfig { seed: 0, stats_window: Duration::from_secs(1) }
+    }
+}
+
+impl HostConfig {
+    pub fn with_seed(seed: u64) -> HostConfig {
+        HostConfig { seed, ..HostConfig::default() }
+    }
+}
+
+/// Why a host stopped other than by request. Carries the statistics gathered until then.
+#[derive(Debug, thiserror::Error)]
+pub enum HostError {
+    #[error("module `{module}` panicked: {message}")]
+    ModulePanicked { module: String, message: String, stats: Box<HostStats> },
+    #[error("module `{module}` failed: {error}")]
+    ModuleFailed { module: String, error: String, stats: Box<HostStats> },
+    #[error("cannot start a module thread: {0}")]
+    Spawn(String),
+    #[error("{0}")]
+    Signal(String),
+    #[error(
+        "input `{input}` is not declared external: only external inputs can be fed from outside the graph"
+    )]
+    NotExternal { input: String },
+    #[error("cannot decode a package for input `{input}`: {error}")]
+    Decode { input: String, error: String },
+}
+
+impl HostError {
+    /// The statistics gathered before the failure, if any.
+    pub fn stats(&self) -> Option<&HostStats> {
+        match self {
+            HostError::ModulePanicked { stats, .. } | HostError::ModuleFailed { stats, .. } => {
+                Some(stats)
+            }
+            _ => None,
+        }
+    }
+}
+
+pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        (*s).to_owned()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "a panic without a message".to_owned()
+    }
+}

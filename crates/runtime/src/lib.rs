@@ -1,0 +1,50 @@
+//! The module communication library of Strata: section 3.7 of Testart et al., "A Real-Time
+//! Hybrid Architecture for Biped Humanoids with Active Vision Mechanisms" (2011), for Rust.
+//!
+//! - A [`Module`] is a part of the software with an explicit interface: typed [`Input`]s and
+//!   [`Output`]s declared when it is added to a [`GraphBuilder`].
+//! - Modules exchange [`Package`]s over connections whose [`Policy`] is one of the paper's
+//!   three: overwrite ([`Policy::Latest`]), queue ([`Policy::Queue`]) or re-package
+//!   ([`Policy::Merge`]).
+//! - Each module runs when its [`Trigger`] fires: periodically, or on new input.
+//! - The same graph runs on the [`ThreadedHost`] (a thread per module, real time) or on the
+//!   [`LockstepHost`] (simulated time, deterministic, faster than real time). Modules get the
+//!   time and their seeded RNG from their [`Context`] and never from the outside world.
+//! - Both hosts report [`HostStats`]: per module, cycles, rates, compute time, latency, and
+//!   what each connection overwrote, dropped or merged.
+
+mod connection;
+mod graph;
+mod host;
+mod lockstep;
+mod message;
+mod module;
+mod package;
+mod rng;
+pub mod serde_duration;
+pub mod signal;
+mod stats;
+mod tap;
+mod threaded;
+mod time;
+mod wiring;
+
+pub use connection::{Arrival, CombineFn, Connection, ConnectionCounters, Policy, PolicyKind};
+pub use graph::{
+    ConnectionDescription, Graph, GraphBuilder, GraphDescription, GraphError, GraphErrors, Input,
+    InputMode, InputRef, ModuleDescription, Output, OutputRef, PortDescription, Ports,
+    ProcessingTime, Trigger,
+};
+pub use host::{HostConfig, HostError};
+pub use lockstep::{LockstepHost, TraceEntry, TraceEvent};
+pub use message::{ErasedPackage, Message};
+pub use module::{Context, Module, ModuleError, Wake};
+pub use package::{ModuleId, Package};
+pub use rng::{module_rng, stable_hash};
+pub use stats::{HostKind, HostStats, InputStats, ModuleStats, RateStats, StatsCollector, Summary};
+pub use tap::{Tap, TapRecord};
+pub use threaded::{RunningHost, StopHandle, ThreadedHost};
+pub use time::{Clock, ManualClock, MonotonicClock, Time};
+
+/// The RNG type modules receive.
+pub type ModuleRng = rand_chacha::ChaCha8Rng;

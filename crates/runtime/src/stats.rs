@@ -1,0 +1,316 @@
+//! Per-module statistics, the same on both hosts: cycles, rates, compute time, latency, and
+//! what happened on each input. These are the figures of the paper's Table 6.
+
+use std::fmt::{self, Write as _};
+use std::time::Duration;
+
+use hdrhistogram::Histogram;
+use serde::{Deserialize, Serialize};
+
+use crate::connection::{ConnectionCounters, PolicyKind};
+use crate::time::Time;
+
+/// Histograms span 1 ns to 1000 s with two significant digits (1% resolution), which keeps a
+/// hundred modules' histograms within a few megabytes.
+const HISTOGRAM_MAX_NS: u64 = 1_000_000_000_000;
+const HISTOGRAM_SIGFIG: u8 = 2;
+
+fn new_histogram() -> Histogram<u64> {
+    Histogram::new_with_bounds(1, HISTOGRAM_MAX_NS, HISTOGRAM_SIGFIG)
+        .unwrap_or_else(|_| unreachable!("the histogram bounds are constants and valid"))
+}
+
+/// Collects one module's statistics as its cycles run.
+#[derive(Debug, Clone)]
+pub struct StatsCollector {
+    window: Duration,
+    cycles: u64,
+    first_start: Option<Time>,
+    last_start: Option<Time>,
+    window_first: Option<Time>,
+    window_intervals: u64,
+    min_rate: Option<f64>,
+    max_rate: Option<f64>,
+    compute: Histogram<u64>,
+    latency: Histogram<u64>,
+    period: Histogram<u64>,
+    errors: u64,
+}
+
+impl StatsCollector {
+    /// `window`: the span over which a rate is measured for the min/max figures; a window
+    /// closes at the first cycle at least `window` after it opened, so slow modules get a rate
+    /// from whole intervals.
+    pub fn new(window: Duration) -> StatsCollector {
+        StatsCollector {
+            window,
+            cycles: 0,
+            first_start: None,
+            last_start: None,
+            window_first: None,
+            window_intervals: 0,
+            min_rate: None,
+            max_rate: None,
+            compute: new_histogram(),
+            latency: new_histogram(),
+            period: new_histogram(),
+            errors: 0,
+        }
+    }
+
+    /// Records a cycle that started at `start`, took `compute`, and whose outputs became
+    /// visible `latency` after the event that triggered it (None if it sent nothing).
+    pub fn record_cycle(&mut self, start: Time, compute: Duration, latency: Option<Duration>) {
+        self.cycles += 1;
+        if let Some(last) = self.last_start {
+            let interval = start - last;
+            let _ = self.period.record(clamp_ns(interval));
+            self.window_intervals += 1;
+        }
+        self.first_start.get_or_insert(start);
+        self.last_start = Some(start);
+        let window_first = *self.window_first.get_or_insert(start);
+        let elapsed = start - window_first;
+        if elapsed >= self.window && self.window_intervals > 0 {
+            let rate = self.window_intervals as f64 / elapsed.as_secs_f64();
+            self.min_rate = Some(self.min_rate.map_or(rate, |m| m.min(rate)));
+            self.max_rate = Some(self.max_rate.map_or(rate, |m| m.max(rate)));
+            self.window_first = Some(start);
+            self.window_intervals = 0;
+        }
+        let _ = self.compute.record(clamp_ns(compute));
+        if let Some(latency) = latency {
+            let _ = self.latency.record(clamp_ns(latency));
+        }
+    }
+
+    pub fn record_error(&mut self) {
+        self.errors += 1;
+    }
+
+    pub fn cycles(&self) -> u64 {
+        self.cycles
+    }
+
+    pub fn snapshot(&self, name: &str, inputs: Vec<InputStats>) -> ModuleStats {
+        let mean = match (self.first_start, self.last_start) {
+            (Some(first), Some(last)) if last > first && self.cycles > 1 => {
+                (self.cycles - 1) as f64 / (last - first).as_secs_f64()
+            }
+            _ => 0.0,
+        };
+        // Before a first window closes (short runs), the overall mean is the best estimate.
+        let rate = RateStats {
+            min_hz: self.min_rate.unwrap_or(mean),
+            mean_hz: mean,
+            max_hz: self.max_rate.unwrap_or(mean),
+        };
+        ModuleStats {
+            name: name.to_owned(),
+            cycles: self.cycles,
+            errors: self.errors,
+            rate,
+            compute_time: Summary::of(&self.compute),
+            latency: Summary::of(&self.latency),
+            period: Summary::of(&self.period),
+            inputs,
+        }
+    }
+}
+
+fn clamp_ns(duration: Duration) -> u64 {
+    u64::try_from(duration.as_nanos()).unwrap_or(u64::MAX).clamp(1, HISTOGRAM_MAX_NS)
+}
+
+/// Min / mean / max cycle rate (the columns of Table 6).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RateStats {
+    pub min_hz: f64,
+    pub mean_hz: f64,
+    pub max_hz: f64,
+}
+
+/// A distribution of durations, in microseconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub count: u64,
+    pub mean_us: f64,
+    pub min_us: f64,
+    pub p50_us: f64,
+    pub p90_us: f64,
+    pub p99_us: f64,
+    pub max_us: f64,
+}
+
+impl Summary {
+    fn of(histogram: &Histogram<u64>) -> Summary {
+        if histogram.is_empty() {
+            return Summary::default();
+        }
+        let us = |ns: u64| ns as f64 / 1000.0;
+        Summary {
+            count: histogram.len(),
+            mean_us: histogram.mean() / 1000.0,
+            min_us: us(histogram.min()),
+            p50_us: us(histogram.value_at_quantile(0.5)),
+            p90_us: us(histogram.value_at_quantile(0.9)),
+            p99_us: us(histogram.value_at_quantile(0.99)),
+            max_us: us(histogram.max()),
+        }
+    }
+}
+
+/// One input port's policy and counters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InputStats {
+    pub port: String,
+    pub policy: PolicyKind,
+    #[serde(flatten)]
+    pub counters: ConnectionCounters,
+}
+
+/// Everything measured about one module.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ModuleStats {
+    pub name: String,
+    pub cycles: u64,
+    /// Cycles that returned an error (the host stops at the first).
+    pub errors: u64,
+    pub rate: RateStats,
+    /// Threaded host: measured wall time of each cycle. Lockstep host: the modelled
+    /// processing time.
+    pub compute_time: Summary,
+    /// From the event that triggered a cycle to its outputs becoming visible.
+    pub latency: Summary,
+    /// Intervals between consecutive cycle starts (their spread is the jitter).
+    pub period: Summary,
+    pub inputs: Vec<InputStats>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HostKind {
+    Threaded,
+    Lockstep,
+}
+
+/// The statistics of every module of a host, as one serializable value.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HostStats {
+    pub host: HostKind,
+    /// Host time elapsed (simulated time on the lockstep host).
+    pub elapsed_s: f64,
+    /// Wall-clock time the host ran.
+    pub wall_s: f64,
+    pub modules: Vec<ModuleStats>,
+}
+
+impl HostStats {
+    pub fn module(&self, name: &str) -> Option<&ModuleStats> {
+        self.modules.iter().find(|m| m.name == name)
+    }
+
+    /// Queue overflows (dropped packages) summed over every input of every module.
+    pub fn total_dropped(&self) -> u64 {
+        self.modules.iter().flat_map(|m| &m.inputs).map(|i| i.counters.dropped).sum()
+    }
+
+    /// A fixed-width table for terminals.
+    pub fn table(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "{:<28} {:>8} {:>9} {:>9} {:>9} {:>10} {:>10} {:>10} {:>8}",
+            "module",
+            "cycles",
+            "min Hz",
+            "mean Hz",
+            "max Hz",
+            "cpu p50us",
+            "cpu p99us",
+            "lat p99us",
+            "dropped"
+        );
+        for m in &self.modules {
+            let dropped: u64 = m.inputs.iter().map(|i| i.counters.dropped).sum();
+            let _ = writeln!(
+                out,
+                "{:<28} {:>8} {:>9.2} {:>9.2} {:>9.2} {:>10.1} {:>10.1} {:>10.1} {:>8}",
+                truncate(&m.name, 28),
+                m.cycles,
+                m.rate.min_hz,
+                m.rate.mean_hz,
+                m.rate.max_hz,
+                m.compute_time.p50_us,
+                m.compute_time.p99_us,
+                m.latency.p99_us,
+                dropped
+            );
+        }
+        out
+    }
+}
+
+impl fmt::Display for HostStats {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.table())
+    }
+}
+
+fn truncate(s: &str, width: usize) -> String {
+    if s.chars().count() <= width {
+        s.to_owned()
+    } else {
+        let mut t: String = s.chars().take(width.saturating_sub(1)).collect();
+        t.push('…');
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rates_from_regular_cycles() {
+        let mut stats = StatsCollector::new(Duration::from_secs(1));
+        for i in 0..=200u64 {
+            stats.record_cycle(Time::from_nanos(i * 10_000_000), Duration::from_micros(5), None);
+        }
+        let s = stats.snapshot("m", Vec::new());
+        assert_eq!(s.cycles, 201);
+        assert!((s.rate.mean_hz - 100.0).abs() < 1e-6, "{:?}", s.rate);
+        assert!((s.rate.min_hz - 100.0).abs() < 1e-6, "{:?}", s.rate);
+        assert!((s.rate.max_hz - 100.0).abs() < 1e-6, "{:?}", s.rate);
+        assert!((s.compute_time.p50_us - 5.0).abs() < 0.1);
+    }
+
+    #[test]
+    fn a_stall_lowers_the_minimum_rate() {
+        let mut stats = StatsCollector::new(Duration::from_secs(1));
+        let mut t = 0u64;
+        for _ in 0..300 {
+            stats.record_cycle(Time::from_nanos(t), Duration::ZERO, None);
+            t += 10_000_000;
+        }
+        t += 4_000_000_000; // the module stalls for 4 s
+        for _ in 0..300 {
+            stats.record_cycle(Time::from_nanos(t), Duration::ZERO, None);
+            t += 10_000_000;
+        }
+        let s = stats.snapshot("m", Vec::new());
+        assert!(s.rate.min_hz < 1.0, "{:?}", s.rate);
+        assert!((s.rate.max_hz - 100.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn slow_modules_get_rates_from_whole_intervals() {
+        let mut stats = StatsCollector::new(Duration::from_secs(1));
+        for i in 0..20u64 {
+            stats.record_cycle(Time::from_nanos(i * 625_000_000), Duration::ZERO, None);
+        }
+        let s = stats.snapshot("deliberative", Vec::new());
+        assert!((s.rate.mean_hz - 1.6).abs() < 1e-9);
+        assert!((s.rate.min_hz - 1.6).abs() < 1e-9);
+    }
+}

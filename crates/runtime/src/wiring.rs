@@ -1,0 +1,142 @@
+//! What both hosts derive from a checked graph: who reads each output, who writes each input.
+
+use std::sync::Arc;
+
+use crate::graph::{Graph, InputDecl, InputRef, ModuleDecl, OutputRef, ProcessingTime, Trigger};
+use crate::message::ErasedInput;
+use crate::module::Module;
+use crate::package::ModuleId;
+use crate::stats::InputStats;
+
+pub(crate) struct Reader {
+    pub(crate) input: InputRef,
+    pub(crate) slot: Arc<dyn ErasedInput>,
+    /// Whether this input triggers its module.
+    pub(crate) triggers: bool,
+}
+
+pub(crate) struct OutputWiring {
+    pub(crate) name: String,
+    pub(crate) type_name: &'static str,
+    pub(crate) wake_on_ready: bool,
+    pub(crate) readers: Vec<Reader>,
+}
+
+/// Per module: its outputs' readers and its inputs' writers.
+pub(crate) struct Wiring {
+    pub(crate) names: Vec<String>,
+    pub(crate) outputs: Vec<Vec<OutputWiring>>,
+    /// Per module, per input: the writing output and whether the writer wants to be woken when
+    /// the input is emptied.
+    pub(crate) writers: Vec<Vec<Option<(OutputRef, bool)>>>,
+}
+
+pub(crate) struct ModuleParts {
+    pub(crate) id: ModuleId,
+    pub(crate) name: String,
+    pub(crate) module: Box<dyn Module>,
+    pub(crate) trigger: Trigger,
+    pub(crate) priority: i32,
+    pub(crate) processing_time: ProcessingTime,
+    pub(crate) inputs: Vec<InputDecl>,
+}
+
+impl ModuleParts {
+    /// Whether the module's trigger condition holds now that `port` received data.
+    pub(crate) fn triggered_by_arrival(&self, port: u16) -> bool {
+        match &self.trigger {
+            Trigger::Periodic { .. } => false,
+            Trigger::OnInput { mode, inputs } => {
+                if !inputs.iter().any(|i| i.port == port) {
+                    return false;
+                }
+                match mode {
+                    crate::graph::InputMode::Any => self
+                        .inputs
+                        .get(usize::from(port))
+                        .is_some_and(|decl| decl.slot.has_pending()),
+                    crate::graph::InputMode::All => inputs.iter().all(|i| {
+                        self.inputs.get(usize::from(i.port)).is_some_and(|d| d.slot.has_pending())
+                    }),
+                }
+            }
+        }
+    }
+
+    pub(crate) fn input_stats(&self) -> Vec<InputStats> {
+        self.inputs
+            .iter()
+            .map(|decl| InputStats {
+                port: decl.name.clone(),
+                policy: decl.slot.policy(),
+                counters: decl.slot.counters(),
+            })
+            .collect()
+    }
+}
+
+pub(crate) fn split(graph: Graph) -> (Wiring, Vec<ModuleParts>) {
+    let Graph { modules, readers, writers, externals: _ } = graph;
+    let names: Vec<String> = modules.iter().map(|m| m.name.clone()).collect();
+    let outputs: Vec<Vec<OutputWiring>> = modules
+        .iter()
+        .enumerate()
+        .map(|(m, decl)| {
+            decl.outputs
+                .iter()
+                .enumerate()
+                .map(|(p, out)| OutputWiring {
+                    name: out.name.clone(),
+                    type_name: out.type_name,
+                    wake_on_ready: out.wake_on_ready,
+                    readers: readers[m][p]
+                        .iter()
+                        .map(|r| {
+                            let reader: &ModuleDecl = &modules[r.module.index()];
+                            Reader {
+                                input: *r,
+                                slot: Arc::clone(&reader.inputs[usize::from(r.port)].slot),
+                                triggers: reader
+                                    .trigger
+                                    .as_ref()
+                                    .is_some_and(|t| t.triggered_by(r.port)),
+                            }
+                        })
+                        .collect(),
+                })
+                .collect()
+        })
+        .collect();
+    let writers = writers
+        .iter()
+        .map(|per_input| {
+            per_input
+                .iter()
+                .map(|w| {
+                    w.map(|o| {
+                        (o, modules[o.module.index()].outputs[usize::from(o.port)].wake_on_ready)
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    let parts = modules
+        .into_iter()
+        .enumerate()
+        .filter_map(|(i, decl)| {
+            let ModuleDecl { name, module, trigger, priority, processing_time, inputs, .. } = decl;
+            Some(ModuleParts {
+                id: ModuleId(i as u32),
+                name,
+                module: module?,
+                // `build` gives every module a trigger; periodic at 1 Hz is never reached.
+                trigger: trigger
+                    .unwrap_or_else(|| Trigger::every(std::time::Duration::from_secs(1))),
+                priority,
+                processing_time,
+                inputs,
+            })
+        })
+        .collect();
+    (Wiring { names, outputs, writers }, parts)
+}
