@@ -1,1 +1,13 @@
-//! placeholder
+//! The architecture of one robot (Testart et al. 2011, section 3), application-agnostic.
+//!
+//! Four parallel modules — perception, actuation, world modeling and hybrid control (planning,
+//! deliberative and reactive layers) — over an abstract [`platform::Platform`]. Nothing here
+//! names a ball, a goal or a soccer role: an application provides its objects of interest,
+//! missions, roles, goals, behaviors and value functions.
+
+pub mod command;
+pub mod geometry;
+pub mod percept;
+pub mod platform;
+
+pub use geometry::{Field, Odometry, Point, Pose, Robot, Vector, Velocity, normalize_angle};
