@@ -299,7 +299,10 @@ mod tests {
             t += 10_000_000;
         }
         let s = stats.snapshot("m", Vec::new());
-        assert!(s.rate.min_hz < 1.0, "{:?}", s.rate);
+        // The window holding the stall averages it with its other cycles...
+        assert!(s.rate.min_hz < 25.0, "{:?}", s.rate);
+        // ...and the period distribution keeps the stall itself.
+        assert!(s.period.max_us >= 3.9e6, "{:?}", s.period);
         assert!((s.rate.max_hz - 100.0).abs() < 1e-6);
     }
 

@@ -1,0 +1,393 @@
+//! The lockstep host: determinism, processing-time model, triggers, statistics, failures.
+
+mod common;
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use common::{Collect, Counter, Recorder, Seen};
+use strata_runtime::{
+    Context, GraphBuilder, HostConfig, HostError, Input, LockstepHost, Module, ModuleError, Output,
+    Policy, ProcessingTime, Time, Trigger,
+};
+
+const MS: Duration = Duration::from_millis(1);
+
+/// A noisy sensor at 100 Hz, a filter averaging what it receives (Queue), a slow consumer
+/// reading the newest estimate (Latest) at 7 Hz, with random processing times.
+fn pipeline(seed: u64) -> (LockstepHost, Arc<Collect>, Seen) {
+    struct Average {
+        input: Input<u64>,
+        out: Output<u64>,
+        sum: u64,
+        n: u64,
+    }
+    impl Module for Average {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            let mut stamp = ctx.now();
+            for p in ctx.drain(self.input) {
+                self.sum += p.value;
+                self.n += 1;
+                stamp = p.stamp;
+            }
+            if let Some(mean) = self.sum.checked_div(self.n) {
+                ctx.send_stamped(self.out, mean, stamp);
+            }
+            Ok(())
+        }
+    }
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let mut graph = GraphBuilder::new();
+    let sensor = graph.add("sensor", |p| {
+        p.trigger(Trigger::every(10 * MS));
+        p.processing_time(ProcessingTime::Uniform { min: MS, max: 4 * MS });
+        let out = p.output("raw");
+        (Counter { out, next: 0, noisy: true, limit: None }, out)
+    });
+    let (filter_in, filter_out) = graph.add("filter", |p| {
+        let input = p.input("raw", Policy::queue(64));
+        let out = p.output("estimate");
+        p.trigger(Trigger::on_any([input.into()]));
+        p.processing_time(ProcessingTime::Normal {
+            mean: 3 * MS,
+            std_dev: MS,
+            min: Duration::ZERO,
+        });
+        (Average { input, out, sum: 0, n: 0 }, (input, out))
+    });
+    let consumer = graph.add("consumer", |p| {
+        let input = p.input("estimate", Policy::Latest);
+        p.trigger(Trigger::rate_hz(7.0));
+        (Recorder { input, seen: Arc::clone(&seen), newest_only: true }, input)
+    });
+    graph.connect(sensor, filter_in);
+    graph.connect(filter_out, consumer);
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::with_seed(seed));
+    let tap = Arc::new(Collect::default());
+    host.set_tap(tap.clone());
+    host.record_trace(true);
+    (host, tap, seen)
+}
+
+#[test]
+fn same_seed_same_trace_bit_for_bit() {
+    let run = |seed| {
+        let (mut host, tap, seen) = pipeline(seed);
+        host.run_for(Duration::from_secs(3)).expect("runs");
+        let trace = host.trace().to_vec();
+        let packages = tap.0.lock().expect("lock").clone();
+        let seen = seen.lock().expect("lock").clone();
+        (trace, packages, seen)
+    };
+    let a = run(7);
+    let b = run(7);
+    assert!(!a.0.is_empty() && !a.1.is_empty() && !a.2.is_empty());
+    assert_eq!(a.0, b.0, "traces differ");
+    assert_eq!(a.1, b.1, "package contents differ");
+    assert_eq!(a.2, b.2, "what the consumer saw differs");
+    let c = run(8);
+    assert_ne!(a.1, c.1, "a different seed must change what random modules produce");
+    assert_ne!(a.0, c.0, "a different seed must change random processing times");
+}
+
+#[test]
+fn an_output_computed_at_t_is_seen_at_t_plus_processing_time_and_not_before() {
+    struct Clock {
+        out: Output<u64>,
+    }
+    impl Module for Clock {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            let now = ctx.now().as_nanos();
+            ctx.send(self.out, now);
+            Ok(())
+        }
+    }
+    for model in [
+        ProcessingTime::fixed(3 * MS),
+        ProcessingTime::Uniform { min: MS, max: 9 * MS },
+        ProcessingTime::fixed(Duration::ZERO),
+    ] {
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let mut graph = GraphBuilder::new();
+        let out = graph.add("producer", |p| {
+            p.trigger(Trigger::every(10 * MS));
+            p.processing_time(model.clone());
+            let out = p.output("t");
+            (Clock { out }, out)
+        });
+        let input = graph.add("reader", |p| {
+            let input = p.input("t", Policy::queue(16));
+            p.trigger(Trigger::on_any([input.into()]));
+            (Recorder { input, seen: Arc::clone(&seen), newest_only: false }, input)
+        });
+        graph.connect(out, input);
+        let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::with_seed(3));
+        host.run_for(Duration::from_millis(500)).expect("runs");
+        let seen = seen.lock().expect("lock");
+        assert!(seen.len() >= 49, "{model:?}: {} packages", seen.len());
+        for (read_at, computed_at, _) in seen.iter() {
+            let delay = *read_at - Time::from_nanos(*computed_at);
+            match &model {
+                ProcessingTime::Fixed { duration } => assert_eq!(delay, *duration, "{model:?}"),
+                ProcessingTime::Uniform { min, max } => {
+                    assert!(delay >= *min && delay <= *max, "{model:?}: {delay:?}")
+                }
+                ProcessingTime::Normal { .. } => unreachable!(),
+            }
+        }
+    }
+}
+
+#[test]
+fn a_busy_module_runs_again_as_soon_as_it_is_free_and_sees_everything_queued() {
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let mut graph = GraphBuilder::new();
+    let out = graph.add("fast", |p| {
+        p.trigger(Trigger::every(MS));
+        let out = p.output("n");
+        (Counter { out, next: 0, noisy: false, limit: Some(100) }, out)
+    });
+    let input = graph.add("slow", |p| {
+        let input = p.input("n", Policy::queue(1000));
+        p.trigger(Trigger::on_any([input.into()]));
+        p.processing_time(ProcessingTime::fixed(5 * MS));
+        (Recorder { input, seen: Arc::clone(&seen), newest_only: false }, input)
+    });
+    graph.connect(out, input);
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    host.run_for(Duration::from_millis(200)).expect("runs");
+    let seen = seen.lock().expect("lock");
+    let values: Vec<u64> = seen.iter().map(|s| s.1).collect();
+    assert_eq!(values, (0..100).collect::<Vec<_>>(), "every package, in order");
+    let cycle_times: Vec<Time> = {
+        let mut t: Vec<Time> = seen.iter().map(|s| s.0).collect();
+        t.dedup();
+        t
+    };
+    for pair in cycle_times.windows(2) {
+        assert!(pair[1] - pair[0] >= 5 * MS, "cycles overlap: {pair:?}");
+    }
+    let stats = host.stats();
+    let slow = stats.module("slow").expect("slow");
+    assert!(
+        slow.cycles <= 21,
+        "a 5 ms module cannot run more than 21 times in 101 ms: {}",
+        slow.cycles
+    );
+    assert!((slow.compute_time.p50_us - 5000.0).abs() < 60.0, "{:?}", slow.compute_time);
+}
+
+#[test]
+fn queue_overflows_and_overwrites_are_counted_in_the_statistics() {
+    let mut graph = GraphBuilder::new();
+    let out = graph.add("burst", |p| {
+        p.trigger(Trigger::every(MS));
+        let out = p.output("n");
+        (Counter { out, next: 0, noisy: false, limit: None }, out)
+    });
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let queue_in = graph.add("queued", |p| {
+        let input = p.input("n", Policy::queue(3));
+        p.trigger(Trigger::every(10 * MS));
+        (Recorder { input, seen: Arc::clone(&seen), newest_only: false }, input)
+    });
+    let latest_in = graph.add("latest", |p| {
+        let input = p.input("n", Policy::Latest);
+        p.trigger(Trigger::every(10 * MS));
+        (Recorder { input, seen: Arc::clone(&seen), newest_only: true }, input)
+    });
+    graph.fan_out(out, [queue_in, latest_in]);
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    host.run_until(Time::from_nanos(1_000_000_000 - 1)).expect("runs");
+    let stats = host.stats();
+    let queued = &stats.module("queued").expect("queued").inputs[0];
+    let latest = &stats.module("latest").expect("latest").inputs[0];
+    assert_eq!(queued.counters.received, 1000);
+    assert_eq!(latest.counters.received, 1000);
+    // Each 10 ms window brings 10 packages: the queue keeps the newest 3 and drops 7.
+    // Three packages are still pending when the run ends.
+    assert_eq!(queued.counters.delivered + queued.counters.dropped + 3, 1000, "{queued:?}");
+    assert!(queued.counters.dropped >= 690, "{queued:?}");
+    assert!(latest.counters.overwritten >= 890, "{latest:?}");
+    assert_eq!(stats.total_dropped(), queued.counters.dropped);
+    let burst = stats.module("burst").expect("burst");
+    assert!((burst.rate.mean_hz - 1000.0).abs() < 1.0, "{:?}", burst.rate);
+    assert!((burst.rate.min_hz - 1000.0).abs() < 1.0, "{:?}", burst.rate);
+}
+
+#[test]
+fn all_mode_waits_for_every_listed_input() {
+    struct Pair {
+        a: Input<u64>,
+        b: Input<u64>,
+        out: Arc<Mutex<Vec<(u64, u64)>>>,
+    }
+    impl Module for Pair {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            let a = ctx.latest(self.a).map(|p| p.value);
+            let b = ctx.latest(self.b).map(|p| p.value);
+            if let (Some(a), Some(b)) = (a, b) {
+                self.out.lock().expect("lock").push((a, b));
+            } else {
+                panic!("ran without both inputs: {a:?} {b:?}");
+            }
+            Ok(())
+        }
+    }
+    let pairs = Arc::new(Mutex::new(Vec::new()));
+    let mut graph = GraphBuilder::new();
+    let fast = graph.add("fast", |p| {
+        p.trigger(Trigger::every(MS));
+        let out = p.output("n");
+        (Counter { out, next: 0, noisy: false, limit: None }, out)
+    });
+    let slow = graph.add("slow", |p| {
+        p.trigger(Trigger::every(10 * MS));
+        let out = p.output("n");
+        (Counter { out, next: 0, noisy: false, limit: None }, out)
+    });
+    let (a, b) = graph.add("pair", |p| {
+        let a = p.input("a", Policy::Latest);
+        let b = p.input("b", Policy::Latest);
+        p.trigger(Trigger::on_all([a.into(), b.into()]));
+        (Pair { a, b, out: Arc::clone(&pairs) }, (a, b))
+    });
+    graph.connect(fast, a);
+    graph.connect(slow, b);
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    host.run_for(Duration::from_millis(100)).expect("runs");
+    let pairs = pairs.lock().expect("lock");
+    // The slow module sends at 0, 10, ..., 100 ms (the end instant is included).
+    assert_eq!(pairs.len(), 11, "one cycle per slow package: {pairs:?}");
+    assert!(pairs.iter().enumerate().all(|(i, (_, b))| *b == i as u64));
+}
+
+#[test]
+fn external_inputs_receive_injected_packages_at_the_given_time() {
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let mut graph = GraphBuilder::new();
+    let input = graph.add("reader", |p| {
+        let input = p.input("n", Policy::queue(8));
+        p.trigger(Trigger::on_any([input.into()]));
+        (Recorder { input, seen: Arc::clone(&seen), newest_only: false }, input)
+    });
+    graph.external(input);
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    host.inject(input, 42, Time::from_nanos(5), Time::from_secs_f64(0.25)).expect("external");
+    host.run_for(Duration::from_secs(1)).expect("runs");
+    let seen = seen.lock().expect("lock");
+    assert_eq!(seen.as_slice(), &[(Time::from_secs_f64(0.25), 42, Time::from_nanos(5))]);
+}
+
+#[test]
+fn a_writer_can_wait_until_its_receiver_is_ready() {
+    /// Sends the next number only when the previous one was taken (the paper's second kind of
+    /// message), so even a `Latest` connection loses nothing.
+    struct OnDemand {
+        out: Output<u64>,
+        next: u64,
+    }
+    impl Module for OnDemand {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            if ctx.receivers_ready(self.out) {
+                ctx.send(self.out, self.next);
+                self.next += 1;
+            }
+            Ok(())
+        }
+    }
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let mut graph = GraphBuilder::new();
+    let out = graph.add("producer", |p| {
+        let out = p.output("n");
+        p.wake_when_receivers_ready(out);
+        // A slow tick only starts the exchange; readiness drives it afterwards.
+        p.trigger(Trigger::every(Duration::from_secs(10)));
+        (OnDemand { out, next: 0 }, out)
+    });
+    let input = graph.add("consumer", |p| {
+        let input = p.input("n", Policy::Latest);
+        p.trigger(Trigger::on_any([input.into()]));
+        p.processing_time(ProcessingTime::fixed(4 * MS));
+        (Recorder { input, seen: Arc::clone(&seen), newest_only: false }, input)
+    });
+    graph.connect(out, input);
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    host.run_for(Duration::from_millis(100)).expect("runs");
+    let stats = host.stats();
+    let values: Vec<u64> = seen.lock().expect("lock").iter().map(|s| s.1).collect();
+    assert!(values.len() >= 20, "{values:?}");
+    assert_eq!(values, (0..values.len() as u64).collect::<Vec<_>>());
+    assert_eq!(stats.module("consumer").expect("consumer").inputs[0].counters.overwritten, 0);
+}
+
+#[test]
+fn a_failing_module_stops_the_run_with_its_name() {
+    struct Failing;
+    impl Module for Failing {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            if ctx.now() >= Time::from_secs_f64(0.05) {
+                return Err("lost the sensor".into());
+            }
+            Ok(())
+        }
+    }
+    struct Panicking;
+    impl Module for Panicking {
+        fn cycle(&mut self, _: &mut Context<'_>) -> Result<(), ModuleError> {
+            panic!("index out of range in the filter");
+        }
+    }
+    let mut graph = GraphBuilder::new();
+    graph.add("perception", |p| {
+        p.trigger(Trigger::every(10 * MS));
+        (Failing, ())
+    });
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    match host.run_for(Duration::from_secs(1)) {
+        Err(HostError::ModuleFailed { module, error, stats }) => {
+            assert_eq!(module, "perception");
+            assert_eq!(error, "lost the sensor");
+            assert_eq!(stats.module("perception").expect("stats").errors, 1);
+        }
+        other => panic!("expected a module failure, got {other:?}"),
+    }
+    let mut graph = GraphBuilder::new();
+    graph.add("world", |p| {
+        p.trigger(Trigger::every(10 * MS));
+        (Panicking, ())
+    });
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    let err = host.run_for(Duration::from_secs(1)).expect_err("panics");
+    assert!(err.to_string().contains("`world` panicked: index out of range"), "{err}");
+}
+
+#[test]
+fn simultaneous_events_follow_module_priority() {
+    let order = Arc::new(Mutex::new(Vec::new()));
+    struct Mark {
+        name: &'static str,
+        order: Arc<Mutex<Vec<&'static str>>>,
+    }
+    impl Module for Mark {
+        fn cycle(&mut self, _: &mut Context<'_>) -> Result<(), ModuleError> {
+            self.order.lock().expect("lock").push(self.name);
+            Ok(())
+        }
+    }
+    let mut graph = GraphBuilder::new();
+    for (name, priority) in [("robot", 0), ("simulator", -100)] {
+        let order = Arc::clone(&order);
+        graph.add(name, move |p| {
+            p.trigger(Trigger::every(12 * MS));
+            p.priority(priority);
+            (Mark { name, order }, ())
+        });
+    }
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    host.run_for(Duration::from_millis(30)).expect("runs");
+    assert_eq!(
+        *order.lock().expect("lock"),
+        ["simulator", "robot", "simulator", "robot", "simulator", "robot"]
+    );
+}
