@@ -172,4 +172,8 @@ pub enum ActuationMessage {
     /// A command could not be executed (unsupported by the platform, resource busy with a
     /// special sequence).
     CommandRejected { resource: Resource, reason: String },
+    /// A special sequence took the resource: commands for it are refused until released.
+    ResourceBusy { resource: Resource },
+    /// The resource is free again (a special sequence ended).
+    ResourceReleased { resource: Resource },
 }

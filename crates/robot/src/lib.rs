@@ -5,9 +5,12 @@
 //! names a ball, a goal or a soccer role: an application provides its objects of interest,
 //! missions, roles, goals, behaviors and value functions.
 
+pub mod actuation;
 pub mod command;
+pub mod control;
 pub mod geometry;
 pub mod percept;
+pub mod perception;
 pub mod platform;
 
 pub use geometry::{Field, Odometry, Point, Pose, Robot, Vector, Velocity, normalize_angle};

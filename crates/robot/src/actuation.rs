@@ -1,0 +1,554 @@
+//! The actuation module (paper 3.5.1): keeps a command queue per resource, applies the three
+//! command policies, turns commands into platform orders, and tells the reactive layer what it
+//! needs to know — the odometry of the current command, that a command is about to finish (the
+//! resource will be released), and that a cyclic command is in its execution stage (it can be
+//! changed now without disturbing the robot).
+//!
+//! Policies:
+//! - Queue: appended behind what is queued; a walk followed by a queued walk continues the gait
+//!   without its end and initialization stages.
+//! - Non-queue: clears the resource's queue and replaces the current command at once.
+//! - Special: a non-parametric sequence. It takes its resources until the platform reports it
+//!   done; commands for them are rejected meanwhile. A protective fall preempts anything.
+
+use std::collections::VecDeque;
+
+use serde::{Deserialize, Serialize};
+use strata_runtime::{Context, Input, Module, ModuleError, Output, Time};
+
+use crate::command::{
+    ActuationMessage, BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, Resource,
+};
+use crate::geometry::{Odometry, Velocity};
+use crate::platform::{
+    ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, HeadOrder, MotionFeedback,
+    SharedPlatform, SpecialMotion, lock_platform,
+};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ActuationConfig {
+    /// How long before a command ends actuation announces it (asks for the next action), s.
+    pub finishing_lead: f64,
+}
+
+impl Default for ActuationConfig {
+    fn default() -> Self {
+        ActuationConfig { finishing_lead: 0.15 }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum BodyExecution {
+    Idle,
+    Standing,
+    Walking { velocity: Velocity, remaining: f64 },
+    Special { motion: SpecialMotion, started: bool },
+}
+
+/// The command queues and the state of execution; pure, so it can be tested without a
+/// platform or threads.
+#[derive(Clone, Debug)]
+pub struct ActuationState {
+    config: ActuationConfig,
+    head_queue: VecDeque<HeadMotion>,
+    head_current: Option<HeadMotion>,
+    head_announced: bool,
+    body_queue: VecDeque<BodyMotion>,
+    body: BodyExecution,
+    body_announced: bool,
+    /// A whole-body sequence holds the head too.
+    head_held_by_special: bool,
+    last_stage: Option<CycleStage>,
+    last_time: Option<Time>,
+    messages: Vec<ActuationMessage>,
+    orders: ActuatorOrders,
+}
+
+impl ActuationState {
+    pub fn new(config: ActuationConfig) -> ActuationState {
+        ActuationState {
+            config,
+            head_queue: VecDeque::new(),
+            head_current: None,
+            head_announced: false,
+            body_queue: VecDeque::new(),
+            body: BodyExecution::Idle,
+            body_announced: false,
+            head_held_by_special: false,
+            last_stage: None,
+            last_time: None,
+            messages: Vec::new(),
+            orders: ActuatorOrders::default(),
+        }
+    }
+
+    fn reject(&mut self, resource: Resource, reason: &str) {
+        self.messages
+            .push(ActuationMessage::CommandRejected { resource, reason: reason.to_owned() });
+    }
+
+    fn body_busy(&self) -> bool {
+        matches!(self.body, BodyExecution::Special { .. })
+    }
+
+    fn start_special(&mut self, motion: SpecialMotion) {
+        self.body_queue.clear();
+        self.body = BodyExecution::Special { motion, started: false };
+        self.orders.body = Some(BodyOrder::Special { motion });
+        self.messages.push(ActuationMessage::ResourceBusy { resource: Resource::Body });
+        if motion.uses_head() {
+            self.head_queue.clear();
+            self.head_current = None;
+            self.head_held_by_special = true;
+            self.messages.push(ActuationMessage::ResourceBusy { resource: Resource::Head });
+        }
+    }
+
+    fn start_body(&mut self, motion: BodyMotion) {
+        self.body_announced = false;
+        match motion {
+            BodyMotion::Stand => {
+                self.body = BodyExecution::Standing;
+                self.orders.body = Some(BodyOrder::Stand);
+            }
+            BodyMotion::Walk { velocity, duration } => {
+                self.body = BodyExecution::Walking { velocity, remaining: duration.max(0.0) };
+                self.orders.body = Some(BodyOrder::Walk { velocity });
+            }
+        }
+    }
+
+    fn start_head(&mut self, motion: HeadMotion) {
+        self.head_current = Some(motion);
+        self.head_announced = false;
+        self.orders.head = Some(HeadOrder { target: motion.target, max_speed: motion.max_speed });
+    }
+
+    /// Applies one cycle's commands from the reactive layer.
+    pub fn command(&mut self, commands: &MotionCommands) {
+        match *commands {
+            MotionCommands::WholeBody { motion } => {
+                let preempts = matches!(motion, SpecialMotion::Fall(_));
+                let already =
+                    matches!(self.body, BodyExecution::Special { motion: m, .. } if m == motion);
+                if already {
+                    return;
+                }
+                if self.body_busy() && !preempts {
+                    self.reject(Resource::Body, "a special sequence is running");
+                    return;
+                }
+                self.start_special(motion);
+            }
+            MotionCommands::PerResource { head, body } => {
+                if let Some(head) = head {
+                    if self.head_held_by_special {
+                        self.reject(Resource::Head, "a whole-body sequence holds the head");
+                    } else {
+                        match head {
+                            HeadCommand::NonQueue(motion) => {
+                                self.head_queue.clear();
+                                self.start_head(motion);
+                            }
+                            HeadCommand::Queue(motion) => {
+                                if self.head_current.is_none() {
+                                    self.start_head(motion);
+                                } else {
+                                    self.head_queue.push_back(motion);
+                                }
+                            }
+                        }
+                    }
+                }
+                if let Some(body) = body {
+                    if self.body_busy() {
+                        self.reject(Resource::Body, "a special sequence is running");
+                    } else {
+                        match body {
+                            BodyCommand::Special(motion) => self.start_special(motion),
+                            BodyCommand::NonQueue(motion) => {
+                                self.body_queue.clear();
+                                self.start_body(motion);
+                            }
+                            BodyCommand::Queue(motion) => {
+                                if matches!(self.body, BodyExecution::Idle) {
+                                    self.start_body(motion);
+                                } else {
+                                    self.body_queue.push_back(motion);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Advances execution with the platform's feedback; returns the orders to write (if any
+    /// changed) and the messages for the reactive layer.
+    pub fn update(
+        &mut self,
+        feedback: &MotionFeedback,
+    ) -> (Option<ActuatorOrders>, Vec<ActuationMessage>) {
+        let now = feedback.stamp;
+        let dt = self.last_time.map_or(0.0, |t| (now - t).as_secs_f64());
+        self.last_time = Some(now);
+
+        if feedback.odometry != Odometry::ZERO {
+            self.messages.push(ActuationMessage::CommandOdometry { odometry: feedback.odometry });
+        }
+
+        // Body.
+        match (&mut self.body, feedback.body) {
+            (BodyExecution::Special { started, .. }, BodyMotionState::Special { .. }) => {
+                *started = true;
+            }
+            (BodyExecution::Special { started: true, .. }, _) => {
+                // The sequence ended (standing, or lying after a fall): the resources are free.
+                self.body = BodyExecution::Idle;
+                self.orders.body = None;
+                self.messages.push(ActuationMessage::ResourceReleased { resource: Resource::Body });
+                if self.head_held_by_special {
+                    self.head_held_by_special = false;
+                    self.messages
+                        .push(ActuationMessage::ResourceReleased { resource: Resource::Head });
+                }
+            }
+            (BodyExecution::Walking { remaining, .. }, state) => {
+                let stage = match state {
+                    BodyMotionState::Walking { stage, .. } => Some(stage),
+                    _ => None,
+                };
+                if stage == Some(CycleStage::Execution) {
+                    *remaining -= dt;
+                }
+                let remaining = *remaining;
+                if stage == Some(CycleStage::Execution)
+                    && self.last_stage != Some(CycleStage::Execution)
+                {
+                    self.messages
+                        .push(ActuationMessage::CommandCyclicPart { resource: Resource::Body });
+                }
+                self.last_stage = stage;
+                if remaining <= self.config.finishing_lead
+                    && self.body_queue.is_empty()
+                    && !self.body_announced
+                {
+                    self.body_announced = true;
+                    self.messages.push(ActuationMessage::CommandFinishing {
+                        resource: Resource::Body,
+                        remaining: remaining.max(0.0),
+                    });
+                }
+                if remaining <= 0.0 {
+                    match self.body_queue.pop_front() {
+                        // A queued walk continues the gait: only the velocity changes.
+                        Some(next) => self.start_body(next),
+                        None => {
+                            self.body = BodyExecution::Standing;
+                            self.orders.body = Some(BodyOrder::Stand);
+                        }
+                    }
+                }
+            }
+            (BodyExecution::Standing, _) | (BodyExecution::Idle, _) => {
+                if let Some(next) = self.body_queue.pop_front() {
+                    self.start_body(next);
+                }
+            }
+            (BodyExecution::Special { started: false, .. }, _) => {}
+        }
+        if !matches!(self.body, BodyExecution::Walking { .. }) {
+            self.last_stage = None;
+        }
+
+        // Head.
+        if let Some(current) = self.head_current {
+            let error = (feedback.head.yaw - current.target.yaw)
+                .abs()
+                .max((feedback.head.pitch - current.target.pitch).abs());
+            let eta = if current.max_speed > 0.0 { error / current.max_speed } else { 0.0 };
+            if self.head_queue.is_empty()
+                && !self.head_announced
+                && eta <= self.config.finishing_lead
+            {
+                self.head_announced = true;
+                self.messages.push(ActuationMessage::CommandFinishing {
+                    resource: Resource::Head,
+                    remaining: eta,
+                });
+            }
+            if feedback.head_settled || error < 0.01 {
+                match self.head_queue.pop_front() {
+                    Some(next) => self.start_head(next),
+                    None => self.head_current = None,
+                }
+            }
+        }
+
+        let orders = std::mem::take(&mut self.orders);
+        let messages = std::mem::take(&mut self.messages);
+        let changed = orders.head.is_some() || orders.body.is_some();
+        (changed.then_some(orders), messages)
+    }
+
+    pub fn head_queue_len(&self) -> usize {
+        self.head_queue.len()
+    }
+
+    pub fn body_queue_len(&self) -> usize {
+        self.body_queue.len()
+    }
+}
+
+/// The actuation module: runs on every command package from the reactive layer.
+pub struct ActuationModule {
+    platform: SharedPlatform,
+    state: ActuationState,
+    commands: Input<MotionCommands>,
+    odometry: Output<Odometry>,
+    messages: Output<ActuationMessage>,
+    feedback: Output<MotionFeedback>,
+}
+
+impl std::fmt::Debug for ActuationModule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ActuationModule").field("state", &self.state).finish_non_exhaustive()
+    }
+}
+
+impl ActuationModule {
+    pub fn new(
+        platform: SharedPlatform,
+        config: ActuationConfig,
+        commands: Input<MotionCommands>,
+        odometry: Output<Odometry>,
+        messages: Output<ActuationMessage>,
+        feedback: Output<MotionFeedback>,
+    ) -> ActuationModule {
+        ActuationModule {
+            platform,
+            state: ActuationState::new(config),
+            commands,
+            odometry,
+            messages,
+            feedback,
+        }
+    }
+}
+
+impl Module for ActuationModule {
+    fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+        let now = ctx.now();
+        for package in ctx.drain(self.commands) {
+            self.state.command(&package.value);
+        }
+        let feedback = lock_platform(&self.platform).read_motion(now)?;
+        let (orders, messages) = self.state.update(&feedback);
+        if let Some(orders) = orders
+            && let Err(error) = lock_platform(&self.platform).write(now, &orders)
+        {
+            // An unsupported order (a NAO without a gait engine asked to walk) is reported to
+            // the reactive layer instead of stopping the robot.
+            match error {
+                crate::platform::PlatformError::Unsupported(what) => {
+                    let resource =
+                        if orders.body.is_some() { Resource::Body } else { Resource::Head };
+                    ctx.send(
+                        self.messages,
+                        ActuationMessage::CommandRejected { resource, reason: what },
+                    );
+                }
+                other => return Err(Box::new(other)),
+            }
+        }
+        if feedback.odometry != Odometry::ZERO {
+            ctx.send_stamped(self.odometry, feedback.odometry, feedback.stamp);
+        }
+        for message in messages {
+            ctx.send_stamped(self.messages, message, feedback.stamp);
+        }
+        ctx.send_stamped(self.feedback, feedback, feedback.stamp);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::platform::HeadAngles;
+
+    fn feedback(t: f64, body: BodyMotionState) -> MotionFeedback {
+        MotionFeedback {
+            stamp: Time::from_secs_f64(t),
+            body,
+            head: HeadAngles::default(),
+            head_settled: true,
+            odometry: Odometry::ZERO,
+        }
+    }
+
+    fn walk(vx: f64, duration: f64) -> BodyMotion {
+        BodyMotion::Walk { velocity: Velocity::new(vx, 0.0, 0.0), duration }
+    }
+
+    fn executing(vx: f64) -> BodyMotionState {
+        BodyMotionState::Walking {
+            stage: CycleStage::Execution,
+            velocity: Velocity::new(vx, 0.0, 0.0),
+        }
+    }
+
+    #[test]
+    fn queued_walks_continue_without_stopping_and_non_queue_overwrites() {
+        let mut a = ActuationState::new(ActuationConfig { finishing_lead: 0.1 });
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::Queue(walk(0.1, 0.5))),
+        });
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::Queue(walk(0.2, 0.5))),
+        });
+        let (orders, messages) = a.update(&feedback(0.0, BodyMotionState::Standing));
+        assert_eq!(
+            orders.and_then(|o| o.body),
+            Some(BodyOrder::Walk { velocity: Velocity::new(0.1, 0.0, 0.0) })
+        );
+        assert!(messages.is_empty());
+        let (_, messages) = a.update(&feedback(0.1, executing(0.1)));
+        assert!(
+            messages.contains(&ActuationMessage::CommandCyclicPart { resource: Resource::Body })
+        );
+        // After the first walk's 0.5 s the second follows with no stand in between.
+        let (orders, _) = a.update(&feedback(0.65, executing(0.1)));
+        assert_eq!(
+            orders.and_then(|o| o.body),
+            Some(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) })
+        );
+        // The second walk is the last: actuation announces its end before it comes.
+        let (_, messages) = a.update(&feedback(1.1, executing(0.2)));
+        assert!(messages.iter().any(|m| matches!(
+            m,
+            ActuationMessage::CommandFinishing { resource: Resource::Body, .. }
+        )));
+        let (orders, _) = a.update(&feedback(1.2, executing(0.2)));
+        assert_eq!(orders.and_then(|o| o.body), Some(BodyOrder::Stand));
+
+        // Non-queue clears the queue and replaces the current command at once.
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::Queue(walk(0.1, 5.0))),
+        });
+        let _ = a.update(&feedback(1.3, BodyMotionState::Standing));
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::Queue(walk(0.3, 5.0))),
+        });
+        assert_eq!(a.body_queue_len(), 1);
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::NonQueue(walk(-0.1, 1.0))),
+        });
+        assert_eq!(a.body_queue_len(), 0);
+        let (orders, _) = a.update(&feedback(1.4, executing(0.1)));
+        assert_eq!(
+            orders.and_then(|o| o.body),
+            Some(BodyOrder::Walk { velocity: Velocity::new(-0.1, 0.0, 0.0) })
+        );
+    }
+
+    #[test]
+    fn special_sequences_hold_their_resources_until_done_and_a_fall_preempts() {
+        let mut a = ActuationState::new(ActuationConfig::default());
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
+        });
+        let (orders, messages) = a.update(&feedback(0.0, BodyMotionState::Standing));
+        assert_eq!(
+            orders.and_then(|o| o.body),
+            Some(BodyOrder::Special { motion: SpecialMotion::Kick(0) })
+        );
+        assert!(messages.contains(&ActuationMessage::ResourceBusy { resource: Resource::Body }));
+        let kicking = BodyMotionState::Special {
+            motion: SpecialMotion::Kick(0),
+            elapsed: 0.1,
+            duration: 1.0,
+        };
+        let _ = a.update(&feedback(0.1, kicking));
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::NonQueue(walk(0.1, 1.0))),
+        });
+        let (_, messages) = a.update(&feedback(0.2, kicking));
+        assert!(messages.iter().any(|m| matches!(
+            m,
+            ActuationMessage::CommandRejected { resource: Resource::Body, .. }
+        )));
+        // A kick does not hold the head.
+        a.command(&MotionCommands::PerResource {
+            head: Some(HeadCommand::NonQueue(HeadMotion {
+                target: HeadAngles { yaw: 0.5, pitch: 0.0 },
+                max_speed: 2.0,
+            })),
+            body: None,
+        });
+        let (orders, _) = a.update(&feedback(0.3, kicking));
+        assert!(orders.and_then(|o| o.head).is_some());
+        // A fall preempts the kick and takes the head too.
+        a.command(&MotionCommands::WholeBody { motion: SpecialMotion::Fall(0) });
+        let (orders, messages) = a.update(&feedback(0.35, kicking));
+        assert_eq!(
+            orders.and_then(|o| o.body),
+            Some(BodyOrder::Special { motion: SpecialMotion::Fall(0) })
+        );
+        assert!(messages.contains(&ActuationMessage::ResourceBusy { resource: Resource::Head }));
+        let falling = BodyMotionState::Special {
+            motion: SpecialMotion::Fall(0),
+            elapsed: 0.1,
+            duration: 0.5,
+        };
+        let _ = a.update(&feedback(0.4, falling));
+        let (_, messages) = a.update(&feedback(
+            1.0,
+            BodyMotionState::Fallen { direction: crate::platform::FallDirection::Front },
+        ));
+        assert!(
+            messages.contains(&ActuationMessage::ResourceReleased { resource: Resource::Body })
+        );
+        assert!(
+            messages.contains(&ActuationMessage::ResourceReleased { resource: Resource::Head })
+        );
+    }
+
+    #[test]
+    fn head_queue_follows_a_path_and_announces_its_end() {
+        let mut a = ActuationState::new(ActuationConfig { finishing_lead: 0.1 });
+        let target = |yaw| HeadMotion { target: HeadAngles { yaw, pitch: 0.0 }, max_speed: 1.0 };
+        for yaw in [0.5, -0.5] {
+            a.command(&MotionCommands::PerResource {
+                head: Some(HeadCommand::Queue(target(yaw))),
+                body: None,
+            });
+        }
+        let mut fb = feedback(0.0, BodyMotionState::Standing);
+        fb.head_settled = false;
+        let (orders, _) = a.update(&fb);
+        assert_eq!(orders.and_then(|o| o.head).map(|h| h.target.yaw), Some(0.5));
+        fb.head = HeadAngles { yaw: 0.5, pitch: 0.0 };
+        fb.head_settled = true;
+        fb.stamp = Time::from_secs_f64(0.5);
+        let (orders, _) = a.update(&fb);
+        assert_eq!(orders.and_then(|o| o.head).map(|h| h.target.yaw), Some(-0.5));
+        fb.head = HeadAngles { yaw: -0.45, pitch: 0.0 };
+        fb.head_settled = false;
+        fb.stamp = Time::from_secs_f64(1.4);
+        let (_, messages) = a.update(&fb);
+        assert!(messages.iter().any(|m| matches!(
+            m,
+            ActuationMessage::CommandFinishing { resource: Resource::Head, .. }
+        )));
+    }
+}

@@ -1,0 +1,584 @@
+//! The planning layer (paper 3.3): multi-robot coordination, decided distributively.
+//!
+//! - **MAMC** (multi-agent mission coordinator) keeps what each teammate last said and decides
+//!   who is available: a teammate that is fallen, penalized, not localized, silent beyond a
+//!   timeout, or not accomplishing its mission is freed from its role until it recovers.
+//! - **MAMS** (multi-agent mission selector) selects the mission from everything the available
+//!   teammates share, re-evaluated on every message; without communication it falls back to the
+//!   application's default mission.
+//! - **ARS** (agent role selector) assigns the mission's roles to the available robots (this one
+//!   included) by their utilities — every robot runs the same deterministic assignment on the
+//!   same shared data, so no leader is needed. When two robots hold a single-robot role, the
+//!   first to detect it sends an instant message; the one with the lower utility (the higher
+//!   number on a tie) yields.
+//! - Communication lives only here: a periodic message, plus an instant message when this
+//!   robot's status changes (falls, stands up, loses or finds the ball) or a role conflict is
+//!   detected, always within the message budget. The deliberative layer is told only when the
+//!   mission, the role or the application's directive change.
+
+use std::collections::BTreeMap;
+use std::fmt::Debug;
+use std::hash::Hash;
+use std::time::Duration;
+
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+use strata_runtime::Time;
+
+use crate::geometry::{Field, Point, Pose};
+
+/// A mission or role name of the application (an enum, typically).
+pub trait Label:
+    Copy + Debug + PartialEq + Eq + Hash + Ord + Serialize + DeserializeOwned + Send + Sync + 'static
+{
+}
+
+impl<T> Label for T where
+    T: Copy
+        + Debug
+        + PartialEq
+        + Eq
+        + Hash
+        + Ord
+        + Serialize
+        + DeserializeOwned
+        + Send
+        + Sync
+        + 'static
+{
+}
+
+/// One role of a mission.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "R: Label")]
+pub struct RoleSpec<R> {
+    pub role: R,
+    /// How many robots may hold the role at once (`None`: any number).
+    pub max_robots: Option<usize>,
+    /// A special role is held by a designated robot only (the goalkeeper).
+    pub designated: Option<u8>,
+}
+
+/// A mission and its roles, in the order they are assigned (most important first).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "M: Label, R: Label")]
+pub struct MissionSpec<M, R> {
+    pub mission: M,
+    pub roles: Vec<RoleSpec<R>>,
+}
+
+/// The missions and roles of an application (paper Table 1), as data.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "M: Label, R: Label")]
+pub struct MissionCatalog<M, R> {
+    pub missions: Vec<MissionSpec<M, R>>,
+    /// What a robot does when it hears no teammate (the paper: Attack / Striker).
+    pub default_mission: M,
+    pub default_role: R,
+}
+
+impl<M: Label, R: Label> MissionCatalog<M, R> {
+    pub fn mission(&self, mission: M) -> Option<&MissionSpec<M, R>> {
+        self.missions.iter().find(|m| m.mission == mission)
+    }
+
+    fn role_spec(&self, mission: M, role: R) -> Option<&RoleSpec<R>> {
+        self.mission(mission)?.roles.iter().find(|r| r.role == role)
+    }
+}
+
+/// Standing status, the first thing a teammate must know.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StandingStatus {
+    #[default]
+    Stable,
+    Unstable,
+    Fallen,
+}
+
+/// An object of interest as a robot shares it (the local map of Fig. 2), in the field frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SharedObject {
+    pub name: String,
+    pub position: Point<Field>,
+    /// Position standard deviation, m.
+    pub sigma: f64,
+    pub confidence: f64,
+    /// Seconds since the sender last saw it.
+    pub age: f64,
+}
+
+/// The team message of Fig. 2: internal state, basic communication information, world model.
+/// The application turns it into bytes (and may add its own fields in `extra`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "M: Label, R: Label")]
+pub struct TeamMessage<M, R> {
+    pub sender: u8,
+    pub mission: M,
+    pub role: R,
+    pub status: StandingStatus,
+    pub penalized: bool,
+    pub localized: bool,
+    /// Seconds since the sender last heard any teammate.
+    pub since_last_received: f64,
+    /// Whether the sender has received anything since its previous message.
+    pub data_received: bool,
+    /// The sender's own utility for the role it holds (the ARS compares it).
+    pub utility: f64,
+    /// The sender detected a role conflict and asks the others to re-evaluate.
+    pub conflict: bool,
+    pub pose: Pose,
+    pub pose_confidence: f64,
+    pub objects: Vec<SharedObject>,
+}
+
+/// This robot as the planning layer sees it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OwnState {
+    pub id: u8,
+    pub status: StandingStatus,
+    pub penalized: bool,
+    pub localized: bool,
+    pub pose: Pose,
+    pub pose_confidence: f64,
+    pub objects: Vec<SharedObject>,
+}
+
+/// What MAMC keeps about a teammate.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "M: Label, R: Label")]
+pub struct TeammateRecord<M, R> {
+    pub message: TeamMessage<M, R>,
+    pub last_heard: Time,
+    pub messages: u64,
+    /// Why it is unavailable, if it is.
+    pub unavailable: Option<String>,
+}
+
+/// A candidate for role assignment: this robot or an available teammate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Candidate<'a> {
+    pub id: u8,
+    pub pose: Pose,
+    pub objects: &'a [SharedObject],
+}
+
+/// The application's part of planning.
+pub trait PlanningPolicy: Send {
+    type Mission: Label;
+    type Role: Label;
+
+    fn catalog(&self) -> &MissionCatalog<Self::Mission, Self::Role>;
+
+    /// MAMS: the mission for the team, from this robot and its available teammates.
+    fn select_mission(
+        &self,
+        own: &OwnState,
+        teammates: &[&TeammateRecord<Self::Mission, Self::Role>],
+    ) -> Self::Mission;
+
+    /// ARS: how well `candidate` would perform `role` (higher is better).
+    fn role_utility(
+        &self,
+        candidate: &Candidate<'_>,
+        role: Self::Role,
+        mission: Self::Mission,
+    ) -> f64;
+
+    /// MAMC's "is it accomplishing its mission" check, beyond status and silence.
+    fn accomplishing(
+        &self,
+        _teammate: &TeammateRecord<Self::Mission, Self::Role>,
+        _now: Time,
+    ) -> bool {
+        true
+    }
+
+    /// Whether this robot's own shared state changed enough to warrant an instant message
+    /// (beyond standing status, which always does): e.g. it lost or found the ball.
+    fn instant_worthy(&self, _previous: &OwnState, _current: &OwnState) -> bool {
+        false
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlanningConfig {
+    /// Period of the regular team message, s.
+    pub message_interval: f64,
+    /// A teammate silent for longer is unavailable, s.
+    pub teammate_timeout: f64,
+    /// Minimum spacing between any two messages (instant ones included), s.
+    pub min_message_spacing: f64,
+}
+
+impl Default for PlanningConfig {
+    fn default() -> Self {
+        PlanningConfig { message_interval: 4.0, teammate_timeout: 6.0, min_message_spacing: 0.5 }
+    }
+}
+
+/// How many messages may still be sent, and until when: the application keeps it up to date
+/// (in soccer, from the GameController's message budget). A robot spends at most its share of
+/// what remains, evenly over the remaining time.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MessageBudget {
+    /// Messages left for this robot's team.
+    pub team_remaining: u32,
+    /// Robots of the team sharing it.
+    pub robots: u32,
+    /// Time left in the game, s.
+    pub time_left: f64,
+    /// Messages kept back for instant messages.
+    pub reserve: u32,
+}
+
+impl MessageBudget {
+    pub fn unlimited() -> MessageBudget {
+        MessageBudget { team_remaining: u32::MAX, robots: 1, time_left: f64::INFINITY, reserve: 0 }
+    }
+
+    fn own_share(&self) -> f64 {
+        f64::from(self.team_remaining) / f64::from(self.robots.max(1))
+    }
+
+    /// The smallest interval between regular messages that lasts the game.
+    pub fn sustainable_interval(&self) -> f64 {
+        let usable = self.own_share() - f64::from(self.reserve);
+        if usable <= 0.0 {
+            f64::INFINITY
+        } else if self.time_left.is_infinite() {
+            0.0
+        } else {
+            self.time_left / usable
+        }
+    }
+
+    pub fn can_send(&self, instant: bool) -> bool {
+        let share = self.own_share();
+        if instant { share >= 1.0 } else { share >= 1.0 + f64::from(self.reserve) }
+    }
+
+    pub fn spend(&mut self) {
+        self.team_remaining = self.team_remaining.saturating_sub(1);
+    }
+}
+
+/// What the planning layer tells the deliberative layer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "M: Label, R: Label")]
+pub struct Assignment<M, R> {
+    pub mission: M,
+    pub role: R,
+    /// No teammate is available: the default mission is in force.
+    pub alone: bool,
+}
+
+/// Why a message is due.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MessageKind {
+    Periodic,
+    Instant,
+}
+
+/// The planning layer's state: MAMC records, the current assignment, message scheduling.
+#[derive(Debug)]
+pub struct Planner<P: PlanningPolicy> {
+    policy: P,
+    config: PlanningConfig,
+    teammates: BTreeMap<u8, TeammateRecord<P::Mission, P::Role>>,
+    assignment: Assignment<P::Mission, P::Role>,
+    own: Option<OwnState>,
+    own_utility: f64,
+    last_sent: Option<Time>,
+    last_received: Option<Time>,
+    received_since_sent: bool,
+    instant_pending: bool,
+    conflict_pending: bool,
+    pub budget: MessageBudget,
+    pub stats: PlanningStats,
+}
+
+/// Counters of the planning layer, for reports.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct PlanningStats {
+    pub sent_periodic: u64,
+    pub sent_instant: u64,
+    pub received: u64,
+    pub rejected: u64,
+    pub role_changes: u64,
+    pub conflicts_detected: u64,
+    /// Messages skipped because the budget did not allow them.
+    pub withheld: u64,
+}
+
+impl<P: PlanningPolicy> Planner<P> {
+    pub fn new(policy: P, config: PlanningConfig) -> Planner<P> {
+        let catalog = policy.catalog();
+        let assignment = Assignment {
+            mission: catalog.default_mission,
+            role: catalog.default_role,
+            alone: true,
+        };
+        Planner {
+            policy,
+            config,
+            teammates: BTreeMap::new(),
+            assignment,
+            own: None,
+            own_utility: 0.0,
+            last_sent: None,
+            last_received: None,
+            received_since_sent: false,
+            instant_pending: false,
+            conflict_pending: false,
+            budget: MessageBudget::unlimited(),
+            stats: PlanningStats::default(),
+        }
+    }
+
+    pub fn policy(&self) -> &P {
+        &self.policy
+    }
+
+    pub fn policy_mut(&mut self) -> &mut P {
+        &mut self.policy
+    }
+
+    pub fn assignment(&self) -> &Assignment<P::Mission, P::Role> {
+        &self.assignment
+    }
+
+    pub fn teammates(&self) -> impl Iterator<Item = &TeammateRecord<P::Mission, P::Role>> {
+        self.teammates.values()
+    }
+
+    /// A message arrived from a teammate (already decoded by the application).
+    pub fn receive(&mut self, now: Time, message: TeamMessage<P::Mission, P::Role>) {
+        let own_id = self.own.as_ref().map(|o| o.id);
+        if own_id == Some(message.sender) {
+            // Our own broadcast echoed back (loopback networks do this).
+            return;
+        }
+        self.stats.received += 1;
+        self.last_received = Some(now);
+        self.received_since_sent = true;
+        let record = self.teammates.entry(message.sender).or_insert_with(|| TeammateRecord {
+            message: message.clone(),
+            last_heard: now,
+            messages: 0,
+            unavailable: None,
+        });
+        record.message = message;
+        record.last_heard = now;
+        record.messages += 1;
+    }
+
+    pub fn reject(&mut self) {
+        self.stats.rejected += 1;
+    }
+
+    /// MAMC: marks teammates available or not.
+    fn coordinate(&mut self, now: Time) {
+        let timeout = Duration::from_secs_f64(self.config.teammate_timeout.max(0.0));
+        for record in self.teammates.values_mut() {
+            let m = &record.message;
+            record.unavailable = if now - record.last_heard > timeout {
+                Some(format!("silent for {:.1} s", (now - record.last_heard).as_secs_f64()))
+            } else if m.penalized {
+                Some("penalized".to_owned())
+            } else if m.status != StandingStatus::Stable {
+                Some(format!("{:?}", m.status).to_lowercase())
+            } else if !m.localized {
+                Some("not localized".to_owned())
+            } else {
+                None
+            };
+        }
+        let not_accomplishing: Vec<u8> = self
+            .teammates
+            .values()
+            .filter(|r| r.unavailable.is_none() && !self.policy.accomplishing(r, now))
+            .map(|r| r.message.sender)
+            .collect();
+        for id in not_accomplishing {
+            if let Some(r) = self.teammates.get_mut(&id) {
+                r.unavailable = Some("not accomplishing its mission".to_owned());
+            }
+        }
+    }
+
+    /// Re-evaluates mission and role. Returns the new assignment when it changed.
+    pub fn evaluate(
+        &mut self,
+        now: Time,
+        own: OwnState,
+    ) -> Option<Assignment<P::Mission, P::Role>> {
+        if let Some(previous) = &self.own
+            && (previous.status != own.status
+                || previous.penalized != own.penalized
+                || self.policy.instant_worthy(previous, &own))
+        {
+            self.instant_pending = true;
+        }
+        self.own = Some(own.clone());
+        self.coordinate(now);
+        let available: Vec<&TeammateRecord<P::Mission, P::Role>> =
+            self.teammates.values().filter(|r| r.unavailable.is_none()).collect();
+        let catalog = self.policy.catalog();
+        let alone = available.is_empty();
+        let (mission, role, utility) = if own.penalized || own.status != StandingStatus::Stable {
+            // An unavailable robot keeps its assignment; teammates free its role.
+            (self.assignment.mission, self.assignment.role, 0.0)
+        } else if alone {
+            let designated = self.designated_role(own.id);
+            match designated {
+                Some((mission, role)) => (mission, role, 1.0),
+                None => (catalog.default_mission, catalog.default_role, 0.0),
+            }
+        } else {
+            let mission = self.policy.select_mission(&own, &available);
+            let (role, utility) = self.assign_role(mission, &own, &available);
+            (mission, role, utility)
+        };
+        self.own_utility = utility;
+        // A conflict: someone available claims our single-robot role.
+        if let Some(spec) = catalog.role_spec(mission, role)
+            && spec.max_robots == Some(1)
+            && available.iter().any(|r| r.message.mission == mission && r.message.role == role)
+            && !self.conflict_pending
+        {
+            self.stats.conflicts_detected += 1;
+            self.conflict_pending = true;
+            self.instant_pending = true;
+        }
+        let next = Assignment { mission, role, alone };
+        if next != self.assignment {
+            if next.role != self.assignment.role {
+                self.stats.role_changes += 1;
+            }
+            self.assignment = next.clone();
+            // Teammates must learn the new role soon, not at the next period.
+            self.instant_pending = true;
+            return Some(next);
+        }
+        None
+    }
+
+    fn designated_role(&self, id: u8) -> Option<(P::Mission, P::Role)> {
+        self.policy.catalog().missions.iter().find_map(|m| {
+            m.roles.iter().find(|r| r.designated == Some(id)).map(|r| (m.mission, r.role))
+        })
+    }
+
+    /// ARS: the deterministic assignment every robot computes on the same data.
+    fn assign_role(
+        &self,
+        mission: P::Mission,
+        own: &OwnState,
+        available: &[&TeammateRecord<P::Mission, P::Role>],
+    ) -> (P::Role, f64) {
+        let catalog = self.policy.catalog();
+        if let Some((designated_mission, role)) = self.designated_role(own.id) {
+            return (role, if designated_mission == mission { 1.0 } else { 0.5 });
+        }
+        let Some(spec) = catalog.mission(mission) else {
+            return (catalog.default_role, 0.0);
+        };
+        let mut candidates: Vec<Candidate<'_>> =
+            vec![Candidate { id: own.id, pose: own.pose, objects: &own.objects }];
+        for r in available {
+            // Robots bound to a designated role (the goalkeeper) are not candidates for others.
+            if self.designated_role(r.message.sender).is_none() {
+                candidates.push(Candidate {
+                    id: r.message.sender,
+                    pose: r.message.pose,
+                    objects: &r.message.objects,
+                });
+            }
+        }
+        let mut unassigned: Vec<usize> = (0..candidates.len()).collect();
+        let mut fallback = None;
+        for role_spec in spec.roles.iter().filter(|r| r.designated.is_none()) {
+            let mut ranked: Vec<(usize, f64)> = unassigned
+                .iter()
+                .map(|&i| (i, self.policy.role_utility(&candidates[i], role_spec.role, mission)))
+                .collect();
+            // Higher utility first; on a tie, the lower robot number.
+            ranked.sort_by(|a, b| {
+                b.1.total_cmp(&a.1).then(candidates[a.0].id.cmp(&candidates[b.0].id))
+            });
+            let take = role_spec.max_robots.unwrap_or(ranked.len()).min(ranked.len());
+            for &(i, utility) in &ranked[..take] {
+                if candidates[i].id == own.id {
+                    return (role_spec.role, utility);
+                }
+            }
+            let taken: Vec<usize> = ranked[..take].iter().map(|(i, _)| *i).collect();
+            unassigned.retain(|i| !taken.contains(i));
+            fallback.get_or_insert(role_spec.role);
+        }
+        (fallback.unwrap_or(catalog.default_role), 0.0)
+    }
+
+    /// Whether a message is due now, and of which kind, given the budget.
+    pub fn message_due(&mut self, now: Time) -> Option<MessageKind> {
+        let spacing = Duration::from_secs_f64(self.config.min_message_spacing.max(0.0));
+        if self.last_sent.is_some_and(|t| now - t < spacing) {
+            return None;
+        }
+        let interval = self.config.message_interval.max(self.budget.sustainable_interval());
+        let periodic_due = self.last_sent.is_none_or(|t| (now - t).as_secs_f64() >= interval);
+        let kind = if self.instant_pending {
+            MessageKind::Instant
+        } else if periodic_due {
+            MessageKind::Periodic
+        } else {
+            return None;
+        };
+        if !self.budget.can_send(kind == MessageKind::Instant) {
+            self.stats.withheld += 1;
+            // An instant message that cannot go now is merged into the next one that can.
+            return None;
+        }
+        Some(kind)
+    }
+
+    /// The message to send now (call when [`Planner::message_due`] says so); records it as sent.
+    pub fn compose(
+        &mut self,
+        now: Time,
+        kind: MessageKind,
+    ) -> Option<TeamMessage<P::Mission, P::Role>> {
+        let own = self.own.as_ref()?;
+        let message = TeamMessage {
+            sender: own.id,
+            mission: self.assignment.mission,
+            role: self.assignment.role,
+            status: own.status,
+            penalized: own.penalized,
+            localized: own.localized,
+            since_last_received: self
+                .last_received
+                .map_or(f64::INFINITY, |t| (now - t).as_secs_f64()),
+            data_received: self.received_since_sent,
+            utility: self.own_utility,
+            conflict: self.conflict_pending,
+            pose: own.pose,
+            pose_confidence: own.pose_confidence,
+            objects: own.objects.clone(),
+        };
+        self.last_sent = Some(now);
+        self.received_since_sent = false;
+        self.instant_pending = false;
+        self.conflict_pending = false;
+        self.budget.spend();
+        match kind {
+            MessageKind::Periodic => self.stats.sent_periodic += 1,
+            MessageKind::Instant => self.stats.sent_instant += 1,
+        }
+        Some(message)
+    }
+}

@@ -1,0 +1,572 @@
+//! The reactive layer (paper 3.5): primitive behaviors, resource multiplexers and their
+//! activation function, inhibition between resources, and fall detection.
+//!
+//! Every reactive cycle (one per percept):
+//! 1. The fall detector classifies the robot's stability from the newest inertial data.
+//! 2. Each multiplexer — head+body first — runs its activation function on the score vector the
+//!    deliberative layer last sent: stage 1 lets the application split goals that cannot be
+//!    executed together now (two objects that do not fit in one gaze); stage 2 computes each
+//!    goal's reactive score S_r from the newest percepts and combines it with the deliberative
+//!    score S_d (the average, by default). S_d is never changed here: the reactive layer only
+//!    rescales, it never changes the goals.
+//! 3. The goal with the highest final score among those some primitive behavior can pursue now
+//!    (chosen from perceptual data, skipping primitives the deliberative layer deactivated) is
+//!    selected, and that primitive is activated. The head+body multiplexer's selection inhibits
+//!    the head and body multiplexers when its final score is at least theirs; otherwise it
+//!    yields and they run independently (their resources are disjoint, so their primitives are
+//!    orthogonal).
+//! 4. The active primitives compute this cycle's commands: a [`MotionCommands`] value, which
+//!    cannot hold two commands for one resource.
+
+use std::collections::BTreeSet;
+use std::fmt::Debug;
+
+use serde::{Deserialize, Serialize};
+use strata_runtime::Time;
+
+use crate::command::{
+    ActuationMessage, BodyCommand, HeadCommand, MotionCommands, Resource, ResourceGroup,
+};
+use crate::control::scores::{Goal, GoalScore, ScoreCombination, ScoreVector};
+use crate::percept::Percepts;
+use crate::platform::{FallDirection, SpecialMotion};
+
+/// How stable the robot is, from its inertial sensors (the paper's standing status: stable,
+/// unstable or fallen).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "status", content = "direction", rename_all = "snake_case")]
+pub enum Stability {
+    #[default]
+    Stable,
+    /// Falling: the tilt will pass the point of no return; protect the robot now.
+    Unstable(FallDirection),
+    /// Lying on the ground.
+    Fallen(FallDirection),
+}
+
+impl Stability {
+    pub fn is_stable(&self) -> bool {
+        matches!(self, Stability::Stable)
+    }
+}
+
+/// Thresholds of the fall detector.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FallDetectorConfig {
+    /// Tilt (rad) predicted `lookahead` seconds ahead beyond which the robot is falling.
+    pub unstable_tilt: f64,
+    /// Tilt (rad) beyond which the robot is lying down.
+    pub fallen_tilt: f64,
+    /// How far ahead the tilt is extrapolated with the gyroscope, s.
+    pub lookahead: f64,
+    /// Consecutive samples that must agree before the status changes (debouncing noise).
+    pub confirm_samples: u32,
+}
+
+impl Default for FallDetectorConfig {
+    fn default() -> Self {
+        FallDetectorConfig {
+            unstable_tilt: 0.5,
+            fallen_tilt: 1.0,
+            lookahead: 0.1,
+            confirm_samples: 1,
+        }
+    }
+}
+
+/// Classifies stability from body angles and gyroscope, every reactive cycle.
+#[derive(Clone, Debug, Default)]
+pub struct FallDetector {
+    config: FallDetectorConfig,
+    status: Stability,
+    candidate: Option<(Stability, u32)>,
+}
+
+impl FallDetector {
+    pub fn new(config: FallDetectorConfig) -> FallDetector {
+        FallDetector { config, status: Stability::Stable, candidate: None }
+    }
+
+    pub fn status(&self) -> Stability {
+        self.status
+    }
+
+    pub fn update(&mut self, percepts: &Percepts) -> Stability {
+        let [roll, pitch] = percepts.inertial.body_angles;
+        let [roll_rate, pitch_rate, _] = percepts.inertial.gyroscope;
+        let predicted_roll = roll + roll_rate * self.config.lookahead;
+        let predicted_pitch = pitch + pitch_rate * self.config.lookahead;
+        let direction = |r: f64, p: f64| {
+            if p.abs() >= r.abs() {
+                if p > 0.0 { FallDirection::Front } else { FallDirection::Back }
+            } else if r > 0.0 {
+                FallDirection::Right
+            } else {
+                FallDirection::Left
+            }
+        };
+        let observed = if roll.abs().max(pitch.abs()) > self.config.fallen_tilt {
+            Stability::Fallen(direction(roll, pitch))
+        } else if predicted_roll.abs().max(predicted_pitch.abs()) > self.config.unstable_tilt {
+            Stability::Unstable(direction(predicted_roll, predicted_pitch))
+        } else {
+            Stability::Stable
+        };
+        if observed == self.status {
+            self.candidate = None;
+            return self.status;
+        }
+        let count = match self.candidate {
+            Some((candidate, n)) if candidate == observed => n + 1,
+            _ => 1,
+        };
+        if count >= self.config.confirm_samples.max(1) {
+            self.status = observed;
+            self.candidate = None;
+        } else {
+            self.candidate = Some((observed, count));
+        }
+        self.status
+    }
+}
+
+/// What actuation has told the reactive layer about each resource.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ActuationStatus {
+    /// Resources whose command is about to finish (actuation asks for the next action).
+    pub finishing: BTreeSet<Resource>,
+    /// Resources executing a cyclic command in its execution stage (changeable now).
+    pub cyclic_part: BTreeSet<Resource>,
+    /// Resources busy with a special (non-parametric) sequence.
+    pub busy: BTreeSet<Resource>,
+    /// The last rejection, for reports.
+    pub last_rejection: Option<String>,
+}
+
+impl ActuationStatus {
+    /// Folds actuation messages in, in arrival order.
+    pub fn apply(&mut self, message: &ActuationMessage) {
+        match message {
+            ActuationMessage::CommandOdometry { .. } => {}
+            ActuationMessage::CommandFinishing { resource, .. } => {
+                self.finishing.insert(*resource);
+                self.cyclic_part.remove(resource);
+            }
+            ActuationMessage::CommandCyclicPart { resource } => {
+                self.cyclic_part.insert(*resource);
+                self.finishing.remove(resource);
+            }
+            ActuationMessage::CommandRejected { resource, reason } => {
+                self.last_rejection = Some(format!("{resource:?}: {reason}"));
+            }
+            ActuationMessage::ResourceBusy { resource } => {
+                self.busy.insert(*resource);
+            }
+            ActuationMessage::ResourceReleased { resource } => {
+                self.busy.remove(resource);
+                self.finishing.remove(resource);
+                self.cyclic_part.remove(resource);
+            }
+        }
+    }
+
+    pub fn is_busy(&self, group: ResourceGroup) -> bool {
+        self.busy.iter().any(|r| group.uses(*r))
+    }
+}
+
+/// What a primitive behavior sees each cycle: the newest data, never older (paper 3.5).
+#[derive(Debug)]
+pub struct ReactiveInput<'a, W> {
+    pub now: Time,
+    pub percepts: &'a Percepts,
+    /// The newest world state, if world modeling has published one.
+    pub world: Option<&'a W>,
+    pub actuation: &'a ActuationStatus,
+    pub stability: Stability,
+}
+
+/// A primitive behavior (paper 3.5.1): a short-term policy for one resource group, pursuing a
+/// goal set by the deliberative layer. It knows nothing of the consequences of its actions.
+pub trait PrimitiveBehavior<G, Cmd, W>: Send {
+    fn name(&self) -> &'static str;
+
+    /// The multiplexer activated this primitive (it was not active in the previous cycle, or
+    /// its goal changed).
+    fn activate(&mut self, _goal: &G, _input: &ReactiveInput<'_, W>) {}
+
+    /// This cycle's command toward `goal`; `None` leaves actuation doing what it does.
+    fn step(&mut self, goal: &G, input: &ReactiveInput<'_, W>) -> Option<Cmd>;
+
+    /// Another primitive took over the resource, or the primitive was inhibited.
+    fn deactivate(&mut self) {}
+}
+
+/// The application's part of a multiplexer's activation function.
+pub trait ActivationPolicy<G, W>: Send {
+    /// Stage 1: a goal that cannot be executed now as one (several objects that do not fit in
+    /// one gaze) is divided into goals that can. By default goals are kept as they are.
+    fn split(&self, goal: &GoalScore<G>, _input: &ReactiveInput<'_, W>) -> Vec<GoalScore<G>>
+    where
+        G: Goal,
+    {
+        vec![goal.clone()]
+    }
+
+    /// Stage 2: the reactive score S_r in [0, 1], refreshed on every percept.
+    fn reactive_score(&self, goal: &GoalScore<G>, input: &ReactiveInput<'_, W>) -> f64;
+
+    /// The primitive behaviors (by name) that can pursue `goal` given the percepts, preferred
+    /// first. Empty: the goal cannot be pursued now (e.g. a fall goal while stable).
+    fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> Vec<&'static str>;
+}
+
+/// One goal as the activation function scored it this cycle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GoalReport {
+    pub goal: String,
+    pub objects: Vec<String>,
+    /// S_d
+    pub deliberative: f64,
+    /// S_r
+    pub reactive: f64,
+    /// combine(S_d, S_r), before the hysteresis bonus.
+    pub final_score: f64,
+    /// Whether a (non-deactivated) primitive could pursue it now.
+    pub applicable: bool,
+}
+
+/// One multiplexer's decision in one cycle: the debugging view of the reactive layer.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MuxReport {
+    pub group: Option<ResourceGroup>,
+    pub goals: Vec<GoalReport>,
+    pub selected_goal: Option<String>,
+    pub primitive: Option<String>,
+    /// The multiplexer whose selection inhibited this one.
+    pub inhibited_by: Option<ResourceGroup>,
+    /// When the score vector in use was received.
+    pub scores_received: Option<Time>,
+}
+
+/// Tunables of a multiplexer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MultiplexerConfig {
+    pub combination: ScoreCombination,
+    /// Added to the final score of the goal currently pursued, so that two goals with nearly
+    /// equal scores do not make the resource flicker between them every cycle.
+    pub hysteresis: f64,
+}
+
+impl Default for MultiplexerConfig {
+    fn default() -> Self {
+        MultiplexerConfig { combination: ScoreCombination::Average, hysteresis: 0.05 }
+    }
+}
+
+struct Active<G> {
+    goal: G,
+    primitive: usize,
+}
+
+/// A selection made by the activation function, not yet executed.
+#[derive(Clone, Debug)]
+pub struct Selection<G> {
+    pub goal: GoalScore<G>,
+    pub final_score: f64,
+    primitive: usize,
+}
+
+/// Manages one resource group: holds the deliberative score vector, runs the activation
+/// function, activates one primitive behavior.
+pub struct Multiplexer<G, Cmd, W> {
+    group: ResourceGroup,
+    config: MultiplexerConfig,
+    policy: Box<dyn ActivationPolicy<G, W>>,
+    primitives: Vec<Box<dyn PrimitiveBehavior<G, Cmd, W>>>,
+    scores: ScoreVector<G>,
+    /// Goals the reactive layer always offers this multiplexer (reflexes such as the fall
+    /// goal): they must not wait for a slow deliberative layer.
+    reflexes: ScoreVector<G>,
+    deactivated: BTreeSet<String>,
+    active: Option<Active<G>>,
+    report: MuxReport,
+}
+
+impl<G: Goal, Cmd, W> Debug for Multiplexer<G, Cmd, W> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Multiplexer")
+            .field("group", &self.group)
+            .field("primitives", &self.primitives.iter().map(|p| p.name()).collect::<Vec<_>>())
+            .field("scores", &self.scores)
+            .finish()
+    }
+}
+
+impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
+    pub fn new(
+        group: ResourceGroup,
+        config: MultiplexerConfig,
+        policy: Box<dyn ActivationPolicy<G, W>>,
+    ) -> Multiplexer<G, Cmd, W> {
+        Multiplexer {
+            group,
+            config,
+            policy,
+            primitives: Vec::new(),
+            scores: ScoreVector::default(),
+            reflexes: ScoreVector::default(),
+            deactivated: BTreeSet::new(),
+            active: None,
+            report: MuxReport { group: Some(group), ..MuxReport::default() },
+        }
+    }
+
+    /// Registers a primitive behavior. Names must be unique within the multiplexer.
+    pub fn with_primitive(mut self, primitive: Box<dyn PrimitiveBehavior<G, Cmd, W>>) -> Self {
+        self.primitives.retain(|p| p.name() != primitive.name());
+        self.primitives.push(primitive);
+        self
+    }
+
+    pub fn with_reflexes(mut self, reflexes: ScoreVector<G>) -> Self {
+        self.reflexes = reflexes;
+        self
+    }
+
+    pub fn group(&self) -> ResourceGroup {
+        self.group
+    }
+
+    pub fn primitive_names(&self) -> Vec<&'static str> {
+        self.primitives.iter().map(|p| p.name()).collect()
+    }
+
+    /// A new score vector from the deliberative layer replaces the previous one; the
+    /// deactivated primitives come with it.
+    pub fn set_scores(
+        &mut self,
+        scores: ScoreVector<G>,
+        deactivated: &BTreeSet<String>,
+        received: Time,
+    ) {
+        self.scores = scores;
+        self.deactivated = deactivated.clone();
+        self.report.scores_received = Some(received);
+    }
+
+    pub fn scores(&self) -> &ScoreVector<G> {
+        &self.scores
+    }
+
+    /// The activation function: both stages and the selection, without executing anything.
+    pub fn evaluate(&mut self, input: &ReactiveInput<'_, W>) -> Option<Selection<G>> {
+        self.report.goals.clear();
+        let mut best: Option<(Selection<G>, f64)> = None;
+        let offered = self.reflexes.goals.iter().chain(self.scores.goals.iter());
+        for offered_goal in offered {
+            for goal in self.policy.split(offered_goal, input) {
+                let reactive = self.policy.reactive_score(&goal, input).clamp(0.0, 1.0);
+                let final_score = self.config.combination.combine(goal.deliberative, reactive);
+                let primitive = self
+                    .policy
+                    .primitives_for(&goal.goal, input)
+                    .into_iter()
+                    .filter(|name| !self.deactivated.contains(*name))
+                    .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
+                self.report.goals.push(GoalReport {
+                    goal: goal.goal.label(),
+                    objects: goal.objects.clone(),
+                    deliberative: goal.deliberative,
+                    reactive,
+                    final_score,
+                    applicable: primitive.is_some(),
+                });
+                let Some(primitive) = primitive else { continue };
+                let bonus = if self.active.as_ref().is_some_and(|a| a.goal == goal.goal) {
+                    self.config.hysteresis
+                } else {
+                    0.0
+                };
+                let ranked = final_score + bonus;
+                if best.as_ref().is_none_or(|(_, b)| ranked > *b) {
+                    best = Some((Selection { goal, final_score, primitive }, ranked));
+                }
+            }
+        }
+        best.map(|(selection, _)| selection)
+    }
+
+    /// Activates the selected primitive (deactivating the previous one if it changes) and
+    /// steps it.
+    pub fn execute(
+        &mut self,
+        selection: &Selection<G>,
+        input: &ReactiveInput<'_, W>,
+    ) -> Option<Cmd> {
+        let same = self
+            .active
+            .as_ref()
+            .is_some_and(|a| a.primitive == selection.primitive && a.goal == selection.goal.goal);
+        if !same {
+            if let Some(previous) = self.active.take() {
+                self.primitives[previous.primitive].deactivate();
+            }
+            self.primitives[selection.primitive].activate(&selection.goal.goal, input);
+            self.active =
+                Some(Active { goal: selection.goal.goal.clone(), primitive: selection.primitive });
+        }
+        let primitive = &mut self.primitives[selection.primitive];
+        self.report.selected_goal = Some(selection.goal.goal.label());
+        self.report.primitive = Some(primitive.name().to_owned());
+        self.report.inhibited_by = None;
+        primitive.step(&selection.goal.goal, input)
+    }
+
+    /// Nothing selected, or inhibited by another multiplexer: the active primitive stops.
+    pub fn idle(&mut self, inhibited_by: Option<ResourceGroup>) {
+        if let Some(previous) = self.active.take() {
+            self.primitives[previous.primitive].deactivate();
+        }
+        self.report.selected_goal = None;
+        self.report.primitive = None;
+        self.report.inhibited_by = inhibited_by;
+    }
+
+    pub fn report(&self) -> &MuxReport {
+        &self.report
+    }
+}
+
+/// Everything the reactive layer decided in one cycle.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ReactiveReport {
+    pub stamp: Time,
+    pub stability: Stability,
+    pub head: MuxReport,
+    pub body: MuxReport,
+    pub whole_body: MuxReport,
+    pub commands: MotionCommands,
+}
+
+impl ReactiveReport {
+    /// "head: observe ball > object tracking | body: go to position > go to position".
+    pub fn active_path(&self) -> String {
+        let part =
+            |name: &str, r: &MuxReport| match (&r.selected_goal, &r.primitive, r.inhibited_by) {
+                (Some(goal), Some(primitive), _) => format!("{name}: {goal} > {primitive}"),
+                (_, _, Some(by)) => format!("{name}: inhibited by {}", by.name()),
+                _ => format!("{name}: idle"),
+            };
+        format!(
+            "{} | {} | {}",
+            part("head+body", &self.whole_body),
+            part("head", &self.head),
+            part("body", &self.body)
+        )
+    }
+}
+
+/// The three multiplexers of a humanoid and the fall detector. `H`, `B`, `X`: the
+/// application's head, body and head+body goal types; `W`: the world state type.
+pub struct ReactiveLayer<H, B, X, W> {
+    pub head: Multiplexer<H, HeadCommand, W>,
+    pub body: Multiplexer<B, BodyCommand, W>,
+    pub whole_body: Multiplexer<X, SpecialMotion, W>,
+    fall_detector: FallDetector,
+    actuation: ActuationStatus,
+}
+
+impl<H: Goal, B: Goal, X: Goal, W> Debug for ReactiveLayer<H, B, X, W> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReactiveLayer")
+            .field("head", &self.head)
+            .field("body", &self.body)
+            .field("whole_body", &self.whole_body)
+            .finish()
+    }
+}
+
+impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
+    pub fn new(
+        head: Multiplexer<H, HeadCommand, W>,
+        body: Multiplexer<B, BodyCommand, W>,
+        whole_body: Multiplexer<X, SpecialMotion, W>,
+        fall_detector: FallDetectorConfig,
+    ) -> ReactiveLayer<H, B, X, W> {
+        ReactiveLayer {
+            head,
+            body,
+            whole_body,
+            fall_detector: FallDetector::new(fall_detector),
+            actuation: ActuationStatus::default(),
+        }
+    }
+
+    pub fn actuation_message(&mut self, message: &ActuationMessage) {
+        self.actuation.apply(message);
+    }
+
+    pub fn actuation(&self) -> &ActuationStatus {
+        &self.actuation
+    }
+
+    pub fn stability(&self) -> Stability {
+        self.fall_detector.status()
+    }
+
+    /// One reactive cycle on the newest percepts.
+    pub fn step(&mut self, now: Time, percepts: &Percepts, world: Option<&W>) -> ReactiveReport {
+        let stability = self.fall_detector.update(percepts);
+        let input = ReactiveInput { now, percepts, world, actuation: &self.actuation, stability };
+        let whole = self.whole_body.evaluate(&input);
+        let head = self.head.evaluate(&input);
+        let body = self.body.evaluate(&input);
+        let best_separate = head
+            .as_ref()
+            .map(|s| s.final_score)
+            .into_iter()
+            .chain(body.as_ref().map(|s| s.final_score))
+            .fold(f64::NEG_INFINITY, f64::max);
+        let commands = match whole {
+            Some(selection) if selection.final_score >= best_separate => {
+                self.head.idle(Some(ResourceGroup::HeadAndBody));
+                self.body.idle(Some(ResourceGroup::HeadAndBody));
+                match self.whole_body.execute(&selection, &input) {
+                    Some(motion) => MotionCommands::WholeBody { motion },
+                    None => MotionCommands::default(),
+                }
+            }
+            _ => {
+                self.whole_body.idle(None);
+                let head = match head {
+                    Some(selection) => self.head.execute(&selection, &input),
+                    None => {
+                        self.head.idle(None);
+                        None
+                    }
+                };
+                let body = match body {
+                    Some(selection) => self.body.execute(&selection, &input),
+                    None => {
+                        self.body.idle(None);
+                        None
+                    }
+                };
+                MotionCommands::PerResource { head, body }
+            }
+        };
+        // A finishing notification asks for one next action; it has been answered.
+        self.actuation.finishing.clear();
+        ReactiveReport {
+            stamp: percepts.stamp,
+            stability,
+            head: self.head.report().clone(),
+            body: self.body.report().clone(),
+            whole_body: self.whole_body.report().clone(),
+            commands,
+        }
+    }
+}

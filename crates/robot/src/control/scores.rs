@@ -1,0 +1,115 @@
+//! Goals and score vectors: how the deliberative layer configures the resource multiplexers
+//! (paper 3.4, Fig. 3).
+
+use std::fmt::Debug;
+
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+
+/// A goal of one resource multiplexer (paper Table 3): "observe ball", "go to position (x, y)".
+/// Its parameters are part of the value (an enum variant's fields).
+pub trait Goal:
+    Clone + Debug + PartialEq + Serialize + DeserializeOwned + Send + Sync + 'static
+{
+    /// A short human-readable name for reports and plots, parameters included.
+    fn label(&self) -> String;
+}
+
+/// One entry of a score vector: a goal, its deliberative score S_d, and the objects of interest
+/// it concerns (Fig. 3). The objects are world-model object names.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "G: Goal")]
+pub struct GoalScore<G> {
+    pub goal: G,
+    /// S_d, in [0, 1]. Unchanged until the deliberative layer sends a new score vector.
+    pub deliberative: f64,
+    pub objects: Vec<String>,
+}
+
+impl<G: Goal> GoalScore<G> {
+    pub fn new(goal: G, deliberative: f64) -> GoalScore<G> {
+        GoalScore { goal, deliberative: deliberative.clamp(0.0, 1.0), objects: Vec::new() }
+    }
+
+    pub fn about(mut self, object: impl Into<String>) -> GoalScore<G> {
+        self.objects.push(object.into());
+        self
+    }
+}
+
+/// The goals the deliberative layer offers one multiplexer, with their scores. Its size
+/// depends on run-time information (Fig. 3: "this data structure is dynamic").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "G: Goal")]
+pub struct ScoreVector<G> {
+    pub goals: Vec<GoalScore<G>>,
+}
+
+impl<G> Default for ScoreVector<G> {
+    fn default() -> Self {
+        ScoreVector { goals: Vec::new() }
+    }
+}
+
+impl<G: Goal> ScoreVector<G> {
+    pub fn single(goal: G) -> ScoreVector<G> {
+        ScoreVector { goals: vec![GoalScore::new(goal, 1.0)] }
+    }
+
+    pub fn with(mut self, score: GoalScore<G>) -> ScoreVector<G> {
+        self.goals.push(score);
+        self
+    }
+
+    pub fn push(&mut self, score: GoalScore<G>) {
+        self.goals.push(score);
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.goals.is_empty()
+    }
+}
+
+/// How a multiplexer combines the deliberative score S_d with the reactive score S_r (the
+/// second stage of the activation function). The paper averages them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ScoreCombination {
+    /// (S_d + S_r) / 2, as in the paper.
+    #[default]
+    Average,
+    /// w S_d + (1 - w) S_r.
+    Weighted { deliberative_weight: f64 },
+    /// S_d S_r: a goal needs both layers' support.
+    Product,
+    /// Only S_d: the reactive layer does not rescale (a baseline for experiments).
+    DeliberativeOnly,
+}
+
+impl ScoreCombination {
+    pub fn combine(&self, deliberative: f64, reactive: f64) -> f64 {
+        match self {
+            ScoreCombination::Average => 0.5 * (deliberative + reactive),
+            ScoreCombination::Weighted { deliberative_weight } => {
+                let w = deliberative_weight.clamp(0.0, 1.0);
+                w * deliberative + (1.0 - w) * reactive
+            }
+            ScoreCombination::Product => deliberative * reactive,
+            ScoreCombination::DeliberativeOnly => deliberative,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn combinations() {
+        assert_eq!(ScoreCombination::Average.combine(0.2, 0.6), 0.4);
+        assert_eq!(ScoreCombination::Product.combine(0.5, 0.5), 0.25);
+        assert_eq!(ScoreCombination::DeliberativeOnly.combine(0.3, 1.0), 0.3);
+        let w = ScoreCombination::Weighted { deliberative_weight: 0.75 };
+        assert!((w.combine(1.0, 0.0) - 0.75).abs() < 1e-12);
+    }
+}

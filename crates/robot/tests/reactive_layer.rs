@@ -1,0 +1,471 @@
+//! The reactive layer, tabulated: multiplexer selection, stage-1 splitting, score combination,
+//! deactivation, inhibition across resource groups, and the fall reflex.
+
+use serde::{Deserialize, Serialize};
+use strata_robot::command::{
+    BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, ResourceGroup,
+};
+use strata_robot::control::reactive::{
+    ActivationPolicy, FallDetectorConfig, Multiplexer, MultiplexerConfig, PrimitiveBehavior,
+    ReactiveInput, ReactiveLayer, Stability,
+};
+use strata_robot::control::scores::{Goal, GoalScore, ScoreCombination, ScoreVector};
+use strata_robot::geometry::Velocity;
+use strata_robot::percept::Percepts;
+use strata_robot::platform::{HeadAngles, SpecialMotion};
+use strata_runtime::Time;
+
+/// A toy world: how confident the robot is about each object, and their bearings.
+#[derive(Clone, Debug, Default)]
+struct World {
+    confidence: Vec<(&'static str, f64, f64)>,
+    target_close: bool,
+}
+
+impl World {
+    fn object(&self, name: &str) -> Option<(f64, f64)> {
+        self.confidence.iter().find(|(n, _, _)| *n == name).map(|(_, c, b)| (*c, *b))
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+enum HeadGoal {
+    Observe(String),
+    /// Two objects in one gaze if they fit.
+    ObserveBoth(String, String),
+}
+
+impl Goal for HeadGoal {
+    fn label(&self) -> String {
+        match self {
+            HeadGoal::Observe(o) => format!("observe {o}"),
+            HeadGoal::ObserveBoth(a, b) => format!("observe {a}+{b}"),
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+enum BodyGoal {
+    Approach,
+    GoToAndKick,
+}
+
+impl Goal for BodyGoal {
+    fn label(&self) -> String {
+        format!("{self:?}").to_lowercase()
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+enum WholeGoal {
+    Fall,
+    Celebrate,
+}
+
+impl Goal for WholeGoal {
+    fn label(&self) -> String {
+        format!("{self:?}").to_lowercase()
+    }
+}
+
+const FOV: f64 = 1.0;
+
+struct HeadPolicy;
+impl ActivationPolicy<HeadGoal, World> for HeadPolicy {
+    fn split(
+        &self,
+        goal: &GoalScore<HeadGoal>,
+        input: &ReactiveInput<'_, World>,
+    ) -> Vec<GoalScore<HeadGoal>> {
+        match &goal.goal {
+            HeadGoal::ObserveBoth(a, b) => {
+                let world = input.world.expect("world");
+                let (Some((_, ba)), Some((_, bb))) = (world.object(a), world.object(b)) else {
+                    return vec![];
+                };
+                if (ba - bb).abs() < FOV * 0.8 {
+                    vec![goal.clone()]
+                } else {
+                    // Not in one gaze: two goals, each with the deliberative score.
+                    vec![
+                        GoalScore::new(HeadGoal::Observe(a.clone()), goal.deliberative)
+                            .about(a.clone()),
+                        GoalScore::new(HeadGoal::Observe(b.clone()), goal.deliberative)
+                            .about(b.clone()),
+                    ]
+                }
+            }
+            HeadGoal::Observe(_) => vec![goal.clone()],
+        }
+    }
+
+    fn reactive_score(&self, goal: &GoalScore<HeadGoal>, input: &ReactiveInput<'_, World>) -> f64 {
+        let world = input.world.expect("world");
+        // The less confident, the more worth observing.
+        goal.objects
+            .iter()
+            .filter_map(|o| world.object(o))
+            .map(|(c, _)| 1.0 - c)
+            .fold(0.0, f64::max)
+    }
+
+    fn primitives_for(
+        &self,
+        goal: &HeadGoal,
+        input: &ReactiveInput<'_, World>,
+    ) -> Vec<&'static str> {
+        let world = input.world.expect("world");
+        let known = match goal {
+            HeadGoal::Observe(o) => world.object(o).is_some_and(|(c, _)| c > 0.3),
+            HeadGoal::ObserveBoth(..) => true,
+        };
+        if known { vec!["track", "search"] } else { vec!["search"] }
+    }
+}
+
+struct Look(&'static str);
+impl PrimitiveBehavior<HeadGoal, HeadCommand, World> for Look {
+    fn name(&self) -> &'static str {
+        self.0
+    }
+    fn step(&mut self, _: &HeadGoal, _: &ReactiveInput<'_, World>) -> Option<HeadCommand> {
+        let yaw = if self.0 == "track" { 0.1 } else { 1.0 };
+        Some(HeadCommand::NonQueue(HeadMotion {
+            target: HeadAngles { yaw, pitch: 0.0 },
+            max_speed: 2.0,
+        }))
+    }
+}
+
+struct BodyPolicy;
+impl ActivationPolicy<BodyGoal, World> for BodyPolicy {
+    fn reactive_score(&self, _: &GoalScore<BodyGoal>, _: &ReactiveInput<'_, World>) -> f64 {
+        0.5
+    }
+    fn primitives_for(
+        &self,
+        goal: &BodyGoal,
+        input: &ReactiveInput<'_, World>,
+    ) -> Vec<&'static str> {
+        match goal {
+            BodyGoal::Approach => vec!["walk"],
+            // Kick vs go-to from percepts; the kick id would be a deliberative parameter.
+            BodyGoal::GoToAndKick if input.world.is_some_and(|w| w.target_close) => {
+                vec!["kick", "walk"]
+            }
+            BodyGoal::GoToAndKick => vec!["walk"],
+        }
+    }
+}
+
+struct Walk;
+impl PrimitiveBehavior<BodyGoal, BodyCommand, World> for Walk {
+    fn name(&self) -> &'static str {
+        "walk"
+    }
+    fn step(&mut self, _: &BodyGoal, _: &ReactiveInput<'_, World>) -> Option<BodyCommand> {
+        Some(BodyCommand::NonQueue(BodyMotion::Walk {
+            velocity: Velocity::new(0.2, 0.0, 0.0),
+            duration: 0.5,
+        }))
+    }
+}
+
+struct Kick;
+impl PrimitiveBehavior<BodyGoal, BodyCommand, World> for Kick {
+    fn name(&self) -> &'static str {
+        "kick"
+    }
+    fn step(&mut self, _: &BodyGoal, _: &ReactiveInput<'_, World>) -> Option<BodyCommand> {
+        Some(BodyCommand::Special(SpecialMotion::Kick(0)))
+    }
+}
+
+struct WholePolicy;
+impl ActivationPolicy<WholeGoal, World> for WholePolicy {
+    fn reactive_score(&self, goal: &GoalScore<WholeGoal>, input: &ReactiveInput<'_, World>) -> f64 {
+        match goal.goal {
+            WholeGoal::Fall if !input.stability.is_stable() => 1.0,
+            _ => 0.0,
+        }
+    }
+    fn primitives_for(
+        &self,
+        goal: &WholeGoal,
+        input: &ReactiveInput<'_, World>,
+    ) -> Vec<&'static str> {
+        match goal {
+            WholeGoal::Fall if matches!(input.stability, Stability::Unstable(_)) => vec!["fall"],
+            WholeGoal::Fall => vec![],
+            WholeGoal::Celebrate => vec!["celebrate"],
+        }
+    }
+}
+
+struct Sequence(&'static str, SpecialMotion);
+impl PrimitiveBehavior<WholeGoal, SpecialMotion, World> for Sequence {
+    fn name(&self) -> &'static str {
+        self.0
+    }
+    fn step(&mut self, _: &WholeGoal, _: &ReactiveInput<'_, World>) -> Option<SpecialMotion> {
+        Some(self.1)
+    }
+}
+
+type Layer = ReactiveLayer<HeadGoal, BodyGoal, WholeGoal, World>;
+
+fn layer(combination: ScoreCombination) -> Layer {
+    let config = MultiplexerConfig { combination, hysteresis: 0.0 };
+    let head = Multiplexer::new(ResourceGroup::Head, config.clone(), Box::new(HeadPolicy))
+        .with_primitive(Box::new(Look("track")))
+        .with_primitive(Box::new(Look("search")));
+    let body = Multiplexer::new(ResourceGroup::Body, config.clone(), Box::new(BodyPolicy))
+        .with_primitive(Box::new(Walk))
+        .with_primitive(Box::new(Kick));
+    let whole = Multiplexer::new(ResourceGroup::HeadAndBody, config, Box::new(WholePolicy))
+        .with_primitive(Box::new(Sequence("fall", SpecialMotion::Fall(0))))
+        .with_primitive(Box::new(Sequence("celebrate", SpecialMotion::Dive(9))))
+        .with_reflexes(ScoreVector::single(WholeGoal::Fall));
+    ReactiveLayer::new(head, body, whole, FallDetectorConfig::default())
+}
+
+fn observe(o: &str, sd: f64) -> GoalScore<HeadGoal> {
+    GoalScore::new(HeadGoal::Observe(o.into()), sd).about(o)
+}
+
+fn upright() -> Percepts {
+    let mut p = Percepts::default();
+    p.inertial.accelerometer = [0.0, 0.0, 9.81];
+    p
+}
+
+fn tipping() -> Percepts {
+    let mut p = upright();
+    p.inertial.body_angles = [0.0, 0.4];
+    p.inertial.gyroscope = [0.0, 2.0, 0.0];
+    p
+}
+
+struct Row {
+    name: &'static str,
+    head: Vec<GoalScore<HeadGoal>>,
+    world: World,
+    combination: ScoreCombination,
+    selected: Option<&'static str>,
+    primitive: Option<&'static str>,
+    /// (goal, S_r, final) for every scored goal.
+    scores: Vec<(&'static str, f64, f64)>,
+}
+
+#[test]
+fn head_multiplexer_table() {
+    let world =
+        |c: &[(&'static str, f64, f64)]| World { confidence: c.to_vec(), target_close: false };
+    let rows = vec![
+        Row {
+            name: "the reactive score lifts an uncertain object above a higher S_d",
+            head: vec![observe("ball", 0.6), observe("beacon", 0.5)],
+            world: world(&[("ball", 0.9, 0.0), ("beacon", 0.1, 0.5)]),
+            combination: ScoreCombination::Average,
+            selected: Some("observe beacon"),
+            primitive: Some("search"),
+            scores: vec![("observe ball", 0.1, 0.35), ("observe beacon", 0.9, 0.7)],
+        },
+        Row {
+            name: "without reactive rescaling the deliberative order stands",
+            head: vec![observe("ball", 0.6), observe("beacon", 0.5)],
+            world: world(&[("ball", 0.9, 0.0), ("beacon", 0.1, 0.5)]),
+            combination: ScoreCombination::DeliberativeOnly,
+            selected: Some("observe ball"),
+            primitive: Some("track"),
+            scores: vec![("observe ball", 0.1, 0.6), ("observe beacon", 0.9, 0.5)],
+        },
+        Row {
+            name: "two objects that fit in one gaze stay one goal",
+            head: vec![
+                GoalScore::new(HeadGoal::ObserveBoth("ball".into(), "post".into()), 0.8)
+                    .about("ball")
+                    .about("post"),
+            ],
+            world: world(&[("ball", 0.5, 0.1), ("post", 0.4, 0.4)]),
+            combination: ScoreCombination::Average,
+            selected: Some("observe ball+post"),
+            primitive: Some("track"),
+            scores: vec![("observe ball+post", 0.6, 0.7)],
+        },
+        Row {
+            name: "two objects that do not fit in one gaze are split (stage 1)",
+            head: vec![
+                GoalScore::new(HeadGoal::ObserveBoth("ball".into(), "post".into()), 0.8)
+                    .about("ball")
+                    .about("post"),
+            ],
+            world: world(&[("ball", 0.5, -1.0), ("post", 0.2, 1.0)]),
+            combination: ScoreCombination::Average,
+            selected: Some("observe post"),
+            primitive: Some("search"),
+            scores: vec![("observe ball", 0.5, 0.65), ("observe post", 0.8, 0.8)],
+        },
+        Row {
+            name: "an empty score vector selects nothing",
+            head: vec![],
+            world: World::default(),
+            combination: ScoreCombination::Average,
+            selected: None,
+            primitive: None,
+            scores: vec![],
+        },
+    ];
+    for row in rows {
+        let mut layer = layer(row.combination);
+        layer.head.set_scores(
+            ScoreVector { goals: row.head.clone() },
+            &Default::default(),
+            Time::ZERO,
+        );
+        let report = layer.step(Time::from_nanos(1), &upright(), Some(&row.world));
+        assert_eq!(report.head.selected_goal.as_deref(), row.selected, "{}", row.name);
+        assert_eq!(report.head.primitive.as_deref(), row.primitive, "{}", row.name);
+        let scored: Vec<(String, f64, f64)> =
+            report.head.goals.iter().map(|g| (g.goal.clone(), g.reactive, g.final_score)).collect();
+        assert_eq!(scored.len(), row.scores.len(), "{}: {scored:?}", row.name);
+        for ((goal, sr, s), (eg, esr, es)) in scored.iter().zip(&row.scores) {
+            assert_eq!(goal, eg, "{}", row.name);
+            assert!(
+                (sr - esr).abs() < 1e-9 && (s - es).abs() < 1e-9,
+                "{}: {goal} S_r {sr} S {s}",
+                row.name
+            );
+        }
+        // S_d is never changed by the reactive layer.
+        assert_eq!(layer.head.scores().goals, row.head, "{}", row.name);
+        match (&report.commands, row.selected) {
+            (MotionCommands::PerResource { head: Some(_), .. }, Some(_)) => {}
+            (MotionCommands::PerResource { head: None, .. }, None) => {}
+            (other, _) => panic!("{}: unexpected commands {other:?}", row.name),
+        }
+    }
+}
+
+#[test]
+fn kick_or_walk_is_chosen_from_percepts_and_the_deliberative_layer_can_deactivate_the_kick() {
+    let mut layer = layer(ScoreCombination::Average);
+    let world = World { confidence: vec![], target_close: true };
+    layer.body.set_scores(
+        ScoreVector::single(BodyGoal::GoToAndKick),
+        &Default::default(),
+        Time::ZERO,
+    );
+    let report = layer.step(Time::ZERO, &upright(), Some(&world));
+    assert_eq!(report.body.primitive.as_deref(), Some("kick"));
+    assert!(matches!(
+        report.commands,
+        MotionCommands::PerResource {
+            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
+            ..
+        }
+    ));
+    let far = World { confidence: vec![], target_close: false };
+    let report = layer.step(Time::ZERO, &upright(), Some(&far));
+    assert_eq!(report.body.primitive.as_deref(), Some("walk"));
+    // Dribbling wanted: the deliberative layer deactivates the kick.
+    let deactivated = ["kick".to_owned()].into_iter().collect();
+    layer.body.set_scores(ScoreVector::single(BodyGoal::GoToAndKick), &deactivated, Time::ZERO);
+    let report = layer.step(Time::ZERO, &upright(), Some(&world));
+    assert_eq!(report.body.primitive.as_deref(), Some("walk"));
+}
+
+#[test]
+fn a_fall_inhibits_head_and_body_within_one_reactive_cycle() {
+    let mut layer = layer(ScoreCombination::Average);
+    let world = World { confidence: vec![("ball", 0.2, 0.0)], target_close: false };
+    layer.head.set_scores(
+        ScoreVector { goals: vec![observe("ball", 1.0)] },
+        &Default::default(),
+        Time::ZERO,
+    );
+    layer.body.set_scores(ScoreVector::single(BodyGoal::Approach), &Default::default(), Time::ZERO);
+    let report = layer.step(Time::ZERO, &upright(), Some(&world));
+    assert!(matches!(
+        report.commands,
+        MotionCommands::PerResource { head: Some(_), body: Some(_) }
+    ));
+    assert!(!report.whole_body.goals[0].applicable, "no fall goal while stable");
+    // The very next percept shows the robot tipping: the reflex fires, no deliberation needed.
+    let report = layer.step(Time::from_nanos(12), &tipping(), Some(&world));
+    assert_eq!(report.stability, Stability::Unstable(strata_robot::platform::FallDirection::Front));
+    assert_eq!(report.commands, MotionCommands::WholeBody { motion: SpecialMotion::Fall(0) });
+    assert_eq!(report.head.inhibited_by, Some(ResourceGroup::HeadAndBody));
+    assert_eq!(report.body.inhibited_by, Some(ResourceGroup::HeadAndBody));
+    assert!(report.active_path().starts_with("head+body: fall > fall"), "{}", report.active_path());
+}
+
+#[test]
+fn a_head_and_body_goal_yields_to_higher_scored_separate_goals() {
+    let mut layer = layer(ScoreCombination::Average);
+    let world = World { confidence: vec![("ball", 0.0, 0.0)], target_close: false };
+    layer.whole_body.set_scores(
+        ScoreVector { goals: vec![GoalScore::new(WholeGoal::Celebrate, 0.2)] },
+        &Default::default(),
+        Time::ZERO,
+    );
+    layer.head.set_scores(
+        ScoreVector { goals: vec![observe("ball", 0.9)] },
+        &Default::default(),
+        Time::ZERO,
+    );
+    let report = layer.step(Time::ZERO, &upright(), Some(&world));
+    assert_eq!(report.head.selected_goal.as_deref(), Some("observe ball"));
+    assert_eq!(report.whole_body.selected_goal, None);
+    // Raise the whole-body goal above both: it takes both resources.
+    layer.whole_body.set_scores(
+        ScoreVector { goals: vec![GoalScore::new(WholeGoal::Celebrate, 1.0)] },
+        &Default::default(),
+        Time::ZERO,
+    );
+    layer.head.set_scores(
+        ScoreVector { goals: vec![observe("ball", 0.1)] },
+        &Default::default(),
+        Time::ZERO,
+    );
+    // Head: (0.1 + 0.2) / 2 = 0.15 against the whole-body goal's (1.0 + 0.0) / 2 = 0.5.
+    let world = World { confidence: vec![("ball", 0.8, 0.0)], target_close: false };
+    let report = layer.step(Time::ZERO, &upright(), Some(&world));
+    assert_eq!(report.whole_body.selected_goal.as_deref(), Some("celebrate"));
+    assert_eq!(report.head.inhibited_by, Some(ResourceGroup::HeadAndBody));
+}
+
+#[test]
+fn hysteresis_keeps_the_current_goal_when_scores_are_close() {
+    let config = MultiplexerConfig { combination: ScoreCombination::Average, hysteresis: 0.05 };
+    let mut mux: Multiplexer<HeadGoal, HeadCommand, World> =
+        Multiplexer::new(ResourceGroup::Head, config, Box::new(HeadPolicy))
+            .with_primitive(Box::new(Look("track")))
+            .with_primitive(Box::new(Look("search")));
+    mux.set_scores(
+        ScoreVector { goals: vec![observe("a", 0.5), observe("b", 0.5)] },
+        &Default::default(),
+        Time::ZERO,
+    );
+    let percepts = upright();
+    let actuation = Default::default();
+    let world = World { confidence: vec![("a", 0.5, 0.0), ("b", 0.52, 0.0)], target_close: false };
+    let input = ReactiveInput {
+        now: Time::ZERO,
+        percepts: &percepts,
+        world: Some(&world),
+        actuation: &actuation,
+        stability: Stability::Stable,
+    };
+    let first = mux.evaluate(&input).expect("a selection");
+    let _ = mux.execute(&first, &input);
+    assert_eq!(first.goal.goal, HeadGoal::Observe("a".into()));
+    // b becomes slightly more uncertain than a: within the hysteresis, a is kept.
+    let world = World { confidence: vec![("a", 0.5, 0.0), ("b", 0.46, 0.0)], target_close: false };
+    let input = ReactiveInput { world: Some(&world), ..input };
+    assert_eq!(mux.evaluate(&input).expect("selection").goal.goal, HeadGoal::Observe("a".into()));
+    // Well beyond it, b wins.
+    let world = World { confidence: vec![("a", 0.5, 0.0), ("b", 0.3, 0.0)], target_close: false };
+    let input = ReactiveInput { world: Some(&world), ..input };
+    assert_eq!(mux.evaluate(&input).expect("selection").goal.goal, HeadGoal::Observe("b".into()));
+}
