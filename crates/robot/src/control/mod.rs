@@ -1,6 +1,8 @@
 //! Hybrid control (paper 3.2–3.6): the planning, deliberative and reactive layers, the resource
 //! multiplexers, value functions and active vision.
 
+pub mod deliberative;
+pub mod modules;
 pub mod planning;
 pub mod reactive;
 pub mod scores;

@@ -1,0 +1,181 @@
+//! The hybrid control layers as runtime modules: thin shells around the pure layers, so the
+//! layers themselves are tested without threads and the shells only move packages.
+
+use std::time::Duration;
+
+use strata_runtime::{Context, Input, Module, ModuleError, Output};
+
+use crate::command::{ActuationMessage, MotionCommands};
+use crate::control::deliberative::{DeliberativeInput, DeliberativeOutput, DeliberativePolicy};
+use crate::control::reactive::{ReactiveLayer, ReactiveReport, Stability};
+use crate::control::scores::Goal;
+use crate::percept::Percepts;
+
+/// The reactive layer's ports.
+#[derive(Debug)]
+pub struct ReactivePorts<H, B, X, W> {
+    pub percepts: Input<Percepts>,
+    pub world: Input<W>,
+    pub deliberative: Input<DeliberativeOutput<H, B, X>>,
+    pub actuation: Input<ActuationMessage>,
+    pub commands: Output<MotionCommands>,
+    pub report: Output<ReactiveReport>,
+    pub stability: Output<Stability>,
+}
+
+impl<H, B, X, W> Clone for ReactivePorts<H, B, X, W> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<H, B, X, W> Copy for ReactivePorts<H, B, X, W> {}
+
+/// Runs a reactive cycle on every new percept (the fastest layer, at the sensor rate).
+pub struct ReactiveModule<H, B, X, W> {
+    layer: ReactiveLayer<H, B, X, W>,
+    ports: ReactivePorts<H, B, X, W>,
+    world: Option<W>,
+    last_stability: Option<Stability>,
+}
+
+impl<H: Goal, B: Goal, X: Goal, W> std::fmt::Debug for ReactiveModule<H, B, X, W> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ReactiveModule").field("layer", &self.layer).finish_non_exhaustive()
+    }
+}
+
+impl<H: Goal, B: Goal, X: Goal, W> ReactiveModule<H, B, X, W> {
+    pub fn new(layer: ReactiveLayer<H, B, X, W>, ports: ReactivePorts<H, B, X, W>) -> Self {
+        ReactiveModule { layer, ports, world: None, last_stability: None }
+    }
+}
+
+impl<H: Goal, B: Goal, X: Goal, W: strata_runtime::Message> Module for ReactiveModule<H, B, X, W> {
+    fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+        if let Some(output) = ctx.latest(self.ports.deliberative) {
+            let received = output.stamp;
+            let output = output.value;
+            self.layer.head.set_scores(output.head, &output.deactivated, received);
+            self.layer.body.set_scores(output.body, &output.deactivated, received);
+            self.layer.whole_body.set_scores(output.whole_body, &output.deactivated, received);
+        }
+        for message in ctx.drain(self.ports.actuation) {
+            self.layer.actuation_message(&message.value);
+        }
+        if let Some(world) = ctx.latest(self.ports.world) {
+            self.world = Some(world.value);
+        }
+        let Some(percepts) = ctx.latest(self.ports.percepts) else { return Ok(()) };
+        let stamp = percepts.stamp;
+        let report = self.layer.step(ctx.now(), &percepts.value, self.world.as_ref());
+        // Commands go out every cycle, empty or not: they are what paces actuation.
+        ctx.send_stamped(self.ports.commands, report.commands, stamp);
+        if self.last_stability != Some(report.stability) {
+            self.last_stability = Some(report.stability);
+            ctx.send_stamped(self.ports.stability, report.stability, stamp);
+        }
+        ctx.send_stamped(self.ports.report, report, stamp);
+        Ok(())
+    }
+}
+
+/// The deliberative layer's ports.
+#[derive(Debug)]
+pub struct DeliberativePorts<H, B, X, W, A> {
+    pub world: Input<W>,
+    pub assignment: Input<A>,
+    pub stability: Input<Stability>,
+    pub output: Output<DeliberativeOutput<H, B, X>>,
+}
+
+impl<H, B, X, W, A> Clone for DeliberativePorts<H, B, X, W, A> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<H, B, X, W, A> Copy for DeliberativePorts<H, B, X, W, A> {}
+
+/// The ports of the deliberative layer of a given policy.
+pub type PolicyPorts<P> = DeliberativePorts<
+    <P as DeliberativePolicy>::HeadGoal,
+    <P as DeliberativePolicy>::BodyGoal,
+    <P as DeliberativePolicy>::WholeBodyGoal,
+    <P as DeliberativePolicy>::World,
+    <P as DeliberativePolicy>::Assignment,
+>;
+
+/// Ticks the application's deliberative behaviors at the layer's rate.
+pub struct DeliberativeModule<P: DeliberativePolicy> {
+    policy: P,
+    ports: PolicyPorts<P>,
+    world: Option<P::World>,
+    assignment: Option<P::Assignment>,
+    stability: Stability,
+    /// Extra computation per tick, to test that a loaded deliberative layer does not slow the
+    /// reactive layer (the paper's central claim; `strata experiment rates`).
+    pub artificial_load: Duration,
+}
+
+impl<P: DeliberativePolicy> std::fmt::Debug for DeliberativeModule<P> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DeliberativeModule")
+            .field("stability", &self.stability)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<P: DeliberativePolicy> DeliberativeModule<P> {
+    pub fn new(policy: P, ports: PolicyPorts<P>) -> Self {
+        DeliberativeModule {
+            policy,
+            ports,
+            world: None,
+            assignment: None,
+            stability: Stability::Stable,
+            artificial_load: Duration::ZERO,
+        }
+    }
+}
+
+impl<P> Module for DeliberativeModule<P>
+where
+    P: DeliberativePolicy + 'static,
+    P::World: strata_runtime::Message,
+    P::Assignment: strata_runtime::Message,
+{
+    fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+        if let Some(world) = ctx.latest(self.ports.world) {
+            self.world = Some(world.value);
+        }
+        if let Some(assignment) = ctx.latest(self.ports.assignment) {
+            self.assignment = Some(assignment.value);
+        }
+        if let Some(stability) = ctx.latest(self.ports.stability) {
+            self.stability = stability.value;
+        }
+        let input = DeliberativeInput {
+            now: ctx.now(),
+            world: self.world.as_ref(),
+            assignment: self.assignment.as_ref(),
+            stability: self.stability,
+        };
+        let output = self.policy.tick(&input);
+        if !self.artificial_load.is_zero() {
+            burn_cpu(self.artificial_load);
+        }
+        ctx.send(self.ports.output, output);
+        Ok(())
+    }
+}
+
+/// Busy computation for `duration` of wall time (not a sleep: a sleeping thread would not
+/// compete for the CPU the way a heavy planner does).
+fn burn_cpu(duration: Duration) {
+    let start = std::time::Instant::now();
+    let mut x = 0u64;
+    while start.elapsed() < duration {
+        for i in 0..1000u64 {
+            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(i));
+        }
+    }
+}
