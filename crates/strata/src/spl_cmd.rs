@@ -1,0 +1,194 @@
+//! `strata spl`: look at SPL wire traffic — GameController control and return packets, team
+//! messages — as JSON.
+
+use std::io::Read;
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use anyhow::{Context, Result, bail};
+use clap::{Subcommand, ValueEnum};
+use serde_json::{Value, json};
+use strata_spl::gamecontroller::{GameControlData, PacketKind, ReturnData};
+use strata_spl::net::{self, MAX_TEAM_MESSAGE_SIZE};
+
+/// The `spl` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum SplCommand {
+    /// Decode one raw packet and print it as JSON; the type is detected by header.
+    Decode {
+        /// File holding one packet's bytes, or "-" for stdin.
+        file: String,
+        /// Decode as this type instead of detecting it.
+        #[arg(long, value_enum)]
+        kind: Option<Kind>,
+    },
+    /// Print every datagram arriving on a UDP port as a JSON line, until Ctrl-C.
+    Listen {
+        /// 3838: control packets; 3939: return packets; 10000 + team: team messages.
+        #[arg(long, default_value_t = net::GAMECONTROLLER_DATA_PORT)]
+        port: u16,
+        /// Local address to bind (the port is shared with robots on this machine).
+        #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::UNSPECIFIED))]
+        bind: IpAddr,
+        /// Decode every datagram as this type instead of detecting it.
+        #[arg(long, value_enum)]
+        kind: Option<Kind>,
+        /// Stop after this many datagrams.
+        #[arg(long)]
+        count: Option<u64>,
+    },
+}
+
+/// A packet type to decode as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Kind {
+    /// RoboCupGameControlData ("RGme", version 18, 118 bytes).
+    Control,
+    /// RoboCupGameControlReturnData ("RGrt", version 4, 32 bytes).
+    Return,
+    /// A team message: opaque bytes, at most 128.
+    Team,
+}
+
+/// Runs an `spl` subcommand.
+pub fn run(cmd: SplCommand) -> Result<()> {
+    match cmd {
+        SplCommand::Decode { file, kind } => {
+            let bytes = read_input(&file)?;
+            let description = describe(&bytes, kind);
+            println!("{}", serde_json::to_string_pretty(&description)?);
+            if let Some(error) = description.get("error").and_then(Value::as_str) {
+                bail!("{file}: {error}");
+            }
+            Ok(())
+        }
+        SplCommand::Listen { port, bind, kind, count } => {
+            listen(SocketAddr::new(bind, port), kind, count)
+        }
+    }
+}
+
+fn read_input(file: &str) -> Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    if file == "-" {
+        std::io::stdin().read_to_end(&mut bytes).context("cannot read stdin")?;
+    } else {
+        bytes = std::fs::read(file).with_context(|| format!("cannot read {file}"))?;
+    }
+    Ok(bytes)
+}
+
+fn listen(addr: SocketAddr, kind: Option<Kind>, count: Option<u64>) -> Result<()> {
+    let socket = net::bind_shared(addr)?;
+    eprintln!("listening on UDP {addr}");
+    let mut buffer = vec![0u8; 65536];
+    let mut seen = 0;
+    while count.is_none_or(|n| seen < n) {
+        let (size, from) = socket.recv_from(&mut buffer).context("UDP receive failed")?;
+        let mut line = describe(&buffer[..size], kind);
+        if let Value::Object(fields) = &mut line {
+            let ms = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis());
+            fields.insert("from".into(), json!(from.to_string()));
+            fields.insert("unix_ms".into(), json!(ms));
+        }
+        println!("{line}");
+        seen += 1;
+    }
+    Ok(())
+}
+
+/// One datagram as JSON: its type, length, and the decoded packet or the decoder's error.
+pub fn describe(bytes: &[u8], kind: Option<Kind>) -> Value {
+    let kind = match (kind, PacketKind::detect(bytes)) {
+        (Some(kind), _) => kind,
+        (None, PacketKind::Control) => Kind::Control,
+        (None, PacketKind::Return) => Kind::Return,
+        (None, PacketKind::Unknown) => return opaque("unknown", bytes),
+    };
+    let decoded = match kind {
+        Kind::Control => GameControlData::decode(bytes).map(|p| json!(p)),
+        Kind::Return => ReturnData::decode(bytes).map(|p| json!(p)),
+        Kind::Team => return opaque("team", bytes),
+    };
+    let name = match kind {
+        Kind::Control => "control",
+        Kind::Return => "return",
+        Kind::Team => "team",
+    };
+    match decoded {
+        Ok(packet) => json!({ "kind": name, "length": bytes.len(), "packet": packet }),
+        Err(e) => json!({
+            "kind": name,
+            "length": bytes.len(),
+            "error": e.to_string(),
+            "hex": hex_dump(bytes),
+        }),
+    }
+}
+
+/// Bytes that are not a GameController packet: on a team port, a team message.
+fn opaque(kind: &str, bytes: &[u8]) -> Value {
+    let mut value = json!({
+        "kind": kind,
+        "length": bytes.len(),
+        "max_team_message_length": MAX_TEAM_MESSAGE_SIZE,
+        "hex": hex_dump(bytes),
+    });
+    if bytes.len() > MAX_TEAM_MESSAGE_SIZE {
+        value["error"] = json!(format!(
+            "{} bytes exceed the {MAX_TEAM_MESSAGE_SIZE}-byte team message limit",
+            bytes.len()
+        ));
+    }
+    value
+}
+
+/// Classic 16-bytes-a-line dump: offset, hex, printable ASCII.
+fn hex_dump(bytes: &[u8]) -> Vec<String> {
+    bytes
+        .chunks(16)
+        .enumerate()
+        .map(|(i, chunk)| {
+            let hex: Vec<String> = chunk.iter().map(|b| format!("{b:02x}")).collect();
+            let text: String = chunk
+                .iter()
+                .map(|&b| if b.is_ascii_graphic() || b == b' ' { char::from(b) } else { '.' })
+                .collect();
+            format!("{:08x}  {:<47}  |{text}|", i * 16, hex.join(" "))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_spl::gamecontroller::GameState;
+
+    #[test]
+    fn detects_and_decodes_control_packets() {
+        let data = GameControlData { state: GameState::Set, ..Default::default() };
+        let out = describe(&data.encode(), None);
+        assert_eq!(out["kind"], "control");
+        assert_eq!(out["length"], 118);
+        assert_eq!(out["packet"]["state"], "set");
+        assert_eq!(out.get("error"), None);
+    }
+
+    #[test]
+    fn reports_bad_packets_and_team_messages() {
+        let out = describe(b"RGrt\x04", None);
+        assert_eq!(out["kind"], "return");
+        assert_eq!(out["error"], "return packet: wrong length: expected 32 bytes, got 5");
+        let out = describe(b"hello", None);
+        assert_eq!(out["kind"], "unknown");
+        assert_eq!(
+            out["hex"][0],
+            "00000000  68 65 6c 6c 6f                                   |hello|"
+        );
+        assert_eq!(out.get("error"), None);
+        let out = describe(&[0; 129], Some(Kind::Team));
+        assert_eq!(out["kind"], "team");
+        assert_eq!(out["error"], "129 bytes exceed the 128-byte team message limit");
+        assert_eq!(out["hex"].as_array().map(Vec::len), Some(9));
+    }
+}
