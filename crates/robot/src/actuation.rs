@@ -18,6 +18,7 @@ use strata_runtime::{Context, Input, Module, ModuleError, Output, Time};
 
 use crate::command::{
     ActuationMessage, BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, Resource,
+    WholeBodyCommand,
 };
 use crate::geometry::{Odometry, Velocity};
 use crate::platform::{
@@ -128,7 +129,10 @@ impl ActuationState {
     /// Applies one cycle's commands from the reactive layer.
     pub fn command(&mut self, commands: &MotionCommands) {
         match *commands {
-            MotionCommands::WholeBody { motion } => {
+            MotionCommands::WholeBody { command: WholeBodyCommand::Coordinated { head, body } } => {
+                self.command(&MotionCommands::PerResource { head: Some(head), body: Some(body) });
+            }
+            MotionCommands::WholeBody { command: WholeBodyCommand::Special { motion } } => {
                 let preempts = matches!(motion, SpecialMotion::Fall(_));
                 let already =
                     matches!(self.body, BodyExecution::Special { motion: m, .. } if m == motion);
@@ -498,7 +502,9 @@ mod tests {
         let (orders, _) = a.update(&feedback(0.3, kicking));
         assert!(orders.and_then(|o| o.head).is_some());
         // A fall preempts the kick and takes the head too.
-        a.command(&MotionCommands::WholeBody { motion: SpecialMotion::Fall(0) });
+        a.command(&MotionCommands::WholeBody {
+            command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(0) },
+        });
         let (orders, messages) = a.update(&feedback(0.35, kicking));
         assert_eq!(
             orders.and_then(|o| o.body),

@@ -131,18 +131,24 @@ impl BodyCommand {
     }
 }
 
+/// A command of the head+body multiplexer: both resources serve one goal.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum WholeBodyCommand {
+    /// A sequence that needs head and body together (stand-up, fall, dive).
+    Special { motion: SpecialMotion },
+    /// Parametric head and body commands computed together (dribbling: the head keeps the ball
+    /// in view while the body walks it forward).
+    Coordinated { head: HeadCommand, body: BodyCommand },
+}
+
 /// One reactive cycle's commands: at most one per resource, by construction.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum MotionCommands {
-    PerResource {
-        head: Option<HeadCommand>,
-        body: Option<BodyCommand>,
-    },
-    /// A sequence that needs head and body together (stand-up, fall, dive).
-    WholeBody {
-        motion: SpecialMotion,
-    },
+    PerResource { head: Option<HeadCommand>, body: Option<BodyCommand> },
+    /// The head+body multiplexer holds both resources.
+    WholeBody { command: WholeBodyCommand },
 }
 
 impl Default for MotionCommands {

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 use strata_robot::command::{
-    BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, ResourceGroup,
+    BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, ResourceGroup, WholeBodyCommand,
 };
 use strata_robot::control::reactive::{
     ActivationPolicy, FallDetectorConfig, Multiplexer, MultiplexerConfig, PrimitiveBehavior,
@@ -203,12 +203,12 @@ impl ActivationPolicy<WholeGoal, World> for WholePolicy {
 }
 
 struct Sequence(&'static str, SpecialMotion);
-impl PrimitiveBehavior<WholeGoal, SpecialMotion, World> for Sequence {
+impl PrimitiveBehavior<WholeGoal, WholeBodyCommand, World> for Sequence {
     fn name(&self) -> &'static str {
         self.0
     }
-    fn step(&mut self, _: &WholeGoal, _: &ReactiveInput<'_, World>) -> Option<SpecialMotion> {
-        Some(self.1)
+    fn step(&mut self, _: &WholeGoal, _: &ReactiveInput<'_, World>) -> Option<WholeBodyCommand> {
+        Some(WholeBodyCommand::Special { motion: self.1 })
     }
 }
 
@@ -394,7 +394,10 @@ fn a_fall_inhibits_head_and_body_within_one_reactive_cycle() {
     // The very next percept shows the robot tipping: the reflex fires, no deliberation needed.
     let report = layer.step(Time::from_nanos(12), &tipping(), Some(&world));
     assert_eq!(report.stability, Stability::Unstable(strata_robot::platform::FallDirection::Front));
-    assert_eq!(report.commands, MotionCommands::WholeBody { motion: SpecialMotion::Fall(0) });
+    assert_eq!(
+        report.commands,
+        MotionCommands::WholeBody { command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(0) } }
+    );
     assert_eq!(report.head.inhibited_by, Some(ResourceGroup::HeadAndBody));
     assert_eq!(report.body.inhibited_by, Some(ResourceGroup::HeadAndBody));
     assert!(report.active_path().starts_with("head+body: fall > fall"), "{}", report.active_path());

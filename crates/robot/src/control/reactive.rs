@@ -26,10 +26,11 @@ use strata_runtime::Time;
 
 use crate::command::{
     ActuationMessage, BodyCommand, HeadCommand, MotionCommands, Resource, ResourceGroup,
+    WholeBodyCommand,
 };
 use crate::control::scores::{Goal, GoalScore, ScoreCombination, ScoreVector};
 use crate::percept::Percepts;
-use crate::platform::{FallDirection, SpecialMotion};
+use crate::platform::FallDirection;
 
 /// How stable the robot is, from its inertial sensors (the paper's standing status: stable,
 /// unstable or fallen).
@@ -474,7 +475,7 @@ impl ReactiveReport {
 pub struct ReactiveLayer<H, B, X, W> {
     pub head: Multiplexer<H, HeadCommand, W>,
     pub body: Multiplexer<B, BodyCommand, W>,
-    pub whole_body: Multiplexer<X, SpecialMotion, W>,
+    pub whole_body: Multiplexer<X, WholeBodyCommand, W>,
     fall_detector: FallDetector,
     actuation: ActuationStatus,
 }
@@ -493,7 +494,7 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
     pub fn new(
         head: Multiplexer<H, HeadCommand, W>,
         body: Multiplexer<B, BodyCommand, W>,
-        whole_body: Multiplexer<X, SpecialMotion, W>,
+        whole_body: Multiplexer<X, WholeBodyCommand, W>,
         fall_detector: FallDetectorConfig,
     ) -> ReactiveLayer<H, B, X, W> {
         ReactiveLayer {
@@ -535,7 +536,7 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
                 self.head.idle(Some(ResourceGroup::HeadAndBody));
                 self.body.idle(Some(ResourceGroup::HeadAndBody));
                 match self.whole_body.execute(&selection, &input) {
-                    Some(motion) => MotionCommands::WholeBody { motion },
+                    Some(command) => MotionCommands::WholeBody { command },
                     None => MotionCommands::default(),
                 }
             }
