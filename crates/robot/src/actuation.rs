@@ -297,6 +297,24 @@ impl ActuationState {
         (changed.then_some(orders), messages)
     }
 
+    /// The platform refused the last body order (a NAO without a kick, say): a special
+    /// sequence that never started must not hold its resources.
+    pub fn body_order_refused(&mut self) -> Vec<ActuationMessage> {
+        let mut messages = Vec::new();
+        if let BodyExecution::Special { started: false, .. } = self.body {
+            self.body = BodyExecution::Idle;
+            messages.push(ActuationMessage::ResourceReleased { resource: Resource::Body });
+            if self.head_held_by_special {
+                self.head_held_by_special = false;
+                messages.push(ActuationMessage::ResourceReleased { resource: Resource::Head });
+            }
+        } else if let BodyExecution::Walking { .. } = self.body {
+            self.body = BodyExecution::Idle;
+        }
+        self.body_queue.clear();
+        messages
+    }
+
     pub fn head_queue_len(&self) -> usize {
         self.head_queue.len()
     }
@@ -527,6 +545,19 @@ mod tests {
         assert!(
             messages.contains(&ActuationMessage::ResourceReleased { resource: Resource::Head })
         );
+    }
+
+    #[test]
+    fn a_refused_special_sequence_releases_its_resources() {
+        let mut a = ActuationState::new(ActuationConfig::default());
+        a.command(&MotionCommands::PerResource { head: None, body: Some(BodyCommand::Special(SpecialMotion::Kick(0))) });
+        let _ = a.update(&feedback(0.0, BodyMotionState::Standing));
+        let released = a.body_order_refused();
+        assert_eq!(released, vec![ActuationMessage::ResourceReleased { resource: Resource::Body }]);
+        a.command(&MotionCommands::PerResource { head: None, body: Some(BodyCommand::NonQueue(walk(0.1, 1.0))) });
+        let (orders, messages) = a.update(&feedback(0.1, BodyMotionState::Standing));
+        assert!(messages.iter().all(|m| !matches!(m, ActuationMessage::CommandRejected { .. })));
+        assert!(matches!(orders.and_then(|o| o.body), Some(BodyOrder::Walk { .. })));
     }
 
     #[test]

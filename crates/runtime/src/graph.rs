@@ -512,6 +512,29 @@ impl GraphBuilder {
         self.names.get(name).copied()
     }
 
+    /// Replaces the processing-time model of a module already added (one that a library
+    /// function created, say). False if there is no such module.
+    pub fn set_processing_time(&mut self, module: &str, model: ProcessingTime) -> bool {
+        match self.names.get(module) {
+            Some(id) => {
+                self.modules[id.index()].processing_time = model;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Replaces the tie-break priority of a module already added.
+    pub fn set_priority(&mut self, module: &str, priority: i32) -> bool {
+        match self.names.get(module) {
+            Some(id) => {
+                self.modules[id.index()].priority = priority;
+                true
+            }
+            None => false,
+        }
+    }
+
     fn module_by_name(&self, name: &str) -> Result<(ModuleId, &ModuleDecl), GraphError> {
         let id = self
             .names

@@ -52,6 +52,22 @@ pub enum Colour {
     Orange,
 }
 
+impl Colour {
+    /// A stable code for the colour: how a camera that tells coloured goal posts apart reports
+    /// them (the detection's variant), shared by the simulator and the applications.
+    pub fn code(self) -> u16 {
+        match self {
+            Colour::White => 0,
+            Colour::Yellow => 1,
+            Colour::SkyBlue => 2,
+            Colour::Pink => 3,
+            Colour::Blue => 4,
+            Colour::Green => 5,
+            Colour::Orange => 6,
+        }
+    }
+}
+
 /// Length (along x) and width (along y) of a box in front of a goal.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
