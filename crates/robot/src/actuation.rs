@@ -550,11 +550,17 @@ mod tests {
     #[test]
     fn a_refused_special_sequence_releases_its_resources() {
         let mut a = ActuationState::new(ActuationConfig::default());
-        a.command(&MotionCommands::PerResource { head: None, body: Some(BodyCommand::Special(SpecialMotion::Kick(0))) });
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
+        });
         let _ = a.update(&feedback(0.0, BodyMotionState::Standing));
         let released = a.body_order_refused();
         assert_eq!(released, vec![ActuationMessage::ResourceReleased { resource: Resource::Body }]);
-        a.command(&MotionCommands::PerResource { head: None, body: Some(BodyCommand::NonQueue(walk(0.1, 1.0))) });
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::NonQueue(walk(0.1, 1.0))),
+        });
         let (orders, messages) = a.update(&feedback(0.1, BodyMotionState::Standing));
         assert!(messages.iter().all(|m| !matches!(m, ActuationMessage::CommandRejected { .. })));
         assert!(matches!(orders.and_then(|o| o.body), Some(BodyOrder::Walk { .. })));

@@ -146,9 +146,14 @@ pub enum WholeBodyCommand {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum MotionCommands {
-    PerResource { head: Option<HeadCommand>, body: Option<BodyCommand> },
+    PerResource {
+        head: Option<HeadCommand>,
+        body: Option<BodyCommand>,
+    },
     /// The head+body multiplexer holds both resources.
-    WholeBody { command: WholeBodyCommand },
+    WholeBody {
+        command: WholeBodyCommand,
+    },
 }
 
 impl Default for MotionCommands {

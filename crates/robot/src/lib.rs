@@ -6,11 +6,13 @@
 //! missions, roles, goals, behaviors and value functions.
 
 pub mod actuation;
+pub mod assembly;
 pub mod command;
 pub mod control;
 pub mod geometry;
 pub mod percept;
 pub mod perception;
 pub mod platform;
+pub mod world;
 
 pub use geometry::{Field, Odometry, Point, Pose, Robot, Vector, Velocity, normalize_angle};

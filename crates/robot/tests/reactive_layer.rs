@@ -3,7 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 use strata_robot::command::{
-    BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, ResourceGroup, WholeBodyCommand,
+    BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, ResourceGroup,
+    WholeBodyCommand,
 };
 use strata_robot::control::reactive::{
     ActivationPolicy, FallDetectorConfig, Multiplexer, MultiplexerConfig, PrimitiveBehavior,
@@ -396,7 +397,9 @@ fn a_fall_inhibits_head_and_body_within_one_reactive_cycle() {
     assert_eq!(report.stability, Stability::Unstable(strata_robot::platform::FallDirection::Front));
     assert_eq!(
         report.commands,
-        MotionCommands::WholeBody { command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(0) } }
+        MotionCommands::WholeBody {
+            command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(0) }
+        }
     );
     assert_eq!(report.head.inhibited_by, Some(ResourceGroup::HeadAndBody));
     assert_eq!(report.body.inhibited_by, Some(ResourceGroup::HeadAndBody));

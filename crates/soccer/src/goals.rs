@@ -24,8 +24,10 @@ pub enum HeadGoal {
     ObserveFieldLine {
         line: u8,
     },
+    /// The deliberative layer passes where the partner last reported itself.
     ObservePartner {
         player: u8,
+        position: Point<Field>,
     },
     ObserveRival {
         player: u8,
@@ -35,6 +37,8 @@ pub enum HeadGoal {
     ObserveLandmark {
         name: String,
     },
+    /// A fixed head scan, whatever the situation (the baseline many SPL teams use).
+    Scan,
     /// Several objects in one gaze; split by the multiplexer when they do not fit (stage 1).
     ObserveTogether {
         objects: Vec<String>,
@@ -48,10 +52,11 @@ impl Goal for HeadGoal {
             HeadGoal::ObserveGoal { side: GoalSide::Own } => "observe own goal".into(),
             HeadGoal::ObserveGoal { side: GoalSide::Opponent } => "observe opponent goal".into(),
             HeadGoal::ObserveFieldLine { line } => format!("observe field line {line}"),
-            HeadGoal::ObservePartner { player } => format!("observe partner {player}"),
+            HeadGoal::ObservePartner { player, .. } => format!("observe partner {player}"),
             HeadGoal::ObserveRival { player } => format!("observe rival {player}"),
             HeadGoal::ObserveLandmark { name } => format!("observe {name}"),
             HeadGoal::ObserveTogether { objects } => format!("observe {}", objects.join("+")),
+            HeadGoal::Scan => "scan".into(),
         }
     }
 }
@@ -60,7 +65,10 @@ impl Goal for HeadGoal {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Kick {
+    /// A strong kick straight ahead (shots).
     Forward,
+    /// A softer kick straight ahead (passes, clearing).
+    Pass,
     SideLeft,
     SideRight,
 }
@@ -70,8 +78,18 @@ impl Kick {
     pub fn sequence(self) -> u8 {
         match self {
             Kick::Forward => 0,
-            Kick::SideLeft => 1,
-            Kick::SideRight => 2,
+            Kick::Pass => 1,
+            Kick::SideLeft => 2,
+            Kick::SideRight => 3,
+        }
+    }
+
+    /// Direction of the ball relative to the robot's heading.
+    pub fn direction(self) -> f64 {
+        match self {
+            Kick::Forward | Kick::Pass => 0.0,
+            Kick::SideLeft => std::f64::consts::FRAC_PI_2,
+            Kick::SideRight => -std::f64::consts::FRAC_PI_2,
         }
     }
 }

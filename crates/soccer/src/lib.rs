@@ -2,6 +2,16 @@
 //! goals and primitive behaviors of the paper's Tables 1 to 4, the value functions of active
 //! vision, and the team message of Fig. 2.
 
+pub mod activation;
+pub mod behaviors;
 pub mod catalog;
+pub mod field;
+pub mod game;
 pub mod goals;
 pub mod message;
+pub mod planning;
+pub mod primitives;
+pub mod situation;
+pub mod team;
+pub mod value;
+pub mod world_config;

@@ -211,11 +211,24 @@ pub struct PlanningConfig {
     pub teammate_timeout: f64,
     /// Minimum spacing between any two messages (instant ones included), s.
     pub min_message_spacing: f64,
+    /// Messages that may go out back to back when the budget has been saved up (a fall, a new
+    /// role): the burst of the budget's token bucket.
+    pub message_burst: f64,
+    /// Utility bonus of the robot currently holding a role: another must be better by this
+    /// much to take it over, so that two nearly equal robots do not swap roles back and forth
+    /// on stale data.
+    pub role_hysteresis: f64,
 }
 
 impl Default for PlanningConfig {
     fn default() -> Self {
-        PlanningConfig { message_interval: 4.0, teammate_timeout: 6.0, min_message_spacing: 0.5 }
+        PlanningConfig {
+            message_interval: 4.0,
+            teammate_timeout: 6.0,
+            min_message_spacing: 0.5,
+            message_burst: 3.0,
+            role_hysteresis: 1.5,
+        }
     }
 }
 
@@ -243,15 +256,22 @@ impl MessageBudget {
         f64::from(self.team_remaining) / f64::from(self.robots.max(1))
     }
 
-    /// The smallest interval between regular messages that lasts the game.
+    /// The smallest average interval between messages that lasts the game.
     pub fn sustainable_interval(&self) -> f64 {
-        let usable = self.own_share() - f64::from(self.reserve);
+        let rate = self.sustainable_rate();
+        if rate <= 0.0 { f64::INFINITY } else { 1.0 / rate }
+    }
+
+    /// Messages per second this robot can send on average and still have its share last the
+    /// game.
+    pub fn sustainable_rate(&self) -> f64 {
+        let usable = self.own_share();
         if usable <= 0.0 {
-            f64::INFINITY
-        } else if self.time_left.is_infinite() {
             0.0
+        } else if self.time_left.is_infinite() || self.time_left <= 0.0 {
+            f64::INFINITY
         } else {
-            self.time_left / usable
+            usable / self.time_left
         }
     }
 
@@ -293,6 +313,9 @@ pub struct Planner<P: PlanningPolicy> {
     own: Option<OwnState>,
     own_utility: f64,
     last_sent: Option<Time>,
+    /// Token bucket of the message budget: refilled at the sustainable rate.
+    tokens: f64,
+    last_refill: Option<Time>,
     last_received: Option<Time>,
     received_since_sent: bool,
     instant_pending: bool,
@@ -330,6 +353,8 @@ impl<P: PlanningPolicy> Planner<P> {
             own: None,
             own_utility: 0.0,
             last_sent: None,
+            tokens: 0.0,
+            last_refill: None,
             last_received: None,
             received_since_sent: false,
             instant_pending: false,
@@ -489,6 +514,8 @@ impl<P: PlanningPolicy> Planner<P> {
         };
         let mut candidates: Vec<Candidate<'_>> =
             vec![Candidate { id: own.id, pose: own.pose, objects: &own.objects }];
+        // The role each candidate holds now: ours, and what each teammate last claimed.
+        let mut holding: Vec<P::Role> = vec![self.assignment.role];
         for r in available {
             // Robots bound to a designated role (the goalkeeper) are not candidates for others.
             if self.designated_role(r.message.sender).is_none() {
@@ -497,6 +524,7 @@ impl<P: PlanningPolicy> Planner<P> {
                     pose: r.message.pose,
                     objects: &r.message.objects,
                 });
+                holding.push(r.message.role);
             }
         }
         let mut unassigned: Vec<usize> = (0..candidates.len()).collect();
@@ -504,7 +532,15 @@ impl<P: PlanningPolicy> Planner<P> {
         for role_spec in spec.roles.iter().filter(|r| r.designated.is_none()) {
             let mut ranked: Vec<(usize, f64)> = unassigned
                 .iter()
-                .map(|&i| (i, self.policy.role_utility(&candidates[i], role_spec.role, mission)))
+                .map(|&i| {
+                    let utility = self.policy.role_utility(&candidates[i], role_spec.role, mission);
+                    let bonus = if holding[i] == role_spec.role {
+                        self.config.role_hysteresis
+                    } else {
+                        0.0
+                    };
+                    (i, utility + bonus)
+                })
                 .collect();
             // Higher utility first; on a tie, the lower robot number.
             ranked.sort_by(|a, b| {
@@ -524,12 +560,27 @@ impl<P: PlanningPolicy> Planner<P> {
     }
 
     /// Whether a message is due now, and of which kind, given the budget.
+    ///
+    /// Every message, instant ones included, takes a token from a bucket refilled at the rate
+    /// that makes this robot's share of the budget last the game: a burst of instant messages
+    /// (a fall, a role change) is allowed from what was saved, never beyond.
     pub fn message_due(&mut self, now: Time) -> Option<MessageKind> {
+        let burst = self.config.message_burst.max(1.0);
+        let rate = self.budget.sustainable_rate();
+        self.tokens = match self.last_refill {
+            None => burst,
+            Some(t) if rate.is_infinite() => {
+                let _ = t;
+                burst
+            }
+            Some(t) => (self.tokens + rate * (now - t).as_secs_f64()).min(burst),
+        };
+        self.last_refill = Some(now);
         let spacing = Duration::from_secs_f64(self.config.min_message_spacing.max(0.0));
         if self.last_sent.is_some_and(|t| now - t < spacing) {
             return None;
         }
-        let interval = self.config.message_interval.max(self.budget.sustainable_interval());
+        let interval = self.config.message_interval;
         let periodic_due = self.last_sent.is_none_or(|t| (now - t).as_secs_f64() >= interval);
         let kind = if self.instant_pending {
             MessageKind::Instant
@@ -538,7 +589,7 @@ impl<P: PlanningPolicy> Planner<P> {
         } else {
             return None;
         };
-        if !self.budget.can_send(kind == MessageKind::Instant) {
+        if self.tokens < 1.0 || !self.budget.can_send(kind == MessageKind::Instant) {
             self.stats.withheld += 1;
             // An instant message that cannot go now is merged into the next one that can.
             return None;
@@ -574,6 +625,7 @@ impl<P: PlanningPolicy> Planner<P> {
         self.received_since_sent = false;
         self.instant_pending = false;
         self.conflict_pending = false;
+        self.tokens -= 1.0;
         self.budget.spend();
         match kind {
             MessageKind::Periodic => self.stats.sent_periodic += 1,

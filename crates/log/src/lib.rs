@@ -1,0 +1,59 @@
+//! Logging and replay for Strata (DESIGN principle 8: observable by default).
+//!
+//! - [`McapTap`] is a [`strata_runtime::Tap`] that records every package a host delivers into
+//!   an [MCAP](https://mcap.dev) file: one channel per connection writer (`"{module}/{output}"`),
+//!   JSON messages with a JSON Schema per Rust type, so generic tools (Foxglove, the `mcap`
+//!   CLI) open the logs. A bounded background thread writes the file; a full queue drops and
+//!   counts (by default), it never blocks a real-time layer; simulated-time runs can ask it to
+//!   wait instead, for a complete log. The graph description and the run's metadata
+//!   (seed, command line, configuration, version) travel in the file, so a module can be
+//!   rebuilt and replayed from it.
+//! - [`LogReader`] reads a log: a complete one through its summary, a truncated one (killed
+//!   process) by scanning its chunks up to the first incomplete one.
+//! - [`replay`] re-runs modules of a logged graph on the lockstep host from their logged
+//!   inputs, seed and (optionally overridden) parameters, and lists where their outputs differ
+//!   from the logged ones.
+
+mod error;
+mod info;
+pub mod overrides;
+mod reader;
+pub mod replay;
+mod schema;
+mod writer;
+
+pub use error::LogError;
+pub use info::{LogInfo, TopicSummary};
+pub use reader::{
+    LogMessage, LogReader, LoggedAttachment, LoggedGraph, LoggedMetadata, LoggedStats, Messages,
+    Recovery, TopicInfo,
+};
+pub use schema::infer_json_schema;
+pub use writer::{
+    ConfigFormat, LogCompression, LogSummary, McapTap, McapTapOptions, RunInfo, ScopedTap, WhenFull,
+};
+
+/// Metadata record holding [`RunInfo`] (seed, version, command line, configuration format).
+pub const RUN_METADATA: &str = "strata.run";
+/// Metadata record holding one graph description (`Graph::describe()` as JSON) and the topic
+/// prefix (`scope`) its packages were logged under. A log may hold several (one per host).
+pub const GRAPH_METADATA: &str = "strata.graph";
+/// Metadata record written when a log is finished: messages written, packages dropped.
+pub const STATS_METADATA: &str = "strata.log_stats";
+/// Attachment holding the run's configuration text, as given (`config.toml` or `config.json`).
+pub const CONFIG_ATTACHMENT_PREFIX: &str = "config.";
+/// Channel metadata key telling what an MCAP message's `publish_time` holds in Strata logs:
+/// the package's stamp (when its data was measured), not when it was sent.
+pub const PUBLISH_TIME_KEY: &str = "strata.publish_time";
+
+/// Channel metadata key present on channels whose values are not JSON objects: each message
+/// is then `{"value": <the value>}` (generic tools expect objects); the key's value names the
+/// field. [`LogReader`] unwraps them.
+pub const WRAPPED_KEY: &str = "strata.wrapped";
+/// The field wrapped values are stored in.
+pub const WRAP_FIELD: &str = "value";
+
+/// The topic a package of `output` of module `module` is logged under.
+pub fn package_topic(module: &str, output: &str) -> String {
+    format!("{module}/{output}")
+}

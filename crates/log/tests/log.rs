@@ -1,0 +1,331 @@
+//! Logs written from a lockstep run read back whole; logs cut short read back up to their last
+//! complete chunk; `log info` describes both.
+
+mod support;
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use strata_log::{LogCompression, LogError, LogInfo, LogReader, McapTap, McapTapOptions};
+use strata_runtime::{HostConfig, ThreadedHost, Time};
+use support::{CONFIG, SEED, record_demo, scratch};
+
+#[test]
+fn round_trip_keeps_every_package_in_order() {
+    let dir = scratch("round-trip");
+    let path = dir.join("demo.mcap");
+    let (seen, summary) = record_demo(&path, 5.0, McapTapOptions::default(), CONFIG);
+    assert_eq!(summary.dropped, 0);
+    assert_eq!(summary.serialize_errors, 0);
+    // 50 ground-truth records besides the packages.
+    assert_eq!(summary.messages, seen.len() as u64 + 50);
+    assert_eq!(summary.topics, 4);
+
+    let reader = LogReader::open(&path).expect("open");
+    assert!(reader.is_complete());
+    assert!(reader.recovery().is_none());
+    assert_eq!(reader.message_count(), summary.messages);
+    assert_eq!(reader.file_bytes(), summary.bytes);
+
+    let packages: Vec<_> = reader
+        .messages()
+        .map(|m| m.expect("readable"))
+        .filter(|m| &*m.topic != "sim/ground_truth")
+        .map(|m| (m.topic.to_string(), m.log_time, m.stamp, m.seq, m.data))
+        .collect();
+    assert_eq!(packages.len(), seen.len());
+    assert!(packages == seen, "the log differs from what the tap saw");
+
+    let truth: Vec<_> =
+        reader.messages_on(["sim/ground_truth"]).map(|m| m.expect("readable")).collect();
+    assert_eq!(truth.len(), 50);
+    assert_eq!(truth[0].log_time, Time::from_secs_f64(0.1));
+    assert_eq!(truth[49].seq, 49);
+    assert_eq!(truth[1].json().expect("json")["ball"]["x"], 0.02);
+
+    let filter = reader.topic("filter/estimate").expect("filter topic");
+    assert_eq!(filter.type_name, std::any::type_name::<support::Estimate>());
+    assert_eq!(filter.message_encoding, "json");
+    assert_eq!(filter.schema_encoding.as_deref(), Some("jsonschema"));
+    let source = reader.topic("source/reading").expect("source topic");
+    assert_eq!(source.messages, 501);
+
+    let run = reader.run_info().expect("run info").expect("present");
+    assert_eq!(run.seed, SEED);
+    assert_eq!(run.config.as_ref().map(|c| c.1.as_str()), Some(CONFIG));
+    assert_eq!(reader.config().expect("config"), Some(support::config_value()));
+    let graphs = reader.graphs().expect("graphs");
+    assert_eq!(graphs.len(), 1);
+    assert_eq!(graphs[0].scope, "");
+    let names: Vec<&str> = graphs[0].description.modules.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["source", "filter", "monitor"]);
+    let stats = reader.stats().expect("writer statistics");
+    assert_eq!(stats.messages, summary.messages);
+    assert_eq!(stats.dropped, 0);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+#[test]
+fn uncompressed_and_lz4_logs_read_back_the_same() {
+    let dir = scratch("compression");
+    let mut contents = Vec::new();
+    for compression in [LogCompression::None, LogCompression::Lz4, LogCompression::Zstd] {
+        let path = dir.join(format!("{compression:?}.mcap"));
+        let options = McapTapOptions { compression, ..McapTapOptions::default() };
+        record_demo(&path, 1.0, options, CONFIG);
+        let reader = LogReader::open(&path).expect("open");
+        let messages: Vec<_> =
+            reader.messages().map(|m| m.expect("readable")).map(|m| (m.topic, m.data)).collect();
+        contents.push(messages);
+    }
+    assert_eq!(contents[0], contents[1]);
+    assert_eq!(contents[0], contents[2]);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+/// Message counts of the chunks of a complete file, and where each chunk ends, read with the
+/// `mcap` crate's own summary reader (independently of `LogReader`).
+fn chunk_ends_and_counts(bytes: &[u8]) -> Vec<(u64, u64)> {
+    let summary = mcap::Summary::read(bytes).expect("summary").expect("present");
+    let mut chunks: Vec<(u64, u64)> = summary
+        .chunk_indexes
+        .iter()
+        .map(|index| {
+            let count = summary.stream_chunk(bytes, index).expect("chunk").count() as u64;
+            (index.chunk_start_offset + index.chunk_length, count)
+        })
+        .collect();
+    chunks.sort_unstable();
+    chunks
+}
+
+#[test]
+fn a_truncated_log_recovers_its_complete_chunks() {
+    let dir = scratch("truncated");
+    let path = dir.join("full.mcap");
+    // Short chunks, so cuts land between and inside many of them.
+    let options =
+        McapTapOptions { max_chunk_span: Duration::from_millis(100), ..Default::default() };
+    let (_, summary) = record_demo(&path, 3.0, options, CONFIG);
+    let bytes = std::fs::read(&path).expect("read");
+    let chunks = chunk_ends_and_counts(&bytes);
+    assert!(chunks.len() >= 20, "{} chunks", chunks.len());
+    assert_eq!(chunks.iter().map(|c| c.1).sum::<u64>(), summary.messages);
+
+    let mut cuts: Vec<usize> = (0..bytes.len()).step_by(997).collect();
+    for &(end, _) in chunks.iter().take(6) {
+        let end = end as usize;
+        cuts.extend([end - 1, end, end + 1]);
+    }
+    cuts.extend([0, 1, 7, 8, 9, 16, bytes.len() - 1, bytes.len() - 8, bytes.len() - 30]);
+    let cut_path = dir.join("cut.mcap");
+    for cut in cuts {
+        std::fs::write(&cut_path, &bytes[..cut]).expect("write cut");
+        match LogReader::open(&cut_path) {
+            Err(LogError::NotMcap { .. }) => assert!(cut < 8, "cut at {cut} not recognized"),
+            Err(error) => panic!("cut at {cut}: {error}"),
+            Ok(reader) => {
+                let expected: u64 =
+                    chunks.iter().filter(|(end, _)| *end as usize <= cut).map(|c| c.1).sum();
+                assert!(!reader.is_complete(), "cut at {cut} looks complete");
+                let recovery = reader.recovery().expect("recovery report");
+                assert_eq!(recovery.messages, expected, "cut at {cut}");
+                assert_eq!(reader.message_count(), expected, "cut at {cut}");
+                let read = reader.messages().filter(Result::is_ok).count() as u64;
+                assert_eq!(read, expected, "cut at {cut}");
+                // Metadata precedes the first chunk: a file with a chunk has its graph.
+                if expected > 0 {
+                    assert_eq!(reader.graphs().expect("graph").len(), 1);
+                    assert!(reader.run_info().expect("run").is_some());
+                }
+                let info = LogInfo::of(&reader);
+                assert!(!info.complete);
+                assert!(info.to_string().contains("TRUNCATED"), "{info}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+#[test]
+fn damaged_bytes_give_errors_or_partial_results_never_panics() {
+    let dir = scratch("damaged");
+    let path = dir.join("full.mcap");
+    let options =
+        McapTapOptions { max_chunk_span: Duration::from_millis(100), ..Default::default() };
+    record_demo(&path, 1.0, options, CONFIG);
+    let bytes = std::fs::read(&path).expect("read");
+    let chunks = chunk_ends_and_counts(&bytes);
+    let damaged_path = dir.join("damaged.mcap");
+    // Every few bytes, headers, metadata, attachment, chunks and summary alike.
+    for position in (0..bytes.len()).step_by(bytes.len() / 700 + 1) {
+        let mut damaged = bytes.clone();
+        damaged[position] ^= 0x5a;
+        std::fs::write(&damaged_path, &damaged).expect("write");
+        if let Ok(reader) = LogReader::open(&damaged_path) {
+            let _ = LogInfo::of(&reader).to_string();
+            let _ = reader.graphs();
+            let _ = reader.config();
+            let _ = reader.messages().take_while(Result::is_ok).count();
+        }
+    }
+    // Damage inside the third chunk of a file whose footer is also gone: the first two
+    // chunks are recovered, nothing after the damaged one.
+    let start_of_third = chunks[1].0 as usize;
+    let mut damaged = bytes[..bytes.len() - 8].to_vec();
+    let middle = (start_of_third + chunks[2].0 as usize) / 2;
+    damaged[middle] ^= 0xff;
+    std::fs::write(&damaged_path, &damaged).expect("write");
+    let reader = LogReader::open(&damaged_path).expect("open");
+    assert_eq!(reader.message_count(), chunks[0].1 + chunks[1].1);
+    let recovery = reader.recovery().expect("recovery");
+    assert!(recovery.stopped.contains("damaged chunk"), "{}", recovery.stopped);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+#[test]
+fn log_info_describes_complete_and_truncated_files() {
+    let dir = scratch("info");
+    let path = dir.join("demo.mcap");
+    let options =
+        McapTapOptions { max_chunk_span: Duration::from_millis(100), ..Default::default() };
+    let (_, summary) = record_demo(&path, 2.0, options, CONFIG);
+    let info = LogInfo::of(&LogReader::open(&path).expect("open"));
+    assert!(info.complete);
+    assert_eq!(info.messages, summary.messages);
+    assert_eq!(info.seed, Some(SEED));
+    assert!((info.duration_s() - 1.99).abs() < 0.02, "{}", info.duration_s());
+    let topics: Vec<(&str, u64)> =
+        info.topics.iter().map(|t| (t.name.as_str(), t.messages)).collect();
+    assert_eq!(topics.len(), 4);
+    assert!(topics.contains(&("source/reading", 201)));
+    assert!(topics.contains(&("sim/ground_truth", 20)));
+    assert_eq!(info.writer.as_ref().map(|w| w.dropped), Some(0));
+    let metadata: Vec<&str> = info.metadata.iter().map(|(name, _)| name.as_str()).collect();
+    assert_eq!(metadata, ["strata.run", "strata.graph", "strata.log_stats"]);
+    let text = info.to_string();
+    assert!(text.contains("status:    complete"), "{text}");
+    assert!(text.contains("source/reading"), "{text}");
+    assert!(text.contains("0 dropped"), "{text}");
+    assert!(text.contains("strata.graph: graph, scope"), "{text}");
+
+    let bytes = std::fs::read(&path).expect("read");
+    let cut = dir.join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).expect("write");
+    let info = LogInfo::of(&LogReader::open(&cut).expect("open"));
+    assert!(!info.complete);
+    let recovered = info.recovery.as_ref().map(|r| r.messages).expect("recovery");
+    assert!(recovered > 0 && recovered < summary.messages);
+    let text = info.to_string();
+    assert!(text.contains(&format!("TRUNCATED: recovered {recovered} messages")), "{text}");
+    assert!(text.contains("not finished"), "{text}");
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+#[test]
+fn the_threaded_host_logs_through_the_same_tap() {
+    let dir = scratch("threaded");
+    let path = dir.join("threaded.mcap");
+    let config = support::config_value();
+    let graph = support::demo_graph("", &config);
+    let log = Arc::new(McapTap::create(&path, McapTapOptions::default()).expect("create"));
+    log.write_graph("", &graph.describe()).expect("graph");
+    let mut host = ThreadedHost::new(graph, HostConfig::with_seed(SEED));
+    host.set_tap(log.clone());
+    let running = host.start().expect("start");
+    running.run_for(Duration::from_millis(300)).expect("run");
+    let summary = log.finish().expect("finish");
+    let reader = LogReader::open(&path).expect("open");
+    assert!(reader.is_complete());
+    assert_eq!(reader.message_count(), summary.messages);
+    assert!(summary.messages > 0);
+    // Each output's packages keep their order.
+    for topic in ["source/reading", "filter/estimate", "monitor/status"] {
+        let seqs: Vec<u64> = reader.messages_on([topic]).map(|m| m.expect("ok").seq).collect();
+        assert!(seqs.windows(2).all(|w| w[0] < w[1]), "{topic}: {seqs:?}");
+    }
+    // Finishing twice returns the same summary; later packages are counted, not written.
+    assert_eq!(log.finish().expect("again"), summary);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+#[test]
+fn a_file_that_is_not_mcap_is_an_error() {
+    let dir = scratch("not-mcap");
+    let path = dir.join("notes.txt");
+    std::fs::write(&path, "hello, this is not a log").expect("write");
+    assert!(matches!(LogReader::open(&path), Err(LogError::NotMcap { .. })));
+    assert!(matches!(LogReader::open(dir.join("missing.mcap")), Err(LogError::Open { .. })));
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+#[test]
+fn every_message_is_a_json_object_with_an_object_schema_for_generic_tools() {
+    let dir = scratch("generic");
+    let path = dir.join("demo.mcap");
+    let (_, _) = record_demo(&path, 0.5, McapTapOptions::default(), CONFIG);
+    // Add values that are not objects: they are wrapped in the file, unwrapped when read.
+    let scalars = dir.join("scalars.mcap");
+    let log = McapTap::create(&scalars, McapTapOptions::default()).expect("create");
+    log.record_value("game/score", Time::from_nanos(5), &(2u8, 1u8));
+    log.record_value("game/phase", Time::from_nanos(6), &"Playing");
+    log.record("game/clock", "f64", Time::from_nanos(7), &serde_json::json!(599.5));
+    log.finish().expect("finish");
+
+    for file in [&path, &scalars] {
+        // Read with the `mcap` crate alone, as a generic tool would.
+        let bytes = std::fs::read(file).expect("read");
+        let mut messages = 0;
+        for message in mcap::MessageStream::new(&bytes).expect("stream") {
+            let message = message.expect("message");
+            assert_eq!(message.channel.message_encoding, "json");
+            let schema = message.channel.schema.as_ref().expect("a schema");
+            assert_eq!(schema.encoding, "jsonschema");
+            let schema: serde_json::Value = serde_json::from_slice(&schema.data).expect("schema");
+            assert_eq!(schema["type"], "object", "{}", message.channel.topic);
+            assert_eq!(schema["title"], schema_name(&message), "{}", message.channel.topic);
+            let value: serde_json::Value = serde_json::from_slice(&message.data).expect("json");
+            assert!(value.is_object(), "{}: {value}", message.channel.topic);
+            messages += 1;
+        }
+        assert!(messages > 0);
+    }
+    let reader = LogReader::open(&scalars).expect("open");
+    let values: Vec<(String, String)> = reader
+        .messages()
+        .map(|m| m.expect("ok"))
+        .map(|m| (m.topic.to_string(), String::from_utf8_lossy(&m.data).into_owned()))
+        .collect();
+    assert_eq!(
+        values,
+        [
+            ("game/score".to_owned(), "[2,1]".to_owned()),
+            ("game/phase".to_owned(), "\"Playing\"".to_owned()),
+            ("game/clock".to_owned(), "599.5".to_owned()),
+        ]
+    );
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+fn schema_name(message: &mcap::Message<'_>) -> String {
+    message.channel.schema.as_ref().map(|s| s.name.clone()).unwrap_or_default()
+}
+
+#[test]
+fn chosen_modules_only_are_logged() {
+    let dir = scratch("chosen");
+    let path = dir.join("chosen.mcap");
+    let config = support::config_value();
+    let graph = support::demo_graph("r1/", &config);
+    let options = McapTapOptions { modules: vec!["r1/filter".to_owned()], ..Default::default() };
+    let log = Arc::new(McapTap::create(&path, options).expect("create"));
+    let mut host = strata_runtime::LockstepHost::new(graph, HostConfig::with_seed(SEED));
+    host.set_tap(log.clone());
+    host.run_until(Time::from_secs_f64(1.0)).expect("run");
+    log.record("sim/ground_truth", "demo::GroundTruth", Time::ZERO, &serde_json::json!({}));
+    log.finish().expect("finish");
+    let reader = LogReader::open(&path).expect("open");
+    let topics: Vec<&str> = reader.topics().iter().map(|t| t.name.as_str()).collect();
+    assert_eq!(topics, ["r1/filter/estimate", "sim/ground_truth"]);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}

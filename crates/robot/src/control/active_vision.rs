@@ -1,0 +1,388 @@
+//! Active vision (paper 3.6): choosing where to look by what the look is worth to the current
+//! deliberative behavior.
+//!
+//! The steps of the paper, as Strata runs them:
+//! (a) the reactive layer executes the acting primitive; (b) world modeling predicts the belief;
+//! (c) the deliberative layer evaluates, for each candidate sensing primitive (look along a
+//! direction: at one object, or at a point from which several are seen together), the
+//! behavior's value function under the belief that observation would produce — computed with
+//! world modeling's [`WorldState::expected_update`], which simulates the correction without
+//! performing it — and sends the results as deliberative scores to the head multiplexer;
+//! (d) the multiplexer combines them with reactive scores and executes the sensing primitive;
+//! (e) world modeling corrects with the new observation.
+//!
+//! Two optimality criteria, after Guerrero and Ruiz-del-Solar (the paper's [30]):
+//! - **minimum expected value variance**: choose the look that minimises Var[V] under the
+//!   posterior. Linearized, Var[V] = J P J^T, with J the gradient of V at the estimate and P the
+//!   posterior covariance (block-diagonal: the pose and each object are separate filters).
+//! - **maximum expected action task value**: choose the look that maximises E[V] after the next
+//!   acting primitive, which acts on the posterior mean. To second order,
+//!   E[V] = V(x) + tr(H P) / 2, with H the Hessian of V: uncertainty costs value where V is
+//!   curved, even where its gradient is flat (near the optimum of a covering position, say).
+//!
+//! The two disagree when a look reduces uncertainty along a direction where V is steep but
+//! flat-bottomed, versus one where V is level but curved; both are available and the
+//! behavior chooses. V is the application's: a function of the robot's pose and the positions
+//! of the objects it names, derived numerically (central differences).
+
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
+use crate::percept::ViewCone;
+use crate::world::{ExpectedBelief, ObjectId, WorldState};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+
+/// How a sensing candidate is judged.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Criterion {
+    #[default]
+    MinExpectedValueVariance,
+    MaxExpectedTaskValue,
+}
+
+/// The state a value function is evaluated on: the robot's pose and the positions of objects
+/// (robot frame), possibly perturbed from the world state's estimates.
+#[derive(Clone, Debug)]
+pub struct ValueState<'a> {
+    pub world: &'a WorldState,
+    pub pose: Pose,
+    objects: Vec<(ObjectId, Point<Robot>)>,
+}
+
+impl<'a> ValueState<'a> {
+    /// The world state's own estimates.
+    pub fn of(world: &'a WorldState) -> ValueState<'a> {
+        ValueState { world, pose: world.pose.pose, objects: Vec::new() }
+    }
+
+    /// An object's position relative to the robot.
+    pub fn object(&self, id: ObjectId) -> Option<Point<Robot>> {
+        self.objects
+            .iter()
+            .find(|(o, _)| *o == id)
+            .map(|(_, p)| *p)
+            .or_else(|| self.world.get(id).map(|o| o.position))
+    }
+
+    /// An object's field position, through the (possibly perturbed) pose.
+    pub fn object_field(&self, id: ObjectId) -> Option<Point<Field>> {
+        self.object(id).map(|p| self.pose.to_field(p))
+    }
+
+    fn set_object(&mut self, id: ObjectId, position: Point<Robot>) {
+        match self.objects.iter_mut().find(|(o, _)| *o == id) {
+            Some(entry) => entry.1 = position,
+            None => self.objects.push((id, position)),
+        }
+    }
+}
+
+/// A behavior-dependent value function V(x) (paper 3.4): larger means a world state more
+/// convenient for the behavior.
+pub trait ValueFunction: Send + Sync {
+    fn name(&self) -> &str;
+
+    /// The objects V depends on (besides the robot's pose).
+    fn objects(&self) -> Vec<ObjectId>;
+
+    fn value(&self, state: &ValueState<'_>) -> f64;
+}
+
+/// A sensing primitive to evaluate: look along `direction` (body frame).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GazeCandidate {
+    pub label: String,
+    pub direction: f64,
+}
+
+impl GazeCandidate {
+    /// Look at an object's estimated position.
+    pub fn toward(
+        world: &WorldState,
+        id: ObjectId,
+        label: impl Into<String>,
+    ) -> Option<GazeCandidate> {
+        let object = world.get(id)?;
+        Some(GazeCandidate { label: label.into(), direction: object.position.bearing() })
+    }
+
+    /// Look at a point from which all `ids` are seen, when one exists (their bearings span
+    /// less than the usable field of view).
+    pub fn covering(
+        world: &WorldState,
+        ids: &[ObjectId],
+        usable_fov: f64,
+        label: impl Into<String>,
+    ) -> Option<GazeCandidate> {
+        let bearings: Vec<f64> =
+            ids.iter().filter_map(|id| world.get(*id)).map(|o| o.position.bearing()).collect();
+        if bearings.len() != ids.len() || bearings.is_empty() {
+            return None;
+        }
+        // The smallest arc holding every bearing: measured around the first one.
+        let reference = bearings[0];
+        let offsets: Vec<f64> = bearings.iter().map(|b| normalize_angle(b - reference)).collect();
+        let (lo, hi) =
+            offsets.iter().fold((0.0f64, 0.0f64), |(lo, hi), o| (lo.min(*o), hi.max(*o)));
+        (hi - lo <= usable_fov).then(|| GazeCandidate {
+            label: label.into(),
+            direction: normalize_angle(reference + (lo + hi) / 2.0),
+        })
+    }
+}
+
+/// The camera the candidates are evaluated with.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ActiveVisionConfig {
+    pub criterion: Criterion,
+    /// Horizontal field of view, rad.
+    pub fov: f64,
+    /// Detection range, m.
+    pub range: f64,
+    /// Head yaw limits, rad: a direction beyond them is looked at from the limit.
+    pub yaw_limits: (f64, f64),
+    /// Objects less likely than this to be seen are not counted for a candidate.
+    pub min_visibility: f64,
+    /// Finite-difference steps: metres for positions, radians for the heading.
+    pub position_step: f64,
+    pub heading_step: f64,
+}
+
+impl Default for ActiveVisionConfig {
+    fn default() -> Self {
+        ActiveVisionConfig {
+            criterion: Criterion::MinExpectedValueVariance,
+            fov: 1.06,
+            range: 6.0,
+            yaw_limits: (-2.0, 2.0),
+            min_visibility: 0.05,
+            position_step: 0.01,
+            heading_step: 0.01,
+        }
+    }
+}
+
+/// One candidate's evaluation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GazeEvaluation {
+    pub label: String,
+    pub direction: f64,
+    /// Objects the look would probably observe (world-model names).
+    pub observed: Vec<String>,
+    /// Var[V] after the look.
+    pub value_variance: f64,
+    /// E[V] after the look (and the next acting primitive).
+    pub expected_value: f64,
+    /// How much better than not looking, by the criterion (>= 0).
+    pub improvement: f64,
+    /// The deliberative score S_d in [0, 1]: improvement relative to the best candidate's.
+    pub score: f64,
+}
+
+/// The result of one active-vision evaluation.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ActiveVisionReport {
+    pub value_function: String,
+    pub criterion: Criterion,
+    pub value: f64,
+    /// Var[V] and E[V] under the current (prior) belief.
+    pub prior_variance: f64,
+    pub prior_expected_value: f64,
+    pub candidates: Vec<GazeEvaluation>,
+}
+
+impl ActiveVisionReport {
+    pub fn best(&self) -> Option<&GazeEvaluation> {
+        self.candidates.iter().max_by(|a, b| a.score.total_cmp(&b.score))
+    }
+
+    pub fn score_of(&self, label: &str) -> Option<f64> {
+        self.candidates.iter().find(|c| c.label == label).map(|c| c.score)
+    }
+}
+
+/// Gradient and Hessian of V, per filter block.
+struct Derivatives {
+    value: f64,
+    pose_gradient: Vector3<f64>,
+    pose_hessian: Matrix3<f64>,
+    objects: Vec<(ObjectId, Vector2<f64>, Matrix2<f64>)>,
+}
+
+/// Evaluates sensing candidates for a value function (step (c) of paper 3.6).
+#[derive(Clone, Debug, Default)]
+pub struct ActiveVision {
+    pub config: ActiveVisionConfig,
+    scratch: ExpectedBelief,
+}
+
+impl ActiveVision {
+    pub fn new(config: ActiveVisionConfig) -> ActiveVision {
+        ActiveVision { config, scratch: ExpectedBelief::default() }
+    }
+
+    fn derivatives(&self, world: &WorldState, vf: &dyn ValueFunction) -> Derivatives {
+        let base = ValueState::of(world);
+        let value = vf.value(&base);
+        // Pose block: x, y, theta.
+        let steps =
+            [self.config.position_step, self.config.position_step, self.config.heading_step];
+        let perturbed_pose = |deltas: [f64; 3]| {
+            let mut s = base.clone();
+            s.pose =
+                Pose::new(s.pose.x + deltas[0], s.pose.y + deltas[1], s.pose.theta + deltas[2]);
+            vf.value(&s)
+        };
+        let (pose_gradient, pose_hessian) = derivatives_of::<3>(value, &steps, perturbed_pose);
+        let mut objects = Vec::new();
+        for id in vf.objects() {
+            let Some(position) = base.object(id) else { continue };
+            let steps = [self.config.position_step; 2];
+            let perturbed = |d: [f64; 2]| {
+                let mut s = base.clone();
+                s.set_object(id, Point::new(position.x + d[0], position.y + d[1]));
+                vf.value(&s)
+            };
+            let (g, h) = derivatives_of::<2>(value, &steps, perturbed);
+            objects.push((
+                id,
+                Vector2::new(g[0], g[1]),
+                Matrix2::new(h[(0, 0)], h[(0, 1)], h[(1, 0)], h[(1, 1)]),
+            ));
+        }
+        Derivatives {
+            value,
+            pose_gradient: Vector3::new(pose_gradient[0], pose_gradient[1], pose_gradient[2]),
+            pose_hessian: Matrix3::from_fn(|r, c| pose_hessian[(r, c)]),
+            objects,
+        }
+    }
+
+    /// Var[V] and E[V] for a belief whose covariances `pose` and `object(id)` give.
+    fn moments(
+        d: &Derivatives,
+        pose: &Matrix3<f64>,
+        object: impl Fn(ObjectId) -> Option<Matrix2<f64>>,
+    ) -> (f64, f64) {
+        let mut variance = (d.pose_gradient.transpose() * pose * d.pose_gradient)[(0, 0)];
+        let mut curvature = (d.pose_hessian * pose).trace();
+        for (id, g, h) in &d.objects {
+            if let Some(p) = object(*id) {
+                variance += (g.transpose() * p * g)[(0, 0)];
+                curvature += (h * p).trace();
+            }
+        }
+        (variance.max(0.0), d.value + 0.5 * curvature)
+    }
+
+    /// Evaluates every candidate; scores are normalised so the best candidate gets 1.
+    pub fn evaluate(
+        &mut self,
+        world: &WorldState,
+        vf: &dyn ValueFunction,
+        candidates: &[GazeCandidate],
+    ) -> ActiveVisionReport {
+        let d = self.derivatives(world, vf);
+        let prior_object = |id: ObjectId| world.get(id).map(|o| o.covariance);
+        let (prior_variance, prior_expected_value) =
+            Self::moments(&d, &world.pose.covariance, prior_object);
+        let (lo, hi) = self.config.yaw_limits;
+        let mut evaluations: Vec<GazeEvaluation> = candidates
+            .iter()
+            .map(|candidate| {
+                let direction = candidate.direction.clamp(lo.min(hi), hi.max(lo));
+                let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
+                let sensing = world.sensing_candidate(&view, self.config.min_visibility);
+                world.expected_update_into(&sensing, &mut self.scratch);
+                let scratch = &self.scratch;
+                let posterior_object =
+                    |id: ObjectId| scratch.object(id).copied().or_else(|| prior_object(id));
+                let (variance, expected) = Self::moments(&d, &scratch.pose, posterior_object);
+                let improvement = match self.config.criterion {
+                    Criterion::MinExpectedValueVariance => prior_variance - variance,
+                    Criterion::MaxExpectedTaskValue => expected - prior_expected_value,
+                }
+                .max(0.0);
+                GazeEvaluation {
+                    label: candidate.label.clone(),
+                    direction,
+                    observed: sensing
+                        .observations
+                        .iter()
+                        .filter_map(|o| world.get(o.object).map(|e| e.name.clone()))
+                        .collect(),
+                    value_variance: variance,
+                    expected_value: expected,
+                    improvement,
+                    score: 0.0,
+                }
+            })
+            .collect();
+        let best = evaluations.iter().map(|e| e.improvement).fold(0.0, f64::max);
+        for e in &mut evaluations {
+            e.score = if best > 1e-15 { (e.improvement / best).clamp(0.0, 1.0) } else { 0.0 };
+        }
+        ActiveVisionReport {
+            value_function: vf.name().to_owned(),
+            criterion: self.config.criterion,
+            value: d.value,
+            prior_variance,
+            prior_expected_value,
+            candidates: evaluations,
+        }
+    }
+}
+
+/// Central-difference gradient and Hessian of `f` around 0 with the given steps.
+fn derivatives_of<const N: usize>(
+    f0: f64,
+    steps: &[f64; N],
+    f: impl Fn([f64; N]) -> f64,
+) -> ([f64; N], nalgebra::SMatrix<f64, N, N>) {
+    let mut gradient = [0.0; N];
+    let mut hessian = nalgebra::SMatrix::<f64, N, N>::zeros();
+    let shifted = |i: usize, a: f64, j: usize, b: f64| {
+        let mut d = [0.0; N];
+        d[i] += a;
+        d[j] += b;
+        f(d)
+    };
+    for i in 0..N {
+        let h = steps[i];
+        let plus = shifted(i, h, i, 0.0);
+        let minus = shifted(i, -h, i, 0.0);
+        gradient[i] = (plus - minus) / (2.0 * h);
+        hessian[(i, i)] = (plus - 2.0 * f0 + minus) / (h * h);
+        for j in (i + 1)..N {
+            let k = steps[j];
+            let pp = shifted(i, h, j, k);
+            let pm = shifted(i, h, j, -k);
+            let mp = shifted(i, -h, j, k);
+            let mm = shifted(i, -h, j, -k);
+            let mixed = (pp - pm - mp + mm) / (4.0 * h * k);
+            hessian[(i, j)] = mixed;
+            hessian[(j, i)] = mixed;
+        }
+    }
+    (gradient, hessian)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finite_differences_recover_a_quadratic() {
+        // f(x, y) = 3x - 2y + x^2 + 4xy - 5y^2 at the origin.
+        let f = |d: [f64; 2]| {
+            3.0 * d[0] - 2.0 * d[1] + d[0] * d[0] + 4.0 * d[0] * d[1] - 5.0 * d[1] * d[1]
+        };
+        let (g, h) = derivatives_of::<2>(f([0.0, 0.0]), &[0.01, 0.01], f);
+        assert!((g[0] - 3.0).abs() < 1e-9 && (g[1] + 2.0).abs() < 1e-9);
+        assert!((h[(0, 0)] - 2.0).abs() < 1e-6);
+        assert!((h[(0, 1)] - 4.0).abs() < 1e-6 && (h[(1, 0)] - 4.0).abs() < 1e-6);
+        assert!((h[(1, 1)] + 10.0).abs() < 1e-6);
+    }
+}

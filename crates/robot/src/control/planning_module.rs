@@ -1,0 +1,368 @@
+//! The planning layer as a runtime module: the robot's only contact with its teammates and with
+//! external devices (paper 3.3: a robot that loses the network loses no ability of its own).
+
+use serde::{Deserialize, Serialize};
+use strata_runtime::{Context, Input, Message, Module, ModuleError, Output, Time};
+
+use crate::control::planning::{
+    Assignment, Label, MessageBudget, OwnState, Planner, PlanningPolicy, PlanningStats,
+    SharedObject, StandingStatus, TeamMessage,
+};
+use crate::control::reactive::Stability;
+use crate::geometry::Pose;
+use crate::platform::{ExternalLink, TeamLink};
+use crate::world::{
+    ObjectCategory, SharedObject as WorldSharedObject, TeammateEstimate, WorldCommand, WorldState,
+};
+
+/// Turns team messages into bytes and back (the application's wire format, e.g. the SPL's
+/// 128-byte limit). Decoding must reject malformed and foreign messages, never panic.
+pub trait TeamCodec<M: Label, R: Label>: Send {
+    fn encode(&self, message: &TeamMessage<M, R>) -> Result<Vec<u8>, String>;
+    fn decode(&self, bytes: &[u8]) -> Result<TeamMessage<M, R>, String>;
+}
+
+/// The application's side of an external device that directs the robot (a GameController).
+pub trait Referee: Send {
+    /// What the deliberative layer needs from the device (in soccer: the game state).
+    type Directive: Message + PartialEq + Default + std::fmt::Debug;
+
+    /// A packet from the device; malformed packets are an error the module counts and skips.
+    fn receive(&mut self, now: Time, packet: &[u8]) -> Result<(), String>;
+    fn directive(&self) -> Self::Directive;
+    /// Whether the device took the robot out of play.
+    fn penalized(&self) -> bool;
+    /// The team's message budget, when the device publishes one.
+    fn budget(&self) -> Option<MessageBudget>;
+    /// A status packet for the device, when one is due.
+    fn status_packet(
+        &mut self,
+        now: Time,
+        own: &OwnState,
+        world: Option<&WorldState>,
+    ) -> Option<Vec<u8>>;
+    /// Pose resets and hints the device's events imply (placed at a kick-off position, back
+    /// from a penalty).
+    fn world_commands(&mut self) -> Vec<WorldCommand> {
+        Vec::new()
+    }
+}
+
+/// A teammate as the deliberative layer sees it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "M: Label, R: Label")]
+pub struct TeammateView<M, R> {
+    pub player: u8,
+    pub mission: M,
+    pub role: R,
+    pub pose: Pose,
+    pub available: bool,
+    /// Why MAMC considers it unavailable (silent, fallen, penalized, not localized...).
+    pub unavailable: Option<String>,
+    /// Seconds since it was last heard.
+    pub age: f64,
+}
+
+/// What the planning layer sends the deliberative layer: the mission and role, the
+/// application's directive, and the teammates.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(bound = "M: Label, R: Label, D: Message")]
+pub struct PlanningDecision<M, R, D> {
+    pub assignment: Assignment<M, R>,
+    pub directive: D,
+    pub teammates: Vec<TeammateView<M, R>>,
+    pub stats: PlanningStats,
+}
+
+/// The planning module's ports.
+#[derive(Debug)]
+pub struct PlanningPorts<M, R, D> {
+    pub world: Input<WorldState>,
+    pub stability: Input<Stability>,
+    pub decision: Output<PlanningDecision<M, R, D>>,
+    pub team_estimates: Output<TeammateEstimate>,
+    pub world_commands: Output<WorldCommand>,
+}
+
+impl<M, R, D> Clone for PlanningPorts<M, R, D> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<M, R, D> Copy for PlanningPorts<M, R, D> {}
+
+/// Runs the planner on the robot's links.
+pub struct PlanningModule<P: PlanningPolicy, C, F: Referee> {
+    player: u8,
+    planner: Planner<P>,
+    codec: C,
+    referee: F,
+    team: Option<Box<dyn TeamLink>>,
+    external: Option<Box<dyn ExternalLink>>,
+    ports: PlanningPorts<P::Mission, P::Role, F::Directive>,
+    world: Option<WorldState>,
+    stability: Stability,
+    last_sent: Option<PlanningDecision<P::Mission, P::Role, F::Directive>>,
+    /// Shared-object names this robot puts in its messages, most important first.
+    shared_objects: Vec<String>,
+    link_errors: u64,
+}
+
+impl<P: PlanningPolicy, C, F: Referee> std::fmt::Debug for PlanningModule<P, C, F> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PlanningModule")
+            .field("player", &self.player)
+            .field("assignment", self.planner.assignment())
+            .finish_non_exhaustive()
+    }
+}
+
+impl<P, C, F> PlanningModule<P, C, F>
+where
+    P: PlanningPolicy,
+    C: TeamCodec<P::Mission, P::Role>,
+    F: Referee,
+{
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        player: u8,
+        planner: Planner<P>,
+        codec: C,
+        referee: F,
+        team: Option<Box<dyn TeamLink>>,
+        external: Option<Box<dyn ExternalLink>>,
+        ports: PlanningPorts<P::Mission, P::Role, F::Directive>,
+        shared_objects: Vec<String>,
+    ) -> Self {
+        PlanningModule {
+            player,
+            planner,
+            codec,
+            referee,
+            team,
+            external,
+            ports,
+            world: None,
+            stability: Stability::Stable,
+            last_sent: None,
+            shared_objects,
+            link_errors: 0,
+        }
+    }
+
+    fn own_state(&self) -> OwnState {
+        let status = match self.stability {
+            Stability::Stable => StandingStatus::Stable,
+            Stability::Unstable(_) => StandingStatus::Unstable,
+            Stability::Fallen(_) => StandingStatus::Fallen,
+        };
+        let penalized = self.referee.penalized();
+        match &self.world {
+            None => OwnState {
+                id: self.player,
+                status,
+                penalized,
+                localized: false,
+                pose: Pose::default(),
+                pose_confidence: 0.0,
+                objects: Vec::new(),
+            },
+            Some(world) => OwnState {
+                id: self.player,
+                status,
+                penalized,
+                localized: !world.pose.lost,
+                pose: world.pose.pose,
+                pose_confidence: world.pose.confidence,
+                objects: self
+                    .shared_objects
+                    .iter()
+                    .filter_map(|name| world.object(name))
+                    // Shared with its age and confidence even when uncertain: teammates judge
+                    // from how long ago it was seen (MAMC), not from its absence.
+                    .filter(|o| o.last_seen.is_some() && o.category != ObjectCategory::Landmark)
+                    .map(|o| SharedObject {
+                        name: o.name.clone(),
+                        position: o.field_position,
+                        sigma: o.field_covariance.trace().max(0.0).sqrt(),
+                        confidence: o.confidence,
+                        age: o.last_seen.map_or(f64::INFINITY, |t| (world.stamp - t).as_secs_f64()),
+                    })
+                    .collect(),
+            },
+        }
+    }
+
+    /// What world modeling's team fusion needs from a teammate's message.
+    fn estimate_of(
+        &self,
+        now: Time,
+        message: &TeamMessage<P::Mission, P::Role>,
+    ) -> Option<TeammateEstimate> {
+        let world = self.world.as_ref()?;
+        // Confidence 1 means a few centimetres; 0 means anywhere on the field.
+        let sigma = 0.05 + 3.0 * (1.0 - message.pose_confidence.clamp(0.0, 1.0));
+        let heading_sigma = 0.05 + 1.5 * (1.0 - message.pose_confidence.clamp(0.0, 1.0));
+        let objects = message
+            .objects
+            .iter()
+            .filter_map(|shared| {
+                let own = world.object(&shared.name)?;
+                let s = shared.sigma.max(0.01);
+                Some(WorldSharedObject {
+                    class: own.class,
+                    variant: own.variant,
+                    position: shared.position,
+                    velocity: None,
+                    covariance: nalgebra::Matrix2::new(s * s, 0.0, 0.0, s * s),
+                    confidence: shared.confidence,
+                    age: shared.age,
+                })
+            })
+            .collect();
+        Some(TeammateEstimate {
+            player: message.sender,
+            stamp: now,
+            pose: message.pose,
+            pose_covariance: nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(
+                sigma * sigma,
+                sigma * sigma,
+                heading_sigma * heading_sigma,
+            )),
+            pose_confidence: message.pose_confidence,
+            objects,
+        })
+    }
+
+    pub fn planner(&self) -> &Planner<P> {
+        &self.planner
+    }
+}
+
+impl<P, C, F> Module for PlanningModule<P, C, F>
+where
+    P: PlanningPolicy + 'static,
+    C: TeamCodec<P::Mission, P::Role> + 'static,
+    F: Referee + 'static,
+{
+    fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+        let now = ctx.now();
+        if let Some(world) = ctx.latest(self.ports.world) {
+            self.world = Some(world.value);
+        }
+        if let Some(stability) = ctx.latest(self.ports.stability) {
+            self.stability = stability.value;
+        }
+        // External device (GameController).
+        if let Some(external) = self.external.as_mut() {
+            match external.receive(now) {
+                Ok(packets) => {
+                    for packet in packets {
+                        if let Err(error) = self.referee.receive(packet.received, &packet.bytes) {
+                            self.link_errors += 1;
+                            tracing::debug!(module = ctx.module_name(), %error, "external packet rejected");
+                        }
+                    }
+                }
+                Err(error) => {
+                    self.link_errors += 1;
+                    tracing::warn!(module = ctx.module_name(), %error, "external link");
+                }
+            }
+        }
+        for command in self.referee.world_commands() {
+            ctx.send(self.ports.world_commands, command);
+        }
+        if let Some(budget) = self.referee.budget() {
+            self.planner.budget = budget;
+        }
+        // Teammates: evaluation is asynchronous, on every message received.
+        if let Some(team) = self.team.as_mut() {
+            match team.receive(now) {
+                Ok(packets) => {
+                    for packet in packets {
+                        match self.codec.decode(&packet.bytes) {
+                            Ok(message) if message.sender == self.player => {}
+                            Ok(message) => {
+                                if let Some(estimate) = self.estimate_of(packet.received, &message)
+                                {
+                                    ctx.send(self.ports.team_estimates, estimate);
+                                }
+                                self.planner.receive(packet.received, message);
+                            }
+                            Err(error) => {
+                                // A teammate sending garbage costs that message only.
+                                self.planner.reject();
+                                tracing::debug!(module = ctx.module_name(), %error, "team message rejected");
+                            }
+                        }
+                    }
+                }
+                Err(error) => {
+                    self.link_errors += 1;
+                    tracing::warn!(module = ctx.module_name(), %error, "team link");
+                }
+            }
+        }
+        let own = self.own_state();
+        self.planner.evaluate(now, own.clone());
+        let decision = PlanningDecision {
+            assignment: self.planner.assignment().clone(),
+            directive: self.referee.directive(),
+            teammates: self
+                .planner
+                .teammates()
+                .map(|t| TeammateView {
+                    player: t.message.sender,
+                    mission: t.message.mission,
+                    role: t.message.role,
+                    pose: t.message.pose,
+                    available: t.unavailable.is_none(),
+                    unavailable: t.unavailable.clone(),
+                    age: (now - t.last_heard).as_secs_f64(),
+                })
+                .collect(),
+            stats: self.planner.stats.clone(),
+        };
+        // The deliberative layer hears only of changes (ages and counters do not count).
+        let changed = self.last_sent.as_ref().is_none_or(|last| {
+            last.assignment != decision.assignment
+                || last.directive != decision.directive
+                || last.teammates.len() != decision.teammates.len()
+                || last.teammates.iter().zip(&decision.teammates).any(|(a, b)| {
+                    a.player != b.player
+                        || a.role != b.role
+                        || a.available != b.available
+                        || a.pose != b.pose
+                })
+        });
+        if changed {
+            self.last_sent = Some(decision.clone());
+            ctx.send(self.ports.decision, decision);
+        }
+        if let Some(kind) = self.planner.message_due(now)
+            && let Some(message) = self.planner.compose(now, kind)
+            && let Some(team) = self.team.as_mut()
+        {
+            match self.codec.encode(&message) {
+                Ok(bytes) => {
+                    if let Err(error) = team.send(now, &bytes) {
+                        self.link_errors += 1;
+                        tracing::warn!(module = ctx.module_name(), %error, "team message not sent");
+                    }
+                }
+                Err(error) => {
+                    tracing::warn!(module = ctx.module_name(), %error, "team message not encoded")
+                }
+            }
+        }
+        if let Some(packet) = self.referee.status_packet(now, &own, self.world.as_ref())
+            && let Some(external) = self.external.as_mut()
+            && let Err(error) = external.send(now, &packet)
+        {
+            self.link_errors += 1;
+            tracing::debug!(module = ctx.module_name(), %error, "status packet not sent");
+        }
+        Ok(())
+    }
+}

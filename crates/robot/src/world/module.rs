@@ -1,0 +1,97 @@
+//! The world-modeling module (paper 3.1 and 3.7): percepts arrive queued (every observation, in
+//! order), odometry merged (increments composed), teammates' estimates and commands queued; the
+//! world state leaves as the newest value (Latest at the readers). A thin shell: all the
+//! filtering is in [`WorldModel`].
+
+use strata_runtime::{Context, GraphBuilder, Input, Module, ModuleError, Output, Policy, Trigger};
+
+use super::config::{ConfigError, WorldModelConfig};
+use super::model::{WorldCommand, WorldModel};
+use super::state::WorldState;
+use super::team::TeammateEstimate;
+use crate::geometry::Odometry;
+use crate::percept::Percepts;
+
+/// Capacity of the percept queue: a second of frames at 30 Hz, with room to spare.
+pub const PERCEPT_QUEUE: usize = 64;
+const TEAM_QUEUE: usize = 32;
+const COMMAND_QUEUE: usize = 16;
+
+/// The world-modeling module's ports.
+#[derive(Clone, Copy, Debug)]
+pub struct WorldPorts {
+    /// Perception's percepts (Queue); every package triggers a cycle.
+    pub percepts: Input<Percepts>,
+    /// Actuation's odometry increments (Merge: composed with [`Odometry::then`]).
+    pub odometry: Input<Odometry>,
+    /// Teammates' estimates from the planning layer (Queue; optional).
+    pub team: Input<TeammateEstimate>,
+    /// Commands from the application (Queue; optional).
+    pub commands: Input<WorldCommand>,
+    /// The world state, stamped with the newest percepts' measurement time.
+    pub world_state: Output<WorldState>,
+}
+
+/// Runs a [`WorldModel`] on the module's inputs.
+#[derive(Debug)]
+pub struct WorldModule {
+    model: WorldModel,
+    ports: WorldPorts,
+}
+
+impl WorldModule {
+    pub fn model(&self) -> &WorldModel {
+        &self.model
+    }
+}
+
+impl Module for WorldModule {
+    fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+        for command in ctx.drain(self.ports.commands) {
+            if let Err(error) = self.model.command(command.value) {
+                tracing::warn!(module = ctx.module_name(), %error, "world command refused");
+            }
+        }
+        for estimate in ctx.drain(self.ports.team) {
+            if let Err(error) = self.model.add_teammate_estimate(estimate.value) {
+                tracing::warn!(module = ctx.module_name(), %error, "teammate estimate refused");
+            }
+        }
+        // Merged odometry covers the motion up to the newest percepts: it is applied before
+        // the first of them (odometry packages carry no finer timing after merging).
+        let mut odometry = ctx.take(self.ports.odometry).map_or(Odometry::ZERO, |p| p.value);
+        let mut stamp = None;
+        while let Some(package) = ctx.take(self.ports.percepts) {
+            self.model.process(odometry, &package.value);
+            odometry = Odometry::ZERO;
+            stamp = Some(package.stamp);
+        }
+        match stamp {
+            Some(stamp) => {
+                let state = self.model.state();
+                ctx.send_stamped(self.ports.world_state, state, stamp);
+            }
+            None => self.model.predict(odometry),
+        }
+        Ok(())
+    }
+}
+
+/// Adds a world-modeling module named `name` to `graph`; the configuration is checked first.
+pub fn add_world_module(
+    graph: &mut GraphBuilder,
+    name: &str,
+    config: WorldModelConfig,
+) -> Result<WorldPorts, ConfigError> {
+    let model = WorldModel::new(config)?;
+    Ok(graph.add(name, move |p| {
+        let percepts = p.input("percepts", Policy::queue(PERCEPT_QUEUE));
+        let odometry = p.input("odometry", Policy::merge(|a: &mut Odometry, b| *a = a.then(b)));
+        let team = p.optional_input("team", Policy::queue(TEAM_QUEUE));
+        let commands = p.optional_input("commands", Policy::queue(COMMAND_QUEUE));
+        let world_state = p.output("world_state");
+        p.trigger(Trigger::on_any([percepts.into()]));
+        let ports = WorldPorts { percepts, odometry, team, commands, world_state };
+        (WorldModule { model, ports }, ports)
+    }))
+}

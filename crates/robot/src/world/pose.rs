@@ -1,0 +1,177 @@
+//! The robot-pose filter (paper 3.1): an EKF on (x, y, theta) in the field frame, predicted with
+//! odometry and corrected with the estimated positions of the landmarks against the known map.
+
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
+
+use super::math::{Innovation, all_finite, joseph_update, nis, posterior_covariance, symmetrize};
+use super::object::GainedInformation;
+use crate::geometry::{Field, Odometry, Point, Pose, normalize_angle};
+
+/// An EKF on the robot's pose in the field frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseFilter {
+    x: Vector3<f64>,
+    p: Matrix3<f64>,
+}
+
+impl PoseFilter {
+    pub fn new(pose: Pose, covariance: Matrix3<f64>) -> PoseFilter {
+        PoseFilter {
+            x: Vector3::new(pose.x, pose.y, normalize_angle(pose.theta)),
+            p: symmetrize(covariance),
+        }
+    }
+
+    pub fn pose(&self) -> Pose {
+        Pose::new(self.x[0], self.x[1], self.x[2])
+    }
+
+    pub fn covariance(&self) -> Matrix3<f64> {
+        self.p
+    }
+
+    pub fn is_finite(&self) -> bool {
+        all_finite(&self.x) && all_finite(&self.p)
+    }
+
+    /// Moves the pose by `odometry` (expressed in the robot frame it started from), whose
+    /// error covariance is `odometry_covariance`.
+    pub fn predict(&mut self, odometry: &Odometry, odometry_covariance: &Matrix3<f64>) {
+        let (s, c) = self.x[2].sin_cos();
+        let (dx, dy) = (odometry.dx, odometry.dy);
+        self.x = Vector3::new(
+            self.x[0] + c * dx - s * dy,
+            self.x[1] + s * dx + c * dy,
+            normalize_angle(self.x[2] + odometry.dtheta),
+        );
+        let f = Matrix3::new(1.0, 0.0, -s * dx - c * dy, 0.0, 1.0, c * dx - s * dy, 0.0, 0.0, 1.0);
+        let g = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        self.p = symmetrize(f * self.p * f.transpose() + g * odometry_covariance * g.transpose());
+    }
+
+    /// Where the landmark at `map` should appear in the robot frame, and the Jacobian of that
+    /// with respect to the pose.
+    pub fn expected_landmark(&self, map: Point<Field>) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
+        landmark_measurement(&self.x, map)
+    }
+
+    /// The innovation of a landmark estimate `measured` of the landmark at `map`.
+    pub fn landmark_innovation(
+        &self,
+        map: Point<Field>,
+        measured: &GainedInformation,
+    ) -> Option<Innovation> {
+        let (h, jac) = self.expected_landmark(map);
+        let nu = measured.position - h;
+        let s = jac * self.p * jac.transpose() + measured.covariance;
+        let s = (s + s.transpose()) * 0.5;
+        Some(Innovation { nu, s, nis: nis(&nu, &s)? })
+    }
+
+    /// Corrects the pose with a landmark estimate (Joseph form). `None`: nothing changed.
+    pub fn update_landmark(
+        &mut self,
+        map: Point<Field>,
+        measured: &GainedInformation,
+    ) -> Option<Innovation> {
+        let (h, jac) = self.expected_landmark(map);
+        let nu = measured.position - h;
+        let mut x = self.x;
+        let mut p = self.p;
+        let innovation = joseph_update(&mut x, &mut p, &jac, nu, &measured.covariance)?;
+        x[2] = normalize_angle(x[2]);
+        if !(all_finite(&x) && all_finite(&p)) {
+            return None;
+        }
+        self.x = x;
+        self.p = p;
+        Some(innovation)
+    }
+
+    /// The covariance after a landmark estimate with covariance `r`, without changing anything.
+    pub fn posterior_covariance(
+        &self,
+        map: Point<Field>,
+        r: &Matrix2<f64>,
+    ) -> Option<Matrix3<f64>> {
+        let (_, jac) = self.expected_landmark(map);
+        posterior_covariance(&self.p, &jac, r)
+    }
+}
+
+/// `h(pose) = R(-theta) (m - p)` and its Jacobian with respect to `(x, y, theta)`.
+pub(crate) fn landmark_measurement(
+    pose: &Vector3<f64>,
+    map: Point<Field>,
+) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
+    let (s, c) = pose[2].sin_cos();
+    let dx = map.x - pose[0];
+    let dy = map.y - pose[1];
+    let h = Vector2::new(c * dx + s * dy, -s * dx + c * dy);
+    let jac = SMatrix::<f64, 2, 3>::new(-c, -s, h.y, s, -c, -h.x);
+    (h, jac)
+}
+
+/// The pose covariance after a landmark estimate with covariance `r` of the landmark at `map`,
+/// for a pose `pose` with covariance `p` (active vision's simulated correction).
+pub fn pose_posterior_covariance(
+    pose: &Pose,
+    p: &Matrix3<f64>,
+    map: Point<Field>,
+    r: &Matrix2<f64>,
+) -> Option<Matrix3<f64>> {
+    let (_, jac) = landmark_measurement(&Vector3::new(pose.x, pose.y, pose.theta), map);
+    posterior_covariance(p, &jac, r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+    use std::f64::consts::FRAC_PI_2;
+
+    #[test]
+    fn prediction_moves_in_the_robot_frame_and_grows_the_covariance() {
+        let mut f = PoseFilter::new(Pose::new(1.0, 2.0, FRAC_PI_2), Matrix3::zeros());
+        let q = Matrix3::from_diagonal(&Vector3::new(0.01, 0.0, 0.0));
+        f.predict(&Odometry { dx: 1.0, dy: 0.0, dtheta: 0.0 }, &q);
+        let pose = f.pose();
+        assert_relative_eq!(pose.x, 1.0, epsilon = 1e-12);
+        assert_relative_eq!(pose.y, 3.0, epsilon = 1e-12);
+        // Forward noise of a robot facing +y is noise along the field's y axis.
+        assert_relative_eq!(f.covariance()[(1, 1)], 0.01, epsilon = 1e-12);
+        assert_relative_eq!(f.covariance()[(0, 0)], 0.0, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn a_landmark_ahead_corrects_the_distance_to_it() {
+        // Robot at the origin facing +x, variance 0.04 in x and y, exact heading. A landmark
+        // at (3, 0) is measured 2.9 m ahead with variance 0.04: x moves half-way, to +0.05.
+        let p0 = Matrix3::from_diagonal(&Vector3::new(0.04, 0.04, 0.0));
+        let mut f = PoseFilter::new(Pose::new(0.0, 0.0, 0.0), p0);
+        let measured = GainedInformation {
+            position: Vector2::new(2.9, 0.0),
+            covariance: Matrix2::identity() * 0.04,
+        };
+        let innovation = f.update_landmark(Point::new(3.0, 0.0), &measured).expect("regular");
+        assert_relative_eq!(innovation.nu, Vector2::new(-0.1, 0.0), epsilon = 1e-12);
+        assert_relative_eq!(f.pose().x, 0.05, epsilon = 1e-12);
+        assert_relative_eq!(f.pose().y, 0.0, epsilon = 1e-12);
+        assert_relative_eq!(f.covariance()[(0, 0)], 0.02, epsilon = 1e-12);
+        assert_relative_eq!(f.covariance()[(1, 1)], 0.02, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn measurement_jacobian_matches_finite_differences() {
+        let pose = Vector3::new(0.3, -1.2, 0.8);
+        let map = Point::new(2.0, 1.0);
+        let (h0, jac) = landmark_measurement(&pose, map);
+        for k in 0..3 {
+            let mut d = pose;
+            d[k] += 1e-7;
+            let (h1, _) = landmark_measurement(&d, map);
+            let numeric = (h1 - h0) / 1e-7;
+            assert_relative_eq!(numeric, jac.column(k).into_owned(), epsilon = 1e-5);
+        }
+    }
+}

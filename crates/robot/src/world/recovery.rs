@@ -1,0 +1,366 @@
+//! Finding the pose again when it is lost (never known, too uncertain, or the robot was carried):
+//! pose hypotheses from pairs of landmark estimates against the known map, scored by every
+//! recent landmark estimate, the field bounds and the application's symmetry hints, refined by
+//! least squares. A hypothesis is accepted only if every clearly different one is clearly
+//! worse: on a symmetric field, without a hint, the robot stays lost rather than guess.
+
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+
+use super::config::{FieldRegion, SymmetryHint};
+use super::math::{all_finite, nis, rotation};
+use super::pose::landmark_measurement;
+use crate::geometry::{Field, Point, Pose, normalize_angle};
+
+/// A recent landmark estimate (robot frame) taking part in recovery.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sighting {
+    /// The landmark group (object of interest) it belongs to.
+    pub group: usize,
+    /// The instance slot currently holding the track.
+    pub slot: usize,
+    pub position: Vector2<f64>,
+    pub covariance: Matrix2<f64>,
+}
+
+/// One map instance a sighting may be.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct MapInstance {
+    pub group: usize,
+    pub slot: usize,
+    pub position: Point<Field>,
+}
+
+/// A mobile object both this robot and its teammates see: where the teammates put it on the
+/// field disambiguates a symmetric pose.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TeamCue {
+    pub own_position: Vector2<f64>,
+    pub own_covariance: Matrix2<f64>,
+    pub team_position: Vector2<f64>,
+    pub team_covariance: Matrix2<f64>,
+}
+
+pub(crate) struct RecoveryInput<'a> {
+    pub sightings: &'a [Sighting],
+    pub map: &'a [MapInstance],
+    pub bounds: Option<FieldRegion>,
+    pub hints: &'a [SymmetryHint],
+    /// The pose before it became too uncertain, if it is still worth something.
+    pub prior: Option<(Pose, Matrix3<f64>)>,
+    pub team: &'a [TeamCue],
+    pub gate: f64,
+    pub min_landmarks: usize,
+    pub margin: f64,
+    pub max_hypotheses: usize,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct Hypothesis {
+    pub pose: Pose,
+    pub covariance: Matrix3<f64>,
+    pub cost: f64,
+    /// Sightings explained, with the map instance slot each is assigned to.
+    pub assignment: Vec<(usize, usize)>,
+}
+
+#[derive(Clone, Debug)]
+pub(crate) enum RecoveryOutcome {
+    /// Too few landmarks, or no hypothesis explains enough of them.
+    Insufficient,
+    /// Two clearly different poses explain the landmarks about equally well.
+    Ambiguous {
+        best: Hypothesis,
+        competitor: Hypothesis,
+    },
+    Found(Hypothesis),
+}
+
+/// Extra uncertainty of a hypothesis built from two noisy landmarks, m.
+const HYPOTHESIS_SIGMA: f64 = 0.1;
+const HYPOTHESIS_HEADING_SIGMA: f64 = 0.03;
+/// Two hypotheses closer than this are the same pose.
+const SAME_POSITION: f64 = 0.5;
+const SAME_HEADING: f64 = 0.35;
+
+pub(crate) fn recover(input: &RecoveryInput<'_>) -> RecoveryOutcome {
+    let n = input.sightings.len();
+    if n < input.min_landmarks {
+        return RecoveryOutcome::Insufficient;
+    }
+    let instances_of = |group: usize| input.map.iter().filter(move |m| m.group == group);
+    // Pairs whose groups have few instances first: they make few, telling hypotheses.
+    let mut pairs: Vec<(usize, usize, usize)> = Vec::new();
+    for a in 0..n {
+        for b in (a + 1)..n {
+            let combos = instances_of(input.sightings[a].group).count()
+                * instances_of(input.sightings[b].group).count();
+            pairs.push((combos, a, b));
+        }
+    }
+    pairs.sort_unstable();
+    let mut hypotheses: Vec<Pose> = Vec::new();
+    'pairs: for &(_, a, b) in &pairs {
+        let (sa, sb) = (&input.sightings[a], &input.sightings[b]);
+        let d = (sb.position - sa.position).norm();
+        if d < 0.3 {
+            continue;
+        }
+        let tolerance = 3.0 * (sa.covariance.trace() + sb.covariance.trace()).sqrt() + 0.1;
+        for ma in instances_of(sa.group) {
+            for mb in instances_of(sb.group) {
+                if ma.slot == mb.slot {
+                    continue;
+                }
+                let ma_v = Vector2::new(ma.position.x, ma.position.y);
+                let mb_v = Vector2::new(mb.position.x, mb.position.y);
+                if ((mb_v - ma_v).norm() - d).abs() > tolerance {
+                    continue;
+                }
+                let dm = mb_v - ma_v;
+                let dl = sb.position - sa.position;
+                let theta = dm.y.atan2(dm.x) - dl.y.atan2(dl.x);
+                let p = (ma_v + mb_v) * 0.5 - rotation(theta) * (sa.position + sb.position) * 0.5;
+                let pose = Pose::new(p.x, p.y, theta);
+                if input.bounds.is_some_and(|r| !r.contains(pose.position(), 0.5)) {
+                    continue;
+                }
+                hypotheses.push(pose);
+                if hypotheses.len() >= input.max_hypotheses {
+                    break 'pairs;
+                }
+            }
+        }
+    }
+    if hypotheses.is_empty() {
+        return RecoveryOutcome::Insufficient;
+    }
+    let mut scored: Vec<Hypothesis> = hypotheses.iter().map(|p| score(input, *p, None)).collect();
+    scored.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+    // Refine the best few distinct hypotheses.
+    let mut refined: Vec<Hypothesis> = Vec::new();
+    for h in scored {
+        if refined.len() >= 8 {
+            break;
+        }
+        if refined.iter().any(|r| same_pose(&r.pose, &h.pose)) {
+            continue;
+        }
+        let better = refine(input, &h).unwrap_or(h);
+        if !refined.iter().any(|r| same_pose(&r.pose, &better.pose)) {
+            refined.push(better);
+        }
+    }
+    refined.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+    let Some(best) = refined.first().cloned() else { return RecoveryOutcome::Insufficient };
+    if best.assignment.len() < input.min_landmarks {
+        return RecoveryOutcome::Insufficient;
+    }
+    match refined.iter().skip(1).find(|h| !same_pose(&h.pose, &best.pose)) {
+        Some(competitor) if competitor.cost - best.cost < input.margin => {
+            RecoveryOutcome::Ambiguous { best, competitor: competitor.clone() }
+        }
+        _ => RecoveryOutcome::Found(best),
+    }
+}
+
+fn same_pose(a: &Pose, b: &Pose) -> bool {
+    a.position().distance(b.position()) < SAME_POSITION
+        && normalize_angle(a.theta - b.theta).abs() < SAME_HEADING
+}
+
+/// Negative log-likelihood of a pose: every sighting either matches its nearest free map
+/// instance (Mahalanobis distance) or costs a fixed penalty, plus the hints.
+fn score(input: &RecoveryInput<'_>, pose: Pose, covariance: Option<Matrix3<f64>>) -> Hypothesis {
+    let r = rotation(pose.theta);
+    let penalty = 2.0 * input.gate;
+    let mut cost = 0.0;
+    let mut assignment: Vec<(usize, usize)> = Vec::new();
+    for (i, s) in input.sightings.iter().enumerate() {
+        let f = pose.to_field(Point::new(s.position.x, s.position.y));
+        let c = r * s.covariance * r.transpose() + Matrix2::identity() * HYPOTHESIS_SIGMA.powi(2);
+        let best = input
+            .map
+            .iter()
+            .filter(|m| m.group == s.group && !assignment.iter().any(|(_, slot)| *slot == m.slot))
+            .filter_map(|m| {
+                let d = Vector2::new(f.x - m.position.x, f.y - m.position.y);
+                nis(&d, &c).map(|v| (v, m.slot))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        match best {
+            Some((d, slot)) if d <= input.gate => {
+                cost += d;
+                assignment.push((i, slot));
+            }
+            _ => cost += penalty,
+        }
+    }
+    cost += hint_cost(input, &pose);
+    Hypothesis {
+        pose,
+        covariance: covariance.unwrap_or_else(|| Matrix3::identity() * 0.25),
+        cost,
+        assignment,
+    }
+}
+
+fn hint_cost(input: &RecoveryInput<'_>, pose: &Pose) -> f64 {
+    let mut cost = 0.0;
+    for hint in input.hints {
+        cost += match hint {
+            SymmetryHint::Region { region } => {
+                (region.distance_outside(pose.position()) / 0.25).powi(2)
+            }
+            SymmetryHint::Heading { theta, sigma } => {
+                (normalize_angle(pose.theta - theta) / sigma).powi(2)
+            }
+            SymmetryHint::NearPoses { poses } => poses
+                .iter()
+                .map(|p| mahalanobis_pose(pose, &p.pose, &p.covariance()))
+                .fold(f64::INFINITY, f64::min),
+        };
+    }
+    if let Some((prior, covariance)) = &input.prior {
+        cost += mahalanobis_pose(pose, prior, covariance);
+    }
+    let r = rotation(pose.theta);
+    for cue in input.team {
+        let f = pose.to_field(Point::new(cue.own_position.x, cue.own_position.y));
+        let c = r * cue.own_covariance * r.transpose() + cue.team_covariance;
+        let d = Vector2::new(f.x, f.y) - cue.team_position;
+        cost += nis(&d, &c).unwrap_or(0.0).min(2.0 * input.gate);
+    }
+    cost
+}
+
+fn mahalanobis_pose(pose: &Pose, prior: &Pose, covariance: &Matrix3<f64>) -> f64 {
+    let d =
+        Vector3::new(pose.x - prior.x, pose.y - prior.y, normalize_angle(pose.theta - prior.theta));
+    covariance
+        .try_inverse()
+        .map(|inv| (d.transpose() * inv * d)[(0, 0)])
+        .filter(|v| v.is_finite())
+        .unwrap_or(0.0)
+}
+
+/// Gauss-Newton on the assigned sightings; the covariance is the inverse information.
+fn refine(input: &RecoveryInput<'_>, h: &Hypothesis) -> Option<Hypothesis> {
+    let mut x = Vector3::new(h.pose.x, h.pose.y, h.pose.theta);
+    let mut assignment = h.assignment.clone();
+    let mut covariance = Matrix3::identity();
+    for _ in 0..3 {
+        for _ in 0..5 {
+            let mut a = Matrix3::zeros();
+            let mut b = Vector3::zeros();
+            for &(i, slot) in &assignment {
+                let s = &input.sightings[i];
+                let m = input.map.iter().find(|m| m.slot == slot)?;
+                let (pred, jac) = landmark_measurement(&x, m.position);
+                let w = (s.covariance + Matrix2::identity() * 1e-4).try_inverse()?;
+                a += jac.transpose() * w * jac;
+                b += jac.transpose() * w * (s.position - pred);
+            }
+            let a_inv = a.try_inverse()?;
+            // The landmark estimates are correlated (all were predicted with the same
+            // odometry): combine them as a covariance intersection with equal weights, the
+            // bound that holds whatever the correlation, n times the independent covariance.
+            covariance = a_inv * assignment.len() as f64
+                + Matrix3::from_diagonal(&Vector3::new(
+                    HYPOTHESIS_SIGMA.powi(2),
+                    HYPOTHESIS_SIGMA.powi(2),
+                    HYPOTHESIS_HEADING_SIGMA.powi(2),
+                ));
+            let step = a_inv * b;
+            x += step;
+            x[2] = normalize_angle(x[2]);
+            if step.norm() < 1e-6 {
+                break;
+            }
+        }
+        if !all_finite(&x) || !all_finite(&covariance) {
+            return None;
+        }
+        // Re-assign with the refined pose: a better pose may explain more landmarks.
+        let rescored = score(input, Pose::new(x[0], x[1], x[2]), Some(covariance));
+        if rescored.assignment == assignment {
+            return Some(rescored);
+        }
+        if rescored.assignment.len() < 2 {
+            return Some(rescored);
+        }
+        assignment = rescored.assignment;
+    }
+    Some(score(input, Pose::new(x[0], x[1], x[2]), Some(covariance)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map() -> Vec<MapInstance> {
+        // Four identical posts of two goals, symmetric about the centre.
+        [(4.5, 0.8), (4.5, -0.8), (-4.5, 0.8), (-4.5, -0.8)]
+            .iter()
+            .enumerate()
+            .map(|(k, &(x, y))| MapInstance { group: 0, slot: k, position: Point::new(x, y) })
+            .collect()
+    }
+
+    fn sightings(pose: Pose, map: &[MapInstance], which: &[usize]) -> Vec<Sighting> {
+        which
+            .iter()
+            .map(|&k| {
+                let p = pose.to_robot(map[k].position);
+                Sighting {
+                    group: 0,
+                    slot: 10 + k,
+                    position: Vector2::new(p.x, p.y),
+                    covariance: Matrix2::identity() * 0.01,
+                }
+            })
+            .collect()
+    }
+
+    fn input<'a>(
+        s: &'a [Sighting],
+        map: &'a [MapInstance],
+        hints: &'a [SymmetryHint],
+    ) -> RecoveryInput<'a> {
+        RecoveryInput {
+            sightings: s,
+            map,
+            bounds: Some(FieldRegion { min_x: -5.2, max_x: 5.2, min_y: -3.7, max_y: 3.7 }),
+            hints,
+            prior: None,
+            team: &[],
+            gate: 9.21,
+            min_landmarks: 2,
+            margin: 6.0,
+            max_hypotheses: 600,
+        }
+    }
+
+    #[test]
+    fn two_posts_of_a_goal_are_symmetric_without_a_hint() {
+        let map = map();
+        let truth = Pose::new(2.0, 0.5, 0.2);
+        let s = sightings(truth, &map, &[0, 1]);
+        let outcome = recover(&input(&s, &map, &[]));
+        assert!(matches!(outcome, RecoveryOutcome::Ambiguous { .. }), "{outcome:?}");
+    }
+
+    #[test]
+    fn a_half_field_hint_breaks_the_symmetry() {
+        let map = map();
+        let truth = Pose::new(2.0, 0.5, 0.2);
+        let s = sightings(truth, &map, &[0, 1]);
+        let hints = [SymmetryHint::Region {
+            region: FieldRegion { min_x: 0.0, max_x: 5.2, min_y: -3.7, max_y: 3.7 },
+        }];
+        let RecoveryOutcome::Found(h) = recover(&input(&s, &map, &hints)) else {
+            panic!("the hint should decide");
+        };
+        assert!(h.pose.position().distance(truth.position()) < 1e-6, "{:?}", h.pose);
+        assert!(normalize_angle(h.pose.theta - truth.theta).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,230 @@
+//! The world state world modeling publishes (paper 3.6: the relevant variables the robot decides
+//! with): the robot's pose, every object of interest with its uncertainty and confidence, the
+//! map accuracy, the odometry error and the team's fused objects.
+
+use nalgebra::{Matrix2, Matrix3};
+use serde::{Deserialize, Serialize};
+use strata_runtime::Time;
+
+use super::config::CameraNoise;
+use super::team::{SharedObject, TeamObject, TeammateEstimate};
+use crate::geometry::{Field, Odometry, Point, Pose, Robot, Vector};
+use crate::platform::ObjectClass;
+
+/// Stable index of an object filter: its position in [`WorldState::objects`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct ObjectId(pub u16);
+
+impl ObjectId {
+    pub fn index(self) -> usize {
+        usize::from(self.0)
+    }
+}
+
+/// What kind of object of interest an estimate belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ObjectCategory {
+    Landmark,
+    Mobile,
+    Obstacle,
+}
+
+/// The estimate of one object of interest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectEstimate {
+    pub id: ObjectId,
+    /// The object of interest's name; `name#k` for landmark instances and obstacle tracks.
+    pub name: String,
+    /// The object of interest's name without the instance suffix.
+    pub group: String,
+    pub class: ObjectClass,
+    pub variant: Option<u16>,
+    pub category: ObjectCategory,
+    /// A filter follows the object (it was observed and not forgotten). An untracked landmark
+    /// is reported where the map and the pose put it.
+    pub tracked: bool,
+    /// Tracked, and confident enough (`confidence >= unknown_threshold`).
+    pub known: bool,
+    pub position: Point<Robot>,
+    /// Covariance of `position` (robot frame).
+    pub covariance: Matrix2<f64>,
+    pub field_position: Point<Field>,
+    /// Covariance of `field_position`, including the pose's uncertainty.
+    pub field_covariance: Matrix2<f64>,
+    /// Mobile objects and obstacles.
+    pub velocity: Option<Vector<Robot>>,
+    pub velocity_covariance: Option<Matrix2<f64>>,
+    pub field_velocity: Option<Vector<Field>>,
+    /// In [0, 1]; see `docs/world-model.md`.
+    pub confidence: f64,
+    pub last_seen: Option<Time>,
+    /// Landmarks: the known position of this instance.
+    pub map_position: Option<Point<Field>>,
+}
+
+/// Why the pose is lost.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LostReason {
+    /// No initial pose was given and the landmarks have not fixed it yet.
+    Uninitialized,
+    /// The uncertainty grew beyond the configured limits (no landmarks for a long time).
+    Uncertain,
+    /// The landmarks persistently disagree with the pose, or the robot was carried.
+    Kidnapped,
+    /// The application asked for it.
+    Reset,
+}
+
+/// The robot-pose estimate.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PoseEstimate {
+    pub pose: Pose,
+    /// Covariance of (x, y, theta).
+    pub covariance: Matrix3<f64>,
+    /// In [0, 1]; zero when lost.
+    pub confidence: f64,
+    pub lost: bool,
+    pub lost_reason: Option<LostReason>,
+    /// When the pose was last corrected by a landmark.
+    pub last_correction: Option<Time>,
+}
+
+/// Distance between the estimated landmark map (the landmark filters placed on the field with
+/// the estimated pose) and the known one: a global measure of localization accuracy (3.1).
+/// Only the landmarks observed recently take part (`pose.map_accuracy_max_age`): a landmark
+/// unseen for long is uncertain because of odometry alone.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MapAccuracy {
+    /// Mean distance over the known landmark instances, m.
+    pub mean_error: f64,
+    pub rms_error: f64,
+    pub max_error: f64,
+    /// How many landmark instances took part.
+    pub landmarks: usize,
+}
+
+/// What the landmarks say about the odometry's error (estimated even when the pose is lost:
+/// it only needs the landmarks' positions relative to the robot).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct OdometryErrorEstimate {
+    /// The motion the odometry missed in the last frame with landmark observations, in the
+    /// robot frame (true motion = reported motion followed by this).
+    pub last_correction: Odometry,
+    pub last_correction_covariance: Matrix3<f64>,
+    /// Estimated relative error of the odometry's (dx, dy, dtheta): true = (1 + e) * reported.
+    pub relative_error: [f64; 3],
+    pub relative_error_sigma: [f64; 3],
+    /// Frames that contributed.
+    pub samples: u64,
+    /// Whether incoming odometry is corrected with `relative_error`.
+    pub applied: bool,
+}
+
+/// Counters of what world modeling did with its input, since it started.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct WorldDiagnostics {
+    pub frames: u64,
+    pub observations: u64,
+    /// Observations that corrected (or started) a filter.
+    pub associated: u64,
+    /// Observations outside every gate (outliers, false positives, moved objects).
+    pub rejected: u64,
+    /// Observations that fit several instances equally well.
+    pub ambiguous: u64,
+    /// Observations of classes that are no object of interest, or with invalid numbers.
+    pub ignored: u64,
+    /// Tracks started again from consistent rejected observations.
+    pub reinitialized: u64,
+    /// Landmark estimates the pose filter rejected.
+    pub pose_rejections: u64,
+    /// Landmark instances relabelled to another map instance.
+    pub relabels: u64,
+    pub kidnaps: u64,
+    pub recoveries: u64,
+    /// Teammate messages refused as malformed.
+    pub team_rejected: u64,
+}
+
+/// The world state, published by the world-modeling module (Latest).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WorldState {
+    /// The measurement time of the newest percepts included.
+    pub stamp: Time,
+    pub pose: PoseEstimate,
+    /// Indexed by [`ObjectId`].
+    pub objects: Vec<ObjectEstimate>,
+    pub map_accuracy: Option<MapAccuracy>,
+    pub odometry_error: OdometryErrorEstimate,
+    /// Mobile objects fused with the teammates' estimates (MAWM).
+    pub team: Vec<TeamObject>,
+    /// The camera model, for predicted observations (active vision).
+    pub camera: CameraNoise,
+    /// Detection probability of an object inside the view, for predicted observations.
+    pub detection_probability: f64,
+    /// Angular margin inside the view cone edges, rad.
+    pub view_margin: f64,
+    pub unknown_threshold: f64,
+    pub diagnostics: WorldDiagnostics,
+}
+
+impl WorldState {
+    pub fn get(&self, id: ObjectId) -> Option<&ObjectEstimate> {
+        self.objects.get(id.index())
+    }
+
+    /// The object (or instance, `name#k`) with this name.
+    pub fn object(&self, name: &str) -> Option<&ObjectEstimate> {
+        self.objects.iter().find(|o| o.name == name)
+    }
+
+    /// The instances of one object of interest.
+    pub fn group<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a ObjectEstimate> + 'a {
+        self.objects.iter().filter(move |o| o.group == name)
+    }
+
+    pub fn objects_of_class(&self, class: ObjectClass) -> impl Iterator<Item = &ObjectEstimate> {
+        self.objects.iter().filter(move |o| o.class == class)
+    }
+
+    /// The known object of this class with the highest confidence.
+    pub fn best_of_class(&self, class: ObjectClass) -> Option<&ObjectEstimate> {
+        self.objects_of_class(class)
+            .filter(|o| o.known)
+            .max_by(|a, b| a.confidence.total_cmp(&b.confidence))
+    }
+
+    /// The team's fused estimate of a mobile object of interest, by name.
+    pub fn team_object(&self, name: &str) -> Option<&TeamObject> {
+        self.team.iter().find(|t| t.name == name)
+    }
+
+    /// The known mobile objects as this robot shares them with its teammates.
+    pub fn to_shared(&self, player: u8) -> TeammateEstimate {
+        let objects = self
+            .objects
+            .iter()
+            .filter(|o| o.known && o.category == ObjectCategory::Mobile)
+            .map(|o| SharedObject {
+                class: o.class,
+                variant: o.variant,
+                position: o.field_position,
+                velocity: o.field_velocity,
+                covariance: o.field_covariance,
+                confidence: o.confidence,
+                age: o.last_seen.map_or(f64::INFINITY, |t| (self.stamp - t).as_secs_f64()),
+            })
+            .filter(|o| o.age.is_finite())
+            .collect();
+        TeammateEstimate {
+            player,
+            stamp: self.stamp,
+            pose: self.pose.pose,
+            pose_covariance: self.pose.covariance,
+            pose_confidence: self.pose.confidence,
+            objects,
+        }
+    }
+}

@@ -1,0 +1,202 @@
+//! Losing and finding the pose: a robot teleported away recovers from the landmark estimates;
+//! the field's symmetry is broken by the application's hints, never by a guess.
+
+mod world_support;
+
+use strata_robot::geometry::{Odometry, Pose};
+use strata_robot::platform::FootContact;
+use strata_robot::world::{
+    FieldRegion, LostReason, PosePrior, SymmetryHint, WorldCommand, WorldModel,
+};
+use world_support::{DT, Sim, config, nees3, own_half, patrol_step, pose_error};
+
+/// A normalized pose error (3 dof) that a consistent filter exceeds with probability below
+/// 1e-7: the pose is confidently wrong (a wrong recovery), not just unlucky.
+const CONFIDENTLY_WRONG: f64 = 40.0;
+
+fn good(estimate: &Pose, truth: &Pose) -> bool {
+    let e = pose_error(estimate, truth);
+    e.xy().norm() < 0.3 && e.z.abs() < 10f64.to_radians()
+}
+
+#[test]
+fn a_teleported_robot_recovers_within_ten_seconds() {
+    let mut worst: f64 = 0.0;
+    for seed in 0..8 {
+        let start = Pose::new(-2.0, 0.5, 0.0);
+        let mut sim = Sim::new(300 + seed, start);
+        let mut cfg = config(Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.02] }));
+        // As real teams do: the robot knows it stays in its own half (a defender).
+        cfg.pose.hints = vec![SymmetryHint::Region { region: own_half() }];
+        let mut world = WorldModel::new(cfg).expect("valid config");
+        for _ in 0..(5.0 / DT) as usize {
+            let (odometry, percepts) = sim.frame(patrol_step(&sim));
+            world.process(odometry, &percepts);
+        }
+        assert!(good(&world.state().pose.pose, &sim.truth), "seed {seed}: not localized");
+        // Carried 3 m away and turned, without odometry knowing.
+        let before = sim.truth;
+        let heading = if seed % 2 == 0 { 1.2 } else { -2.0 };
+        sim.truth = Pose::new(before.x - 1.0, (before.y - 2.83).clamp(-2.5, 2.5), heading);
+        let moved = sim.truth.position().distance(before.position());
+        assert!(moved > 2.5, "seed {seed}: moved only {moved}");
+        let mut recovered_at = None;
+        let mut wrong_after_recovery = 0;
+        let mut declared_lost_at = None;
+        for frame in 0..(10.0 / DT) as usize {
+            let (odometry, percepts) = sim.frame(patrol_step(&sim));
+            world.process(odometry, &percepts);
+            let state = world.state();
+            if state.pose.lost {
+                declared_lost_at.get_or_insert(frame as f64 * DT);
+            }
+            let nees = nees3(&pose_error(&state.pose.pose, &sim.truth), &state.pose.covariance);
+            if state.diagnostics.recoveries > 0 && !state.pose.lost && nees > CONFIDENTLY_WRONG {
+                wrong_after_recovery += 1;
+            }
+            let ok = !state.pose.lost && good(&state.pose.pose, &sim.truth);
+            match (ok, recovered_at) {
+                (true, None) => recovered_at = Some(frame),
+                (false, Some(_)) if !state.pose.lost => recovered_at = None,
+                _ => {}
+            }
+        }
+        let state = world.state();
+        let Some(frame) = recovered_at else {
+            panic!(
+                "seed {seed}: not recovered: {:?} truth {:?}; {:?}",
+                state.pose, sim.truth, state.diagnostics
+            );
+        };
+        let seconds = frame as f64 * DT;
+        println!(
+            "seed {seed}: kidnap noticed after {:.2} s, recovered after {seconds:.2} s ({} kidnaps, {} recoveries, {wrong_after_recovery} frames confidently wrong after a recovery)",
+            declared_lost_at.unwrap_or(f64::NAN),
+            state.diagnostics.kidnaps,
+            state.diagnostics.recoveries
+        );
+        worst = worst.max(seconds);
+        assert!(good(&state.pose.pose, &sim.truth), "seed {seed}: lost it again");
+        assert_eq!(wrong_after_recovery, 0, "seed {seed}: a wrong recovery");
+    }
+    assert!(worst < 10.0);
+}
+
+#[test]
+fn without_a_hint_a_symmetric_field_keeps_the_robot_lost_rather_than_guessing() {
+    for seed in 0..4 {
+        let mut sim = Sim::new(400 + seed, Pose::new(-2.0, 1.0, 0.3));
+        let mut world = WorldModel::new(config(None)).expect("valid config");
+        for frame in 0..(15.0 / DT) as usize {
+            let (odometry, percepts) = sim.frame(patrol_step(&sim));
+            world.process(odometry, &percepts);
+            let state = world.state();
+            if !state.pose.lost {
+                panic!(
+                    "seed {seed} frame {frame}: localized without a way to break the symmetry: {:?} truth {:?}",
+                    state.pose.pose, sim.truth
+                );
+            }
+        }
+        // The objects are tracked all the same: the robot can act on them while lost.
+        let state = world.state();
+        assert!(state.objects.iter().filter(|o| o.known).count() >= 3, "seed {seed}");
+    }
+}
+
+#[test]
+fn a_hint_localizes_a_robot_that_starts_anywhere() {
+    let mut worst: f64 = 0.0;
+    for seed in 0..6 {
+        let truth = Pose::new(-1.0 - 0.4 * seed as f64, 1.5 - 0.5 * seed as f64, 0.5 * seed as f64);
+        let mut sim = Sim::new(500 + seed, truth);
+        let mut world = WorldModel::new(config(None)).expect("valid config");
+        world
+            .command(WorldCommand::SetHints {
+                hints: vec![SymmetryHint::Region { region: own_half() }],
+            })
+            .expect("a valid hint");
+        let mut localized_at = None;
+        for frame in 0..(10.0 / DT) as usize {
+            let (odometry, percepts) = sim.frame(patrol_step(&sim));
+            world.process(odometry, &percepts);
+            let state = world.state();
+            if !state.pose.lost {
+                let e = pose_error(&state.pose.pose, &sim.truth);
+                assert!(
+                    nees3(&e, &state.pose.covariance) < CONFIDENTLY_WRONG,
+                    "seed {seed} frame {frame}: wrong pose {:?} truth {:?} cov {:?} {:?}",
+                    state.pose.pose,
+                    sim.truth,
+                    state.pose.covariance,
+                    state.diagnostics
+                );
+                localized_at.get_or_insert(frame);
+            }
+        }
+        let frame = localized_at.unwrap_or_else(|| panic!("seed {seed}: never localized"));
+        let state = world.state();
+        let e = pose_error(&state.pose.pose, &sim.truth);
+        assert!(
+            e.xy().norm() < 0.5 && e.z.abs() < 15f64.to_radians(),
+            "seed {seed}: not converged: {:?} truth {:?}; {:?}; {:?}",
+            state.pose,
+            sim.truth,
+            state.diagnostics,
+            state
+                .objects
+                .iter()
+                .filter(|o| o.known)
+                .map(|o| (&o.name, o.field_position, o.last_seen))
+                .collect::<Vec<_>>()
+        );
+        worst = worst.max(frame as f64 * DT);
+    }
+    println!("localized from scratch within {worst:.2} s");
+}
+
+#[test]
+fn being_carried_is_a_kidnapping() {
+    let start = Pose::new(-2.0, 0.5, 0.0);
+    let mut sim = Sim::new(7, start);
+    let mut cfg = config(Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.02] }));
+    cfg.pose.kidnap_on_lift = Some(1.0);
+    let mut world = WorldModel::new(cfg).expect("valid config");
+    let standing = FootContact { left: 2.5, right: 2.5 };
+    for k in 0..40 {
+        let (odometry, mut percepts) = sim.frame(patrol_step(&sim));
+        percepts.foot_contact =
+            if (10..20).contains(&k) { FootContact::default() } else { standing };
+        world.process(odometry, &percepts);
+        if k == 20 {
+            assert_eq!(world.lost(), Some(LostReason::Kidnapped));
+        }
+    }
+    assert_eq!(world.diagnostics().kidnaps, 1);
+}
+
+#[test]
+fn commands_set_the_pose_and_reset_the_model() {
+    let mut world = WorldModel::new(config(None)).expect("valid config");
+    assert_eq!(world.lost(), Some(LostReason::Uninitialized));
+    let pose = Pose::new(-3.0, -2.0, 1.0);
+    world
+        .command(WorldCommand::SetPose { prior: PosePrior { pose, sigma: [0.1, 0.1, 0.05] } })
+        .expect("valid prior");
+    assert_eq!(world.lost(), None);
+    world.predict(Odometry { dx: 0.5, dy: 0.0, dtheta: 0.0 });
+    let moved = world.state().pose.pose;
+    assert!((moved.x - (pose.x + 0.5 * pose.theta.cos())).abs() < 1e-9);
+    let bad = WorldCommand::SetPose { prior: PosePrior { pose, sigma: [0.1, -1.0, 0.05] } };
+    let error = world.command(bad).expect_err("a negative sigma");
+    assert_eq!(error.field, "command.prior.sigma[1]");
+    let bad = WorldCommand::SetHints {
+        hints: vec![SymmetryHint::Region {
+            region: FieldRegion { min_x: 1.0, max_x: 0.0, min_y: 0.0, max_y: 1.0 },
+        }],
+    };
+    assert_eq!(world.command(bad).expect_err("an empty region").field, "command.hints[0].region");
+    world.command(WorldCommand::Reset).expect("always valid");
+    assert_eq!(world.lost(), Some(LostReason::Reset));
+    assert!(world.state().pose.lost);
+}

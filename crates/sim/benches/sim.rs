@@ -1,0 +1,130 @@
+//! The simulator alone: physics and sensor generation for 14 robots at the 83 Hz sensor rate
+//! with 30 Hz camera images, as a real-time factor (simulated seconds per wall second; real
+//! time is 1x). Robots walk, turn and scan with their heads; the ball rolls; the referee runs.
+//!
+//! Run: `cargo bench -p strata-sim --bench sim`
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use strata_robot::Velocity;
+use strata_robot::platform::{ActuatorOrders, BodyOrder, HeadAngles, HeadOrder};
+use strata_sim::{GameState, NoiseConfig, NoiseLevel, SimConfig, Simulation};
+
+fn world(noise: NoiseLevel, camera: bool) -> Simulation {
+    let mut config = SimConfig { noise: NoiseConfig::level(noise), ..SimConfig::default() };
+    if !camera {
+        // Effectively never: isolates the cost of everything else.
+        config.timing.camera_period = 1e6;
+    }
+    let mut sim = Simulation::new(config).expect("the default config is valid");
+    sim.set_game_state(GameState::Playing);
+    sim
+}
+
+/// Gives every robot a new walk and head order, varying with time and robot.
+fn command(sim: &mut Simulation, t: f64) {
+    let ids: Vec<_> = sim.robot_ids().collect();
+    for (i, id) in ids.into_iter().enumerate() {
+        let phase = t * 0.7 + i as f64;
+        let orders = ActuatorOrders {
+            head: Some(HeadOrder {
+                target: HeadAngles { yaw: 1.0 * (phase * 1.3).sin(), pitch: 0.2 },
+                max_speed: 2.0,
+            }),
+            body: Some(BodyOrder::Walk {
+                velocity: Velocity::new(0.2, 0.05 * phase.cos(), 0.6 * phase.sin()),
+            }),
+        };
+        let _ = sim.apply_orders(id, &orders);
+    }
+}
+
+/// CPU time this thread has run, from Linux's scheduler statistics: shared machines make wall
+/// time depend on other processes; the CPU time a run takes on its core does not (much).
+fn thread_cpu_time() -> Option<Duration> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let nanos = text.split_whitespace().next()?.parse::<u64>().ok()?;
+    Some(Duration::from_nanos(nanos))
+}
+
+/// Runs `seconds` of simulated time; returns the CPU time (wall time where the platform does
+/// not report CPU time) and the detections produced.
+fn run(noise: NoiseLevel, camera: bool, seconds: f64) -> (Duration, u64) {
+    let mut sim = world(noise, camera);
+    let tick = Duration::from_millis(12);
+    let steps = (seconds / 0.012).round() as u64;
+    let ids: Vec<_> = sim.robot_ids().collect();
+    let mut detections = 0u64;
+    let start = Instant::now();
+    let cpu_start = thread_cpu_time();
+    for step in 0..steps {
+        if step % 10 == 0 {
+            command(&mut sim, step as f64 * 0.012);
+        }
+        sim.step(tick);
+        // What a platform does with each frame: take it (and recycle its buffer).
+        for &id in &ids {
+            if let Ok(Some(frame)) = sim.take_sensor_frame(id) {
+                detections += frame.camera.as_ref().map_or(0, |c| c.detections.len() as u64);
+                sim.recycle(id, black_box(frame));
+                let _ = black_box(sim.read_motion(id));
+            }
+        }
+    }
+    let elapsed = match (cpu_start, thread_cpu_time()) {
+        (Some(a), Some(b)) => b.saturating_sub(a),
+        _ => start.elapsed(),
+    };
+    (elapsed, detections)
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+fn main() {
+    let quick = !std::env::args().any(|a| a == "--bench");
+    if quick {
+        let (_, detections) = run(NoiseLevel::Default, true, 2.0);
+        assert!(detections > 0);
+        println!("sim: smoke run ok");
+        return;
+    }
+    // STRATA_SIM_BENCH_SECONDS shortens the runs while tuning.
+    let seconds = std::env::var("STRATA_SIM_BENCH_SECONDS")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .unwrap_or(600.0);
+    println!(
+        "Simulator real-time factor: 14 robots, 83 Hz sensors, 30 Hz camera, {seconds} s simulated per run"
+    );
+    println!("(baseline: real time = 1x; target >= 5000x on one core; CPU time of the thread)");
+    // STRATA_SIM_BENCH_ONLY=<label prefix> runs one variant (profiling).
+    let only = std::env::var("STRATA_SIM_BENCH_ONLY").unwrap_or_default();
+    for (label, noise, camera) in [
+        ("default noise", NoiseLevel::Default, true),
+        ("no noise", NoiseLevel::None, true),
+        ("high noise", NoiseLevel::High, true),
+        ("default noise, no camera", NoiseLevel::Default, false),
+    ] {
+        if !label.starts_with(only.as_str()) {
+            continue;
+        }
+        let mut factors = Vec::new();
+        let mut per_step = Vec::new();
+        let mut detections = 0;
+        for _ in 0..5 {
+            let (wall, d) = run(noise, camera, seconds);
+            detections = d;
+            factors.push(seconds / wall.as_secs_f64());
+            per_step.push(wall.as_secs_f64() * 1e6 / (seconds / 0.012));
+        }
+        println!(
+            "  {label:<26} {:>8.0}x real time   {:>6.2} us per 12 ms step   ({detections} detections per run)",
+            median(factors),
+            median(per_step),
+        );
+    }
+}

@@ -1,0 +1,14 @@
+//! The simulator over TCP (paper 4.1): the server runs the world in real time and talks to one
+//! process per robot; robot processes use [`client::connect`] and get a platform and links that
+//! implement the same traits as the in-process ones. The protocol is versioned and
+//! length-prefixed ([`protocol`], `docs/sim-protocol.md`).
+
+pub mod client;
+pub mod protocol;
+pub mod server;
+
+pub use client::{
+    ConnectError, TcpGameControllerLink, TcpRobot, TcpSimPlatform, TcpTeamLink, Welcome, connect,
+};
+pub use protocol::{ClientMessage, ErrorCode, ServerMessage};
+pub use server::{RunningServer, Server, ServerError, ServerOptions, ServerStatus};

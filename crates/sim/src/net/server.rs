@@ -1,0 +1,630 @@
+//! The simulator server: the world in real time, one TCP connection per robot process
+//! (HL-SIM's architecture, paper 4.1). Commands are applied when they arrive, so a robot's
+//! processing time counts. Team messages go through the server, which forwards them to the
+//! sender's teammates.
+//!
+//! Threads: one steps the world and hands each connected robot its messages; one accepts
+//! connections; per connection, one reads (and applies what arrives) and one writes. A slow or
+//! broken client never blocks the world: its queue overflows (and is counted) or it is dropped.
+
+use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{Receiver, Sender, TrySendError};
+use strata_runtime::Time;
+use strata_spl::gamecontroller::GameState;
+
+use super::protocol::{
+    self, Bytes, ClientMessage, ErrorCode, FrameError, MAX_CLIENT_FRAME, PROTOCOL, ServerMessage,
+    VERSION,
+};
+use crate::platform::SimHandle;
+use crate::truth::RobotId;
+
+/// Why the server could not start or stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum ServerError {
+    #[error("cannot listen on {addr}: {source}")]
+    Bind {
+        addr: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("server I/O error: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("cannot start a server thread: {0}")]
+    Spawn(std::io::Error),
+}
+
+/// How the server runs.
+#[derive(Clone, Debug)]
+pub struct ServerOptions {
+    /// World step; `None`: the simulation's sensor period.
+    pub tick: Option<Duration>,
+    /// How often `run` reports its status.
+    pub status_interval: Duration,
+    /// A client must say `hello` within this time.
+    pub handshake_timeout: Duration,
+    /// Messages queued per client before new ones are dropped.
+    pub queue: usize,
+    /// Robots are in the world only while a process drives them.
+    pub robots_need_clients: bool,
+}
+
+impl Default for ServerOptions {
+    fn default() -> Self {
+        ServerOptions {
+            tick: None,
+            status_interval: Duration::from_secs(5),
+            handshake_timeout: Duration::from_secs(5),
+            queue: 1024,
+            robots_need_clients: true,
+        }
+    }
+}
+
+/// A status report of a running server.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServerStatus {
+    pub sim_time: Time,
+    pub wall: Duration,
+    pub clients: usize,
+    pub state: GameState,
+    pub first_half: bool,
+    pub score: [u8; 2],
+    pub secs_remaining: f64,
+    /// Simulated seconds per wall second since the last report.
+    pub real_time_factor: f64,
+    /// Messages dropped because a client did not read fast enough.
+    pub dropped: u64,
+    /// Steps that started late by more than one tick.
+    pub late_steps: u64,
+}
+
+impl std::fmt::Display for ServerStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "t={:8.2} s  robots={:2}  {:?}{}  score {}:{}  clock {:4.0} s  x{:.2} real time",
+            self.sim_time.as_secs_f64(),
+            self.clients,
+            self.state,
+            if self.first_half { " (1st half)" } else { " (2nd half)" },
+            self.score[0],
+            self.score[1],
+            self.secs_remaining,
+            self.real_time_factor,
+        )?;
+        if self.dropped > 0 || self.late_steps > 0 {
+            write!(f, "  dropped={} late={}", self.dropped, self.late_steps)?;
+        }
+        Ok(())
+    }
+}
+
+enum Outgoing {
+    Message(ServerMessage),
+    /// Send this, then close the connection.
+    Close(ServerMessage),
+}
+
+struct Client {
+    connection: u64,
+    robot: RobotId,
+    sender: Sender<Outgoing>,
+}
+
+#[derive(Default)]
+struct Registry {
+    /// Per robot slot, the process driving it.
+    clients: Vec<Option<Client>>,
+    /// Every open connection (for shutdown).
+    streams: Vec<(u64, TcpStream)>,
+}
+
+struct Shared {
+    sim: SimHandle,
+    registry: Mutex<Registry>,
+    stop: Arc<AtomicBool>,
+    dropped: AtomicU64,
+    next_connection: AtomicU64,
+    options: ServerOptions,
+    players: u8,
+}
+
+impl Shared {
+    fn registry(&self) -> MutexGuard<'_, Registry> {
+        self.registry.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    fn slot(&self, robot: RobotId) -> usize {
+        robot.team * usize::from(self.players) + usize::from(robot.player) - 1
+    }
+}
+
+/// A bound server, ready to run.
+pub struct Server {
+    listener: TcpListener,
+    shared: Arc<Shared>,
+    addr: SocketAddr,
+}
+
+impl std::fmt::Debug for Server {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Server").field("addr", &self.addr).finish_non_exhaustive()
+    }
+}
+
+impl Server {
+    /// Binds the listening socket. With `robots_need_clients`, every robot leaves the world
+    /// until a process connects for it.
+    pub fn bind(
+        addr: impl ToSocketAddrs + std::fmt::Display,
+        sim: SimHandle,
+        options: ServerOptions,
+    ) -> Result<Server, ServerError> {
+        let listener = TcpListener::bind(&addr)
+            .map_err(|source| ServerError::Bind { addr: addr.to_string(), source })?;
+        let local = listener.local_addr()?;
+        listener.set_nonblocking(true)?;
+        let players = {
+            let mut world = sim.lock();
+            if options.robots_need_clients {
+                let ids: Vec<RobotId> = world.robot_ids().collect();
+                for id in ids {
+                    // Every id comes from the world itself.
+                    let _ = world.remove_robot(id);
+                }
+            }
+            world.config().referee.players_per_team
+        };
+        let slots = 2 * usize::from(players);
+        let registry =
+            Registry { clients: (0..slots).map(|_| None).collect(), streams: Vec::new() };
+        Ok(Server {
+            listener,
+            addr: local,
+            shared: Arc::new(Shared {
+                sim,
+                registry: Mutex::new(registry),
+                stop: Arc::new(AtomicBool::new(false)),
+                dropped: AtomicU64::new(0),
+                next_connection: AtomicU64::new(1),
+                options,
+                players,
+            }),
+        })
+    }
+
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    pub fn sim(&self) -> SimHandle {
+        self.shared.sim.clone()
+    }
+
+    /// Runs the world in real time until `stop` becomes true, calling `on_status` every
+    /// `status_interval`. Closes every connection before returning.
+    pub fn run(
+        self,
+        stop: Arc<AtomicBool>,
+        mut on_status: impl FnMut(&ServerStatus),
+    ) -> Result<(), ServerError> {
+        let shared = Arc::clone(&self.shared);
+        let accept_shared = Arc::clone(&shared);
+        let listener = self.listener;
+        let accept_stop = Arc::clone(&stop);
+        let acceptor = std::thread::Builder::new()
+            .name("sim-accept".to_owned())
+            .spawn(move || accept_loop(listener, accept_shared, accept_stop))
+            .map_err(ServerError::Spawn)?;
+
+        let tick = shared.options.tick.unwrap_or_else(|| {
+            let seconds = shared.sim.lock().config().timing.sensor_period;
+            Duration::from_nanos((seconds * 1e9).round().max(1.0) as u64)
+        });
+        let start = Instant::now();
+        let mut next = start;
+        let mut late_steps = 0;
+        let mut last_status = (start, shared.sim.lock().time());
+        let mut batches: Vec<(Sender<Outgoing>, Vec<ServerMessage>)> = Vec::new();
+        while !stop.load(Ordering::Relaxed) && !shared.stop.load(Ordering::Relaxed) {
+            next += tick;
+            let now = Instant::now();
+            if next > now {
+                std::thread::sleep(next - now);
+            } else if now - next > tick {
+                late_steps += 1;
+                if now - next > 10 * tick {
+                    // Far behind (a suspended process): skip ahead rather than run a burst.
+                    next = now;
+                }
+            }
+            step_and_collect(&shared, tick, &mut batches);
+            for (sender, messages) in batches.drain(..) {
+                for message in messages {
+                    if let Err(TrySendError::Full(_)) = sender.try_send(Outgoing::Message(message))
+                    {
+                        shared.dropped.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            }
+            let wall = Instant::now();
+            if wall - last_status.0 >= shared.options.status_interval {
+                let status = status(&shared, start, last_status, late_steps);
+                last_status = (wall, status.sim_time);
+                on_status(&status);
+            }
+        }
+        shared.stop.store(true, Ordering::Relaxed);
+        let _ = acceptor.join();
+        // Tell every client, then close every connection; connection threads end on their own.
+        let registry = shared.registry();
+        for client in registry.clients.iter().flatten() {
+            let _ = client.sender.try_send(Outgoing::Close(ServerMessage::Error {
+                code: ErrorCode::ServerShutdown,
+                message: "the simulator server is stopping".to_owned(),
+            }));
+        }
+        for (_, stream) in &registry.streams {
+            let _ = stream.shutdown(Shutdown::Read);
+        }
+        Ok(())
+    }
+
+    /// Runs the server on its own thread (tests, embedding).
+    pub fn spawn(self) -> Result<RunningServer, ServerError> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let addr = self.addr;
+        let sim = self.sim();
+        let thread_stop = Arc::clone(&stop);
+        let thread = std::thread::Builder::new()
+            .name("sim-server".to_owned())
+            .spawn(move || self.run(thread_stop, |_| {}))
+            .map_err(ServerError::Spawn)?;
+        Ok(RunningServer { addr, sim, stop, thread: Some(thread) })
+    }
+}
+
+/// A server running on its own thread; stops when dropped.
+#[derive(Debug)]
+pub struct RunningServer {
+    addr: SocketAddr,
+    sim: SimHandle,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<Result<(), ServerError>>>,
+}
+
+impl RunningServer {
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    pub fn sim(&self) -> SimHandle {
+        self.sim.clone()
+    }
+
+    /// Stops the server and waits for it.
+    pub fn stop(mut self) -> Result<(), ServerError> {
+        self.shutdown()
+    }
+
+    fn shutdown(&mut self) -> Result<(), ServerError> {
+        self.stop.store(true, Ordering::Relaxed);
+        match self.thread.take().map(JoinHandle::join) {
+            Some(Ok(result)) => result,
+            Some(Err(_)) => {
+                Err(ServerError::Io(std::io::Error::other("the server thread panicked")))
+            }
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for RunningServer {
+    fn drop(&mut self) {
+        let _ = self.shutdown();
+    }
+}
+
+fn status(
+    shared: &Shared,
+    start: Instant,
+    (last_wall, last_sim): (Instant, Time),
+    late_steps: u64,
+) -> ServerStatus {
+    let clients = shared.registry().clients.iter().flatten().count();
+    let sim = shared.sim.lock();
+    let game = sim.game();
+    let now = Instant::now();
+    let sim_time = sim.time();
+    let wall = now - last_wall;
+    ServerStatus {
+        sim_time,
+        wall: now - start,
+        clients,
+        state: game.state,
+        first_half: game.first_half,
+        score: game.score,
+        secs_remaining: game.secs_remaining,
+        real_time_factor: (sim_time - last_sim).as_secs_f64() / wall.as_secs_f64().max(1e-9),
+        dropped: shared.dropped.load(Ordering::Relaxed),
+        late_steps,
+    }
+}
+
+/// Steps the world once and gathers every connected robot's messages.
+fn step_and_collect(
+    shared: &Shared,
+    tick: Duration,
+    batches: &mut Vec<(Sender<Outgoing>, Vec<ServerMessage>)>,
+) {
+    let clients: Vec<(RobotId, Sender<Outgoing>)> =
+        shared.registry().clients.iter().flatten().map(|c| (c.robot, c.sender.clone())).collect();
+    let mut sim = shared.sim.lock();
+    sim.step(tick);
+    for (robot, sender) in clients {
+        let mut messages = Vec::new();
+        if let Ok(packets) = sim.take_control_packets(robot) {
+            messages.extend(packets.into_iter().map(|p| ServerMessage::ControlPacket {
+                received: p.received,
+                payload: Bytes(p.bytes),
+            }));
+        }
+        if let Ok(packets) = sim.take_team_messages(robot) {
+            messages.extend(packets.into_iter().map(|p| ServerMessage::TeamMessage {
+                received: p.received,
+                payload: Bytes(p.bytes),
+            }));
+        }
+        if let Ok(Some(frame)) = sim.take_sensor_frame(robot) {
+            messages.push(ServerMessage::Sensors { frame });
+            if let Ok(feedback) = sim.read_motion(robot) {
+                messages.push(ServerMessage::Motion { feedback });
+            }
+        }
+        batches.push((sender, messages));
+    }
+}
+
+fn accept_loop(listener: TcpListener, shared: Arc<Shared>, stop: Arc<AtomicBool>) {
+    let mut threads: Vec<JoinHandle<()>> = Vec::new();
+    while !stop.load(Ordering::Relaxed) && !shared.stop.load(Ordering::Relaxed) {
+        match listener.accept() {
+            Ok((stream, peer)) => {
+                let connection = shared.next_connection.fetch_add(1, Ordering::Relaxed);
+                let thread_shared = Arc::clone(&shared);
+                let spawned = std::thread::Builder::new()
+                    .name(format!("sim-conn-{connection}"))
+                    .spawn(move || serve(stream, peer, connection, thread_shared));
+                match spawned {
+                    Ok(handle) => threads.push(handle),
+                    Err(error) => tracing::warn!(%peer, %error, "cannot serve a connection"),
+                }
+                threads.retain(|t| !t.is_finished());
+            }
+            Err(error) if error.kind() == std::io::ErrorKind::WouldBlock => {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            Err(error) => {
+                tracing::warn!(%error, "accept failed");
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
+    }
+    // Wake connection threads still reading, then wait for them.
+    for (_, stream) in &shared.registry().streams {
+        let _ = stream.shutdown(Shutdown::Read);
+    }
+    for thread in threads {
+        let _ = thread.join();
+    }
+}
+
+fn error(code: ErrorCode, message: impl Into<String>) -> ServerMessage {
+    ServerMessage::Error { code, message: message.into() }
+}
+
+/// One connection: handshake, then apply what the robot sends until it leaves.
+fn serve(stream: TcpStream, peer: SocketAddr, connection: u64, shared: Arc<Shared>) {
+    let _ = stream.set_nodelay(true);
+    let (Ok(writer_stream), Ok(registered)) = (stream.try_clone(), stream.try_clone()) else {
+        return;
+    };
+    shared.registry().streams.push((connection, registered));
+    let (sender, receiver) = crossbeam_channel::bounded(shared.options.queue.max(16));
+    let writer = std::thread::Builder::new()
+        .name(format!("sim-write-{connection}"))
+        .spawn(move || write_loop(writer_stream, receiver));
+    let mut reader = stream;
+    let robot = match handshake(&mut reader, &shared, connection, &sender) {
+        Ok(robot) => Some(robot),
+        Err(refusal) => {
+            tracing::info!(%peer, ?refusal, "connection refused");
+            close_with(&mut reader, &sender, *refusal);
+            None
+        }
+    };
+    if let Some(robot) = robot {
+        tracing::info!(%peer, %robot, "robot connected");
+        if let Some(refusal) = read_loop(&mut reader, &shared, robot) {
+            tracing::info!(%peer, %robot, ?refusal, "robot disconnected by the server");
+            close_with(&mut reader, &sender, refusal);
+        } else {
+            tracing::info!(%peer, %robot, "robot disconnected");
+        }
+        let mut registry = shared.registry();
+        let slot = shared.slot(robot);
+        if registry.clients[slot].as_ref().is_some_and(|c| c.connection == connection) {
+            registry.clients[slot] = None;
+            drop(registry);
+            let _ = shared.sim.lock().remove_robot(robot);
+        }
+    }
+    drop(sender);
+    if let Ok(writer) = writer {
+        let _ = writer.join();
+    }
+    let _ = reader.shutdown(Shutdown::Both);
+    shared.registry().streams.retain(|(c, _)| *c != connection);
+}
+
+/// Sends a last error, then waits briefly for the client to close: closing a socket with
+/// unread input makes the kernel reset it, which could destroy the error frame on its way.
+fn close_with(reader: &mut TcpStream, sender: &Sender<Outgoing>, message: ServerMessage) {
+    let _ = sender.send(Outgoing::Close(message));
+    let _ = reader.set_read_timeout(Some(Duration::from_millis(500)));
+    let mut sink = [0u8; 4096];
+    let deadline = Instant::now() + Duration::from_secs(1);
+    while Instant::now() < deadline {
+        match std::io::Read::read(reader, &mut sink) {
+            Ok(0) | Err(_) => break,
+            Ok(_) => {}
+        }
+    }
+}
+
+fn handshake(
+    reader: &mut TcpStream,
+    shared: &Shared,
+    connection: u64,
+    sender: &Sender<Outgoing>,
+) -> Result<RobotId, Box<ServerMessage>> {
+    let _ = reader.set_read_timeout(Some(shared.options.handshake_timeout));
+    let hello = protocol::read_message::<ClientMessage>(reader, MAX_CLIENT_FRAME);
+    let _ = reader.set_read_timeout(None);
+    let (team, player) = match hello {
+        Ok(ClientMessage::Hello { protocol, version, team, player }) => {
+            if protocol != PROTOCOL || version != VERSION {
+                return Err(Box::new(error(
+                    ErrorCode::UnsupportedVersion,
+                    format!(
+                        "this server speaks {PROTOCOL} version {VERSION}, not {protocol} version {version}"
+                    ),
+                )));
+            }
+            (team, player)
+        }
+        Ok(other) => {
+            return Err(Box::new(error(
+                ErrorCode::UnexpectedMessage,
+                format!("the first message must be hello, not {}", message_name(&other)),
+            )));
+        }
+        Err(FrameError::Io(e))
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+            ) =>
+        {
+            return Err(Box::new(error(ErrorCode::HandshakeTimeout, "no hello in time")));
+        }
+        Err(e) => return Err(Box::new(frame_error(e))),
+    };
+    let mut sim = shared.sim.lock();
+    let team_index = sim
+        .team_index(team)
+        .map_err(|e| Box::new(error(ErrorCode::UnknownRobot, e.to_string())))?;
+    let robot = RobotId::new(team_index, player);
+    sim.robot(robot).map_err(|e| Box::new(error(ErrorCode::UnknownRobot, e.to_string())))?;
+    let mut registry = shared.registry();
+    let slot = shared.slot(robot);
+    if registry.clients[slot].is_some() {
+        return Err(Box::new(error(
+            ErrorCode::SlotTaken,
+            format!("another process already drives team {team} player {player}"),
+        )));
+    }
+    registry.clients[slot] = Some(Client { connection, robot, sender: sender.clone() });
+    drop(registry);
+    let _ = sim.add_robot(robot);
+    let welcome = ServerMessage::Welcome {
+        version: VERSION,
+        team,
+        player,
+        team_index,
+        info: sim.platform_info(),
+        max_team_message: sim.config().broadcast.max_message_size,
+        time: sim.time(),
+    };
+    drop(sim);
+    let _ = sender.send(Outgoing::Message(welcome));
+    Ok(robot)
+}
+
+fn message_name(message: &ClientMessage) -> &'static str {
+    match message {
+        ClientMessage::Hello { .. } => "hello",
+        ClientMessage::Orders { .. } => "orders",
+        ClientMessage::TeamMessage { .. } => "team_message",
+        ClientMessage::ReturnPacket { .. } => "return_packet",
+        ClientMessage::Goodbye => "goodbye",
+    }
+}
+
+fn frame_error(e: FrameError) -> ServerMessage {
+    match e {
+        FrameError::TooLarge { size, limit } => error(
+            ErrorCode::FrameTooLarge,
+            format!("frame of {size} bytes exceeds the limit of {limit}"),
+        ),
+        other => error(ErrorCode::MalformedFrame, other.to_string()),
+    }
+}
+
+/// Applies what the robot sends. Returns the error to send when the server closes the
+/// connection, `None` when the client left.
+fn read_loop(reader: &mut TcpStream, shared: &Shared, robot: RobotId) -> Option<ServerMessage> {
+    loop {
+        let message = match protocol::read_message::<ClientMessage>(reader, MAX_CLIENT_FRAME) {
+            Ok(message) => message,
+            Err(FrameError::Closed | FrameError::Io(_)) => return None,
+            Err(e) => return Some(frame_error(e)),
+        };
+        if shared.stop.load(Ordering::Relaxed) {
+            return None;
+        }
+        match message {
+            ClientMessage::Orders { orders } => {
+                if let Err(e) = shared.sim.lock().apply_orders(robot, &orders) {
+                    return Some(error(ErrorCode::InvalidOrder, e.to_string()));
+                }
+            }
+            ClientMessage::TeamMessage { payload } => {
+                // Oversized messages are rejected and counted by the world, like lost ones.
+                let _ = shared.sim.lock().send_team_message(robot, &payload.0);
+            }
+            ClientMessage::ReturnPacket { payload } => {
+                let _ = shared.sim.lock().receive_return_packet(robot, &payload.0);
+            }
+            ClientMessage::Goodbye => return None,
+            ClientMessage::Hello { .. } => {
+                return Some(error(ErrorCode::UnexpectedMessage, "hello was already received"));
+            }
+        }
+    }
+}
+
+fn write_loop(mut stream: TcpStream, receiver: Receiver<Outgoing>) {
+    let _ = stream.set_write_timeout(Some(Duration::from_secs(2)));
+    for outgoing in receiver {
+        match outgoing {
+            Outgoing::Message(message) => {
+                if protocol::write_message(&mut stream, &message).is_err() {
+                    // A dead client: unblock its reader so the connection is cleaned up.
+                    let _ = stream.shutdown(Shutdown::Both);
+                    return;
+                }
+            }
+            Outgoing::Close(message) => {
+                let _ = protocol::write_message(&mut stream, &message);
+                let _ = stream.shutdown(Shutdown::Write);
+                return;
+            }
+        }
+    }
+}

@@ -1,0 +1,204 @@
+//! The simulator over TCP: handshake, sensor frames and game state reaching robot processes,
+//! orders and team messages reaching the world, malformed frames, disconnection and
+//! reconnection. Waits poll with generous deadlines; nothing asserts how long anything took.
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::time::{Duration, Instant};
+
+use strata_robot::Velocity;
+use strata_robot::platform::{
+    ActuatorOrders, BodyOrder, ExternalLink, Platform, SensorFrame, TeamLink,
+};
+use strata_runtime::Time;
+use strata_sim::net::protocol::{self, ClientMessage, ErrorCode, ServerMessage};
+use strata_sim::net::{ConnectError, RunningServer, Server, ServerOptions, TcpRobot, connect};
+use strata_sim::{GameState, RobotId, SimConfig, SimHandle, Simulation};
+use strata_spl::gamecontroller::GameControlData;
+
+const PATIENCE: Duration = Duration::from_secs(20);
+
+fn server() -> RunningServer {
+    let mut config = SimConfig::default().without_noise();
+    config.referee.auto = false;
+    let sim = SimHandle::new(Simulation::new(config).expect("valid config"));
+    sim.lock().set_game_state(GameState::Playing);
+    let server = Server::bind("127.0.0.1:0", sim, ServerOptions::default()).expect("binds");
+    server.spawn().expect("runs")
+}
+
+fn join(addr: SocketAddr, team: u8, player: u8) -> TcpRobot {
+    connect(addr, team, player, Duration::from_secs(5)).expect("the server accepts the robot")
+}
+
+fn until<T>(what: &str, mut f: impl FnMut() -> Option<T>) -> T {
+    let deadline = Instant::now() + PATIENCE;
+    loop {
+        if let Some(value) = f() {
+            return value;
+        }
+        assert!(Instant::now() < deadline, "gave up waiting for {what}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+fn now() -> Time {
+    Time::from_nanos(1_000_000_000)
+}
+
+fn a_frame(robot: &mut TcpRobot) -> SensorFrame {
+    until("a sensor frame", || robot.platform.read_sensors(now()).expect("connected"))
+}
+
+#[test]
+fn robots_receive_sensor_frames_and_game_state_and_their_orders_move_them() {
+    let server = server();
+    let addr = server.local_addr();
+    let mut first = join(addr, 10, 1);
+    let mut second = join(addr, 10, 2);
+    assert_eq!(first.welcome.team_index, 0);
+    assert_eq!(first.platform.info(), server.sim().lock().platform_info());
+    for robot in [&mut first, &mut second] {
+        let frame = a_frame(robot);
+        assert!((frame.inertial.accelerometer[2] - 9.81).abs() < 1e-9);
+        let packet = until("a control packet", || {
+            let packets = robot.game_controller.receive(now()).expect("connected");
+            packets.into_iter().find_map(|p| GameControlData::decode(&p.bytes).ok())
+        });
+        assert_eq!(packet.state, GameState::Playing);
+        assert_eq!(packet.teams[0].team_number, 10);
+    }
+    // A camera image arrives within a few frames.
+    until("a camera image", || a_frame(&mut first).camera);
+
+    let start = server.sim().lock().robot(RobotId::new(0, 1)).expect("present").pose;
+    let walk = ActuatorOrders {
+        head: None,
+        body: Some(BodyOrder::Walk { velocity: Velocity::new(0.25, 0.0, 0.0) }),
+    };
+    first.platform.write(now(), &walk).expect("sent");
+    until("the robot to walk", || {
+        let pose = server.sim().lock().robot(RobotId::new(0, 1)).expect("present").pose;
+        (pose.position().distance(start.position()) > 0.05).then_some(())
+    });
+    let odometry = until("odometry", || {
+        let feedback = first.platform.read_motion(now()).expect("connected");
+        (feedback.odometry.dx > 0.0).then_some(feedback.odometry)
+    });
+    assert!(odometry.dx > 0.0);
+
+    // A team message goes through the server to the teammate.
+    first.team_link.send(now(), b"pass to me").expect("within the limit");
+    let message = until("a team message", || {
+        second.team_link.receive(now()).expect("connected").into_iter().next()
+    });
+    assert_eq!(message.bytes, b"pass to me");
+    assert!(matches!(
+        first.team_link.send(now(), &[0u8; 129]),
+        Err(strata_robot::platform::LinkError::TooLarge { size: 129, limit: 128 })
+    ));
+    // A return packet is accepted by the referee.
+    let ret = strata_spl::gamecontroller::ReturnData {
+        player_number: 1,
+        team_number: 10,
+        fallen: false,
+        pose: [0.0; 3],
+        ball_age: -1.0,
+        ball: [0.0; 2],
+    };
+    first.game_controller.send(now(), &ret.encode().expect("valid")).expect("sent");
+    until("the return packet", || {
+        server.sim().lock().last_return_packet(RobotId::new(0, 1)).filter(|r| *r == ret)
+    });
+    server.stop().expect("stops cleanly");
+}
+
+/// Sends raw bytes as a client and returns the error the server answers with.
+fn refused(addr: SocketAddr, bytes: &[u8]) -> (ErrorCode, Vec<u8>) {
+    let mut stream = TcpStream::connect(addr).expect("connects");
+    stream.set_read_timeout(Some(PATIENCE)).expect("timeout");
+    stream.write_all(bytes).expect("sends");
+    let code = loop {
+        match protocol::read_message::<ServerMessage>(&mut stream, protocol::MAX_SERVER_FRAME) {
+            Ok(ServerMessage::Error { code, .. }) => break code,
+            Ok(_) => {}
+            Err(error) => panic!("no error frame: {error}"),
+        }
+    };
+    // The server closes the connection after the error.
+    let mut rest = Vec::new();
+    let _ = stream.read_to_end(&mut rest);
+    (code, rest)
+}
+
+fn frame(json: &str) -> Vec<u8> {
+    let mut bytes = (json.len() as u32).to_le_bytes().to_vec();
+    bytes.extend_from_slice(json.as_bytes());
+    bytes
+}
+
+#[test]
+fn malformed_frames_get_an_error_and_the_server_keeps_serving_everyone_else() {
+    let server = server();
+    let addr = server.local_addr();
+    let mut robot = join(addr, 20, 3);
+    a_frame(&mut robot);
+
+    assert_eq!(refused(addr, &frame("{not json")).0, ErrorCode::MalformedFrame);
+    assert_eq!(refused(addr, &frame(r#"{"type":"teleport_me"}"#)).0, ErrorCode::MalformedFrame);
+    let mut huge = (10_000_000u32).to_le_bytes().to_vec();
+    huge.extend_from_slice(&[b'x'; 1000]);
+    assert_eq!(refused(addr, &huge).0, ErrorCode::FrameTooLarge);
+    let orders = ClientMessage::Orders { orders: ActuatorOrders::default() };
+    assert_eq!(refused(addr, &protocol::encode(&orders)).0, ErrorCode::UnexpectedMessage);
+    let hello = |protocol: &str, version: u32, team: u8, player: u8| {
+        protocol::encode(&ClientMessage::Hello {
+            protocol: protocol.to_owned(),
+            version,
+            team,
+            player,
+        })
+    };
+    assert_eq!(refused(addr, &hello("strata-sim", 99, 10, 1)).0, ErrorCode::UnsupportedVersion);
+    assert_eq!(refused(addr, &hello("hl-sim", 1, 10, 1)).0, ErrorCode::UnsupportedVersion);
+    assert_eq!(refused(addr, &hello("strata-sim", 1, 99, 1)).0, ErrorCode::UnknownRobot);
+    assert_eq!(refused(addr, &hello("strata-sim", 1, 10, 8)).0, ErrorCode::UnknownRobot);
+    assert_eq!(refused(addr, &hello("strata-sim", 1, 20, 3)).0, ErrorCode::SlotTaken);
+    assert!(matches!(
+        connect(addr, 20, 3, Duration::from_secs(5)),
+        Err(ConnectError::Refused { code: ErrorCode::SlotTaken, .. })
+    ));
+    // A connected robot that sends garbage is dropped and removed from the world.
+    let mut bad = TcpStream::connect(addr).expect("connects");
+    bad.write_all(&hello("strata-sim", 1, 10, 5)).expect("sends");
+    until("the robot to join", || server.sim().lock().is_present(RobotId::new(0, 5)).then_some(()));
+    bad.write_all(&frame("[1, 2, 3]")).expect("sends");
+    until("the robot to leave", || {
+        (!server.sim().lock().is_present(RobotId::new(0, 5))).then_some(())
+    });
+
+    // The well-behaved robot never noticed.
+    let before = robot.platform.received();
+    until("more frames", || (robot.platform.received() > before + 10).then_some(()));
+    assert_eq!(robot.platform.closed(), None);
+    server.stop().expect("stops cleanly");
+}
+
+#[test]
+fn a_robot_that_disconnects_mid_game_is_removed_and_may_reconnect() {
+    let server = server();
+    let addr = server.local_addr();
+    let id = RobotId::new(1, 4);
+    let mut robot = join(addr, 20, 4);
+    a_frame(&mut robot);
+    assert!(server.sim().lock().is_present(id));
+    drop(robot);
+    until("the robot to leave", || (!server.sim().lock().is_present(id)).then_some(()));
+    let mut again = join(addr, 20, 4);
+    a_frame(&mut again);
+    assert!(server.sim().lock().is_present(id));
+    // The server stopping ends the robot's connection with an error it can read.
+    server.stop().expect("stops cleanly");
+    until("the connection to close", || again.platform.closed());
+    assert!(again.platform.read_motion(now()).is_err());
+}

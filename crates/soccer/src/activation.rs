@@ -1,0 +1,215 @@
+//! The soccer part of each multiplexer's activation function (paper 3.5.2): how goals split
+//! when they cannot be executed together, the reactive score S_r refreshed on every percept,
+//! and which primitive behavior pursues a goal given the percepts.
+
+use std::sync::Arc;
+
+use strata_robot::control::active_vision::GazeCandidate;
+use strata_robot::control::reactive::{ActivationPolicy, ReactiveInput, Stability};
+use strata_robot::control::scores::GoalScore;
+use strata_robot::world::WorldState;
+
+use crate::field::TeamField;
+use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
+use crate::primitives::{MotionModel, ball_crossing, kickable, names};
+use crate::situation::{ball, head_goal_objects, obstacle_ahead};
+
+type Input<'a> = ReactiveInput<'a, WorldState>;
+
+/// The head: observe goals. S_r is the need to look: one minus the confidence in the objects
+/// concerned (the paper: "the higher the confidence of an object, the lower its associated
+/// score").
+#[derive(Debug)]
+pub struct HeadActivation {
+    pub fov: f64,
+}
+
+impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
+    fn split(&self, goal: &GoalScore<HeadGoal>, input: &Input<'_>) -> Vec<GoalScore<HeadGoal>> {
+        let HeadGoal::ObserveTogether { objects } = &goal.goal else {
+            return vec![goal.clone()];
+        };
+        let Some(world) = input.world else { return vec![goal.clone()] };
+        let found = head_goal_objects(world, &goal.goal);
+        let ids: Vec<_> = found.iter().map(|o| o.id).collect();
+        let together = ids.len() == objects.len()
+            && GazeCandidate::covering(world, &ids, self.fov * 0.8, "together").is_some();
+        if together {
+            return vec![goal.clone()];
+        }
+        // Not in one gaze from here: one goal per object, each with the deliberative score.
+        objects
+            .iter()
+            .map(|name| {
+                let single = if name == crate::world_config::BALL {
+                    HeadGoal::ObserveBall
+                } else {
+                    HeadGoal::ObserveLandmark { name: name.clone() }
+                };
+                GoalScore {
+                    goal: single,
+                    deliberative: goal.deliberative,
+                    objects: vec![name.clone()],
+                }
+            })
+            .collect()
+    }
+
+    fn reactive_score(&self, goal: &GoalScore<HeadGoal>, input: &Input<'_>) -> f64 {
+        let Some(world) = input.world else { return 1.0 };
+        if goal.goal == HeadGoal::Scan {
+            return 0.5;
+        }
+        let objects = head_goal_objects(world, &goal.goal);
+        if objects.is_empty() {
+            return match goal.goal {
+                HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
+                    1.0 - world.pose.confidence
+                }
+                _ => 1.0,
+            };
+        }
+        objects.iter().map(|o| 1.0 - o.confidence).fold(0.0, f64::max)
+    }
+
+    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> Vec<&'static str> {
+        let Some(world) = input.world else { return vec![names::SEARCH_OBJECT_ELLIPSE] };
+        match goal {
+            HeadGoal::ObserveTogether { .. } => {
+                vec![names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE]
+            }
+            HeadGoal::Scan => vec![names::SEARCH_OBJECT_ELLIPSE],
+            HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. }
+                if !world.pose.lost =>
+            {
+                vec![names::LOOK_AT_TARGET]
+            }
+            HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
+                vec![names::SEARCH_OBJECT_ELLIPSE]
+            }
+            _ => {
+                // Tracking needs a position worth pointing at: a known object, or a landmark
+                // predicted from a pose that is not lost.
+                let trackable = head_goal_objects(world, goal)
+                    .iter()
+                    .any(|o| o.known || (o.map_position.is_some() && !world.pose.lost));
+                if trackable {
+                    vec![names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
+                } else {
+                    vec![names::SEARCH_OBJECT_ELLIPSE]
+                }
+            }
+        }
+    }
+}
+
+/// The body: one goal at a time, usually; S_r says how feasible it is right now.
+#[derive(Debug)]
+pub struct BodyActivation {
+    pub model: Arc<MotionModel>,
+}
+
+impl ActivationPolicy<BodyGoal, WorldState> for BodyActivation {
+    fn reactive_score(&self, goal: &GoalScore<BodyGoal>, input: &Input<'_>) -> f64 {
+        match (&goal.goal, input.world) {
+            (BodyGoal::GoToBallAndKick { .. }, Some(world)) => match ball(world) {
+                Some(b) if b.known => 1.0,
+                Some(_) => 0.3,
+                None => 0.0,
+            },
+            _ => 1.0,
+        }
+    }
+
+    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> Vec<&'static str> {
+        if goal == &BodyGoal::Stand {
+            return vec![names::STAND];
+        }
+        let Some(world) = input.world else { return vec![names::STAND] };
+        let blocked = obstacle_ahead(world, self.model.collision_distance, 0.6).is_some();
+        match goal {
+            BodyGoal::GoToBallAndKick { kick, target } => {
+                if kickable(&self.model, world, *kick, *target) {
+                    // Kick or go-to-ball is decided from percepts; the kick id is the
+                    // deliberative layer's parameter.
+                    vec![names::KICK_BALL, names::GO_TO_BALL]
+                } else if blocked && ball(world).is_none_or(|b| b.robot.range() > 0.5) {
+                    vec![names::AVOID_COLLISION, names::GO_TO_BALL]
+                } else if ball(world).is_some() {
+                    vec![names::GO_TO_BALL]
+                } else {
+                    vec![]
+                }
+            }
+            BodyGoal::GoToPosition { .. } if blocked => {
+                vec![names::AVOID_COLLISION, names::GO_TO_POSITION]
+            }
+            BodyGoal::GoToPosition { .. } | BodyGoal::ObserveTarget { .. } => {
+                vec![names::GO_TO_POSITION]
+            }
+            BodyGoal::Stand => vec![names::STAND],
+        }
+    }
+}
+
+/// Head and body: the reflexes (fall, stand-up), the dive, dribbling.
+#[derive(Debug)]
+pub struct WholeBodyActivation {
+    /// A ball crossing the keeper's line within this time triggers the dive, s.
+    pub dive_horizon: f64,
+    /// ... and within this lateral distance, m.
+    pub dive_reach: f64,
+    pub field: Arc<TeamField>,
+}
+
+impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
+    fn reactive_score(&self, goal: &GoalScore<WholeBodyGoal>, input: &Input<'_>) -> f64 {
+        match &goal.goal {
+            WholeBodyGoal::Fall { .. } => {
+                f64::from(matches!(input.stability, Stability::Unstable(_)))
+            }
+            WholeBodyGoal::StandUp { .. } => {
+                f64::from(matches!(input.stability, Stability::Fallen(_)))
+            }
+            WholeBodyGoal::Dive { .. } => input
+                .world
+                .and_then(ball_crossing)
+                .map_or(0.0, |(_, t)| (1.0 - t / self.dive_horizon).clamp(0.0, 1.0)),
+            WholeBodyGoal::GoToBallAndDribble { .. } => match input.world.and_then(ball) {
+                Some(b) if b.known && b.robot.range() < 1.0 => 1.0,
+                Some(b) if b.known => 0.6,
+                _ => 0.0,
+            },
+        }
+    }
+
+    fn primitives_for(&self, goal: &WholeBodyGoal, input: &Input<'_>) -> Vec<&'static str> {
+        match goal {
+            // A whole-body sequence of our own (a stand-up sweeping the torso up from the
+            // ground, a dive) tilts the robot on purpose: that is not a fall to protect from.
+            WholeBodyGoal::Fall { .. }
+                if matches!(input.stability, Stability::Unstable(_))
+                    && !input.actuation.busy.contains(&strata_robot::command::Resource::Head) =>
+            {
+                vec![names::FALL]
+            }
+            WholeBodyGoal::StandUp { .. } if matches!(input.stability, Stability::Fallen(_)) => {
+                vec![names::STAND_UP]
+            }
+            WholeBodyGoal::Dive { .. } if input.stability.is_stable() => {
+                let dive = input.world.and_then(ball_crossing).is_some_and(|(y, t)| {
+                    t < self.dive_horizon && y.abs() < self.dive_reach && t > 0.05
+                });
+                if dive { vec![names::DIVE] } else { vec![] }
+            }
+            WholeBodyGoal::GoToBallAndDribble { .. } if input.stability.is_stable() => {
+                if input.world.and_then(ball).is_some_and(|b| b.known) {
+                    vec![names::DRIBBLING]
+                } else {
+                    vec![]
+                }
+            }
+            _ => vec![],
+        }
+    }
+}

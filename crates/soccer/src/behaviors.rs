@@ -1,0 +1,808 @@
+//! Deliberative behaviors of robot soccer (paper Table 2), organised as a hierarchical state
+//! machine whose top level follows the game state and whose playing states follow the role;
+//! states are single behaviors or behavior trees (paper 3.4).
+//!
+//! ```text
+//! Initial | Ready (going to field position) | Set | Finished | Penalized
+//! Playing
+//!   Goalie playing: Goal covering (tree: localizing / searching for object / cover) | Clearing (go to ball)
+//!   Field playing:  Striker (tree: localizing / searching for object / avoiding obstacle / go to ball)
+//!                   Striker cover (partner following) | Pass receiver | Active defender (go to ball)
+//!                   Defender going to position (goal covering from the penalty area's edge)
+//! ```
+//!
+//! Every behavior sets a goal for each resource: the body's goal directly, the head's through
+//! the gaze strategy — value functions and active vision in the full architecture.
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+use strata_robot::control::active_vision::{
+    ActiveVision, ActiveVisionConfig, ActiveVisionReport, Criterion, GazeCandidate, ValueFunction,
+};
+use strata_robot::control::bt::{Status, Tree, action, condition, reactive_selector, sequence};
+use strata_robot::control::deliberative::{
+    DeliberativeInput, DeliberativeOutput, DeliberativePolicy,
+};
+use strata_robot::control::hsm::{BuildError, State, StateMachine};
+use strata_robot::control::planning_module::PlanningDecision;
+use strata_robot::control::reactive::Stability;
+use strata_robot::control::scores::{GoalScore, ScoreVector};
+use strata_robot::geometry::{Field as FieldFrame, Point, Pose};
+use strata_robot::world::{ObjectCategory, WorldState};
+use strata_runtime::Time;
+use strata_spl::gamecontroller::GameState;
+
+use crate::catalog::{GOALKEEPER_NUMBER, Mission, Role};
+use crate::field::TeamField;
+use crate::game::{GameDirective, Kicking};
+use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
+use crate::primitives::{facing, names};
+use crate::situation::{ball, best_instance, obstacle_ahead};
+use crate::value::{GoToBallValue, GoalCoveringValue, PositionValue};
+use crate::world_config::{BALL, landmark_groups};
+
+/// What the planning layer sends soccer's deliberative layer.
+pub type Decision = PlanningDecision<Mission, Role, GameDirective>;
+pub type Output = DeliberativeOutput<HeadGoal, BodyGoal, WholeBodyGoal>;
+
+/// How the head's score vector is made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GazeStrategy {
+    /// The paper's: value functions, minimum expected value variance.
+    #[default]
+    ActiveVision,
+    /// Value functions, maximum expected action task value.
+    ActiveVisionTaskValue,
+    /// Baseline: always look at the ball.
+    AlwaysBall,
+    /// Baseline: a fixed head scan pattern, as many SPL teams do.
+    FixedScan,
+    /// Baseline: look where the expected entropy of the belief (pose and ball) is smallest
+    /// (after Seekircher, Laue and Röfer, RoboCup 2010).
+    Entropy,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BehaviorConfig {
+    pub gaze: GazeStrategy,
+    /// Half the width the goalkeeper blocks, m.
+    pub keeper_reach: f64,
+    /// Distance of the keeper's covering position in front of the goal line, m.
+    pub keeper_depth: f64,
+    /// The striker dribbles instead of kicking within this distance of the opponent goal, m.
+    pub dribble_distance: f64,
+    /// A ball unknown for longer than this is searched actively (walking), s.
+    pub active_search_after: f64,
+    /// Camera field of view for gaze candidates, rad.
+    pub fov: f64,
+}
+
+impl Default for BehaviorConfig {
+    fn default() -> Self {
+        BehaviorConfig {
+            gaze: GazeStrategy::ActiveVision,
+            keeper_reach: 0.3,
+            keeper_depth: 0.45,
+            dribble_distance: 0.9,
+            active_search_after: 4.0,
+            fov: 1.06,
+        }
+    }
+}
+
+/// The context the state machine and its trees run on.
+pub struct Ctx {
+    pub now: Time,
+    pub world: Option<WorldState>,
+    pub decision: Option<Decision>,
+    pub stability: Stability,
+    pub field: Arc<TeamField>,
+    pub player: u8,
+    pub config: BehaviorConfig,
+    pub out: Output,
+    vision: ActiveVision,
+    pub vision_report: Option<ActiveVisionReport>,
+    ball_unknown_since: Option<Time>,
+    landmark_groups: Vec<String>,
+}
+
+impl std::fmt::Debug for Ctx {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ctx")
+            .field("player", &self.player)
+            .field("now", &self.now)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Ctx {
+    fn directive(&self) -> GameDirective {
+        self.decision.as_ref().map(|d| d.directive.clone()).unwrap_or_default()
+    }
+
+    fn role(&self) -> Role {
+        match &self.decision {
+            Some(d) => d.assignment.role,
+            None if self.player == GOALKEEPER_NUMBER => Role::Goalie,
+            None => Role::Striker,
+        }
+    }
+
+    fn lost(&self) -> bool {
+        self.world.as_ref().is_none_or(|w| w.pose.lost)
+    }
+
+    fn pose(&self) -> Pose {
+        self.world.as_ref().map_or_else(Pose::default, |w| w.pose.pose)
+    }
+
+    fn ball_known(&self) -> bool {
+        self.world.as_ref().and_then(ball).is_some_and(|b| b.known)
+    }
+
+    fn ball_field(&self) -> Option<Point<FieldFrame>> {
+        self.world.as_ref().and_then(ball).map(|b| b.field)
+    }
+
+    fn ball_unknown_for(&self) -> f64 {
+        self.ball_unknown_since.map_or(0.0, |t| (self.now - t).as_secs_f64())
+    }
+
+    fn set_body(&mut self, goal: BodyGoal) {
+        self.out.body = ScoreVector::single(goal);
+    }
+
+    fn ball_id(&self) -> Option<strata_robot::world::ObjectId> {
+        self.world.as_ref().and_then(|w| w.object(BALL)).map(|o| o.id)
+    }
+}
+
+/// The states of the machine.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum S {
+    Initial,
+    Ready,
+    Set,
+    Playing,
+    Finished,
+    Penalized,
+    GoaliePlaying,
+    GoalCovering,
+    Clearing,
+    FieldPlaying,
+    Striker,
+    StrikerCover,
+    PassReceiver,
+    ActiveDefender,
+    DefenderPositioning,
+}
+
+const TOP: [S; 6] = [S::Initial, S::Ready, S::Set, S::Playing, S::Finished, S::Penalized];
+const FIELD_ROLES: [(S, Role); 5] = [
+    (S::Striker, Role::Striker),
+    (S::StrikerCover, Role::StrikerCover),
+    (S::PassReceiver, Role::PassReceiver),
+    (S::ActiveDefender, Role::ActiveDefender),
+    (S::DefenderPositioning, Role::DefenderGoingToPosition),
+];
+
+fn phase(ctx: &Ctx) -> S {
+    let d = ctx.directive();
+    if d.penalized {
+        return S::Penalized;
+    }
+    match d.state {
+        GameState::Initial | GameState::Standby => S::Initial,
+        GameState::Ready => S::Ready,
+        GameState::Set => S::Set,
+        GameState::Playing => S::Playing,
+        GameState::Finished => S::Finished,
+    }
+}
+
+fn role_state(role: Role) -> S {
+    FIELD_ROLES.iter().find(|(_, r)| *r == role).map_or(S::Striker, |(s, _)| *s)
+}
+
+// ---------------------------------------------------------------------------------------------
+// The head: gaze strategies.
+
+fn head_goal_for(label: &str) -> HeadGoal {
+    match label.split_once('+') {
+        Some((a, b)) => HeadGoal::ObserveTogether { objects: vec![a.to_owned(), b.to_owned()] },
+        None if label == BALL => HeadGoal::ObserveBall,
+        None => HeadGoal::ObserveLandmark { name: label.to_owned() },
+    }
+}
+
+/// Sensing candidates: the ball, the best instance of each landmark group, and the ball
+/// together with the nearest landmarks when they fit in one gaze.
+fn gaze_candidates(ctx: &Ctx, world: &WorldState) -> Vec<(GazeCandidate, Vec<String>)> {
+    let mut out = Vec::new();
+    let ball_id = world.object(BALL).map(|o| o.id);
+    if let Some(id) = ball_id
+        && let Some(c) = GazeCandidate::toward(world, id, BALL)
+    {
+        out.push((c, vec![BALL.to_owned()]));
+    }
+    let mut landmarks: Vec<_> = ctx
+        .landmark_groups
+        .iter()
+        .filter_map(|g| best_instance(world, g))
+        .filter(|o| o.category == ObjectCategory::Landmark)
+        .collect();
+    landmarks.sort_by(|a, b| a.position.range().total_cmp(&b.position.range()));
+    for landmark in landmarks.iter().take(6) {
+        if let Some(c) = GazeCandidate::toward(world, landmark.id, landmark.name.clone()) {
+            out.push((c, vec![landmark.name.clone()]));
+        }
+        if let Some(ball) = ball_id {
+            let label = format!("{BALL}+{}", landmark.name);
+            if let Some(c) =
+                GazeCandidate::covering(world, &[ball, landmark.id], ctx.config.fov * 0.8, label)
+            {
+                out.push((c, vec![BALL.to_owned(), landmark.name.clone()]));
+            }
+        }
+    }
+    out
+}
+
+/// The head's score vector for a behavior whose value function is `value`.
+fn gaze(ctx: &mut Ctx, value: Option<&dyn ValueFunction>) {
+    let strategy = ctx.config.gaze;
+    let Some(world) = ctx.world.take() else {
+        ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+        return;
+    };
+    ctx.out.head = match strategy {
+        GazeStrategy::AlwaysBall => ScoreVector::single(HeadGoal::ObserveBall),
+        GazeStrategy::FixedScan => ScoreVector::single(HeadGoal::Scan),
+        GazeStrategy::ActiveVision
+        | GazeStrategy::ActiveVisionTaskValue
+        | GazeStrategy::Entropy => {
+            let candidates = gaze_candidates(ctx, &world);
+            let gazes: Vec<GazeCandidate> = candidates.iter().map(|(c, _)| c.clone()).collect();
+            let scores: Vec<f64> = if strategy == GazeStrategy::Entropy {
+                entropy_scores(&world, &gazes, &ctx.vision.config)
+            } else {
+                ctx.vision.config.criterion = if strategy == GazeStrategy::ActiveVisionTaskValue {
+                    Criterion::MaxExpectedTaskValue
+                } else {
+                    Criterion::MinExpectedValueVariance
+                };
+                let fallback = PositionValue { target: world.pose.pose.position() };
+                let vf: &dyn ValueFunction = value.unwrap_or(&fallback);
+                let report = ctx.vision.evaluate(&world, vf, &gazes);
+                let scores = report.candidates.iter().map(|c| c.score).collect();
+                ctx.vision_report = Some(report);
+                scores
+            };
+            let mut vector = ScoreVector::default();
+            for ((candidate, objects), score) in candidates.iter().zip(scores) {
+                vector.push(GoalScore {
+                    goal: head_goal_for(&candidate.label),
+                    deliberative: score,
+                    objects: objects.clone(),
+                });
+            }
+            if !vector.goals.iter().any(|g| g.goal == HeadGoal::ObserveBall) {
+                // The ball must stay a goal even when no value function wants it: its reactive
+                // score (its uncertainty) can still win the head.
+                vector.push(GoalScore::new(HeadGoal::ObserveBall, 0.5).about(BALL));
+            }
+            vector
+        }
+    };
+    ctx.world = Some(world);
+}
+
+/// Entropy baseline: the reduction of the expected entropy of the pose and ball beliefs,
+/// normalised so the best candidate scores 1.
+fn entropy_scores(
+    world: &WorldState,
+    gazes: &[GazeCandidate],
+    config: &ActiveVisionConfig,
+) -> Vec<f64> {
+    let ball = world.object(BALL);
+    let entropy = |pose: &nalgebra::Matrix3<f64>, ball_cov: Option<&nalgebra::Matrix2<f64>>| {
+        0.5 * pose.determinant().max(1e-30).ln()
+            + ball_cov.map_or(0.0, |c| 0.5 * c.determinant().max(1e-30).ln())
+    };
+    let prior = entropy(&world.pose.covariance, ball.map(|b| &b.covariance));
+    let reductions: Vec<f64> = gazes
+        .iter()
+        .map(|g| {
+            let view = strata_robot::percept::ViewCone {
+                direction: g.direction.clamp(config.yaw_limits.0, config.yaw_limits.1),
+                fov: config.fov,
+                range: config.range,
+            };
+            let candidate = world.sensing_candidate(&view, config.min_visibility);
+            let belief = world.expected_update(&candidate);
+            let ball_cov = ball.map(|b| belief.object(b.id).copied().unwrap_or(b.covariance));
+            (prior - entropy(&belief.pose, ball_cov.as_ref())).max(0.0)
+        })
+        .collect();
+    let best = reductions.iter().copied().fold(0.0, f64::max);
+    reductions.iter().map(|r| if best > 1e-12 { r / best } else { 0.0 }).collect()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Behaviors (Table 2).
+
+/// Going to field position.
+fn going_to_field_position(ctx: &mut Ctx, target: Pose) -> Status {
+    ctx.set_body(BodyGoal::GoToPosition { pose: target });
+    let value = PositionValue { target: target.position() };
+    gaze(ctx, Some(&value));
+    Status::Running
+}
+
+/// Localizing: look for landmarks, stand still.
+fn localizing(ctx: &mut Ctx) -> Status {
+    let mut head = ScoreVector::default();
+    for group in &ctx.landmark_groups {
+        head.push(
+            GoalScore::new(HeadGoal::ObserveLandmark { name: group.clone() }, 0.8)
+                .about(group.clone()),
+        );
+    }
+    head.push(GoalScore::new(HeadGoal::ObserveBall, 0.3).about(BALL));
+    ctx.out.head = head;
+    ctx.set_body(BodyGoal::Stand);
+    Status::Running
+}
+
+/// Searching for object (the ball): passive (head only) at first, active (turning, walking
+/// toward where the team last saw it) after a while.
+fn searching_for_object(ctx: &mut Ctx) -> Status {
+    ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+    if ctx.ball_unknown_for() < ctx.config.active_search_after {
+        ctx.set_body(BodyGoal::Stand);
+    } else if let Some(team_ball) =
+        ctx.world.as_ref().and_then(|w| w.team_object(BALL)).map(|t| t.position)
+    {
+        let pose = ctx.pose();
+        ctx.set_body(BodyGoal::GoToPosition { pose: facing(pose.position(), team_ball) });
+    } else {
+        // Turn on the spot: a target to the left keeps the robot rotating.
+        let pose = ctx.pose();
+        let left = pose.to_field(Point::new(0.0, 1.0));
+        ctx.set_body(BodyGoal::ObserveTarget { target: left });
+    }
+    Status::Running
+}
+
+/// Avoiding obstacle: a waypoint beside a robot standing in the way.
+fn avoiding_obstacle(ctx: &mut Ctx) -> Status {
+    let Some(world) = ctx.world.as_ref() else { return Status::Failure };
+    let Some(obstacle) = obstacle_ahead(world, 0.8, 0.5) else { return Status::Success };
+    let side = if obstacle.y > 0.0 { -0.5 } else { 0.5 };
+    let pose = world.pose.pose;
+    let waypoint = pose.to_field(Point::new(obstacle.x, obstacle.y + side));
+    ctx.set_body(BodyGoal::GoToPosition { pose: facing(pose.position(), waypoint) });
+    gaze(ctx, None);
+    Status::Running
+}
+
+fn obstacle_in_the_way(ctx: &Ctx) -> bool {
+    let Some(world) = ctx.world.as_ref() else { return false };
+    let ball_far = ball(world).is_none_or(|b| b.robot.range() > 1.0);
+    ball_far && obstacle_ahead(world, 0.8, 0.5).is_some()
+}
+
+/// Where a shot should go: the side of the opponent goal farther from its keeper.
+fn shot_target(ctx: &Ctx) -> Point<FieldFrame> {
+    let goal = ctx.field.opponent_goal();
+    let aim = ctx.field.goal_half_width * 0.5;
+    let keeper = ctx.world.as_ref().and_then(|w| {
+        crate::situation::obstacles(w)
+            .map(|o| o.field_position)
+            .filter(|p| p.distance(goal) < 1.2)
+            .min_by(|a, b| a.distance(goal).total_cmp(&b.distance(goal)))
+    });
+    match keeper {
+        Some(k) if k.y > 0.0 => Point::new(goal.x, -aim),
+        Some(_) => Point::new(goal.x, aim),
+        None => goal,
+    }
+}
+
+/// Go to ball: evaluates the ball's target by role (a shot for the striker, a clearance for a
+/// defender or the keeper), then kicks or dribbles.
+fn go_to_ball(ctx: &mut Ctx) -> Status {
+    let Some(ball_field) = ctx.ball_field() else { return Status::Failure };
+    let target = shot_target(ctx);
+    let near_goal = ball_field.distance(ctx.field.opponent_goal())
+        < ctx.config.dribble_distance + ctx.field.goal_half_width;
+    if near_goal && ctx.role() == Role::Striker {
+        // Close to the goal a kick would rather miss: walk the ball in.
+        ctx.out.body = ScoreVector::default();
+        ctx.out.whole_body = ScoreVector::single(WholeBodyGoal::GoToBallAndDribble {
+            target: ctx.field.opponent_goal(),
+        });
+        ctx.out.deactivated.insert(names::KICK_BALL.to_owned());
+    } else {
+        let kick = if ctx.role() == Role::Striker { Kick::Forward } else { Kick::Pass };
+        let target = if ctx.role() == Role::Striker { target } else { ctx.field.opponent_goal() };
+        ctx.set_body(BodyGoal::GoToBallAndKick { kick, target });
+    }
+    if let Some(ball_id) = ctx.ball_id() {
+        let value = GoToBallValue { field: Arc::clone(&ctx.field), ball: ball_id };
+        gaze(ctx, Some(&value));
+    }
+    Status::Running
+}
+
+/// The keeper's covering position: on the bisector of the goal's angle seen from the ball, at
+/// `keeper_depth` in front of the goal line, facing the ball.
+pub fn covering_pose(field: &TeamField, ball: Point<FieldFrame>, depth: f64) -> Pose {
+    let [left, right] = field.posts(strata_spl::field::Side::Own);
+    let bisector = ((left - ball).normalized() + (right - ball).normalized()).normalized();
+    let line = -field.half_length + depth;
+    let point = if bisector.x < -0.05 && ball.x > line {
+        let t = (line - ball.x) / bisector.x;
+        let p = ball + bisector * t;
+        Point::new(p.x, p.y.clamp(-field.goal_half_width, field.goal_half_width))
+    } else {
+        Point::new(line, 0.0)
+    };
+    facing(point, ball)
+}
+
+/// Goal covering: cover the maximal free angle of the goal seen from the ball, keep the
+/// dive ready, and look where the value function says (ball or landmarks).
+fn goal_covering(ctx: &mut Ctx, depth: f64) -> Status {
+    let Some(ball_field) = ctx.ball_field() else { return Status::Failure };
+    let pose = covering_pose(&ctx.field, ball_field, depth);
+    ctx.set_body(BodyGoal::GoToPosition { pose });
+    if ctx.role() == Role::Goalie {
+        ctx.out.whole_body = ScoreVector::single(WholeBodyGoal::Dive { sequence: 0 });
+    }
+    if let Some(ball_id) = ctx.ball_id() {
+        let value = GoalCoveringValue {
+            field: Arc::clone(&ctx.field),
+            ball: ball_id,
+            reach: ctx.config.keeper_reach,
+        };
+        gaze(ctx, Some(&value));
+    }
+    Status::Running
+}
+
+/// Partner following: keep a supporting position near the striker.
+fn partner_following(ctx: &mut Ctx) -> Status {
+    let Some(ball_field) = ctx.ball_field() else { return searching_for_object(ctx) };
+    let striker = ctx
+        .decision
+        .as_ref()
+        .and_then(|d| d.teammates.iter().find(|t| t.role == Role::Striker && t.available))
+        .map(|t| (t.player, t.pose.position()));
+    let anchor = striker.map_or(ball_field, |(_, p)| p);
+    let back = (ctx.field.own_goal() - ball_field).normalized() * 1.2;
+    let lateral = if anchor.y > 0.0 { -0.8 } else { 0.8 };
+    let spot = Point::new(
+        (anchor.x + back.x).clamp(-ctx.field.half_length + 0.5, ctx.field.half_length - 0.5),
+        (anchor.y + back.y + lateral)
+            .clamp(-ctx.field.half_width + 0.3, ctx.field.half_width - 0.3),
+    );
+    going_to_field_position(ctx, facing(spot, ball_field));
+    if let Some((player, position)) = striker {
+        ctx.out.head.push(GoalScore::new(HeadGoal::ObservePartner { player, position }, 0.3));
+    }
+    Status::Running
+}
+
+/// Pass receiver: wait for a pass in a free position ahead of the ball, on the other side.
+fn pass_receiving(ctx: &mut Ctx) -> Status {
+    let Some(ball_field) = ctx.ball_field() else { return searching_for_object(ctx) };
+    let x = (ball_field.x + 2.0).clamp(-ctx.field.half_length + 1.0, ctx.field.half_length - 1.0);
+    let y = if ball_field.y > 0.0 { -1.5 } else { 1.5 };
+    going_to_field_position(ctx, facing(Point::new(x, y), ball_field))
+}
+
+/// Kick-off positions (team frame), legal for the kicking and the defending team.
+pub fn kickoff_pose(field: &TeamField, player: u8, kicking: bool) -> Pose {
+    let hl = field.half_length;
+    let circle = field.center_circle_radius;
+    let centre = Point::new(0.0, 0.0);
+    let spot = match player {
+        1 => Point::new(-hl + 0.3, 0.0),
+        2 if kicking => Point::new(-0.25, 0.0),
+        2 => Point::new(-circle - 0.25, 0.0),
+        3 => Point::new(-1.2, 1.5),
+        4 => Point::new(-1.2, -1.5),
+        5 => Point::new(-hl * 0.6, 0.7),
+        6 => Point::new(-hl * 0.6, -0.7),
+        _ => Point::new(-hl * 0.4, 0.0),
+    };
+    facing(spot, centre)
+}
+
+fn should_clear(ctx: &Ctx) -> bool {
+    let Some(world) = ctx.world.as_ref() else { return false };
+    let Some(b) = ball(world).filter(|b| b.known && !b.from_team) else { return false };
+    ctx.field.in_own_penalty_area(b.field, 0.0) && b.robot.range() < 1.2
+}
+
+// ---------------------------------------------------------------------------------------------
+// The machine.
+
+fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
+    let mut builder = StateMachine::builder().initial(S::Initial);
+    // Top level: follow the game state.
+    let top_names = [
+        (S::Initial, "Initial"),
+        (S::Ready, "Ready"),
+        (S::Set, "Set"),
+        (S::Playing, "Playing"),
+        (S::Finished, "Finished"),
+        (S::Penalized, "Penalized"),
+    ];
+    for (state, name) in top_names {
+        let mut s = State::new(state).name(name);
+        for other in TOP.iter().copied().filter(|o| *o != state) {
+            s = s.transition(move |ctx: &Ctx, _| phase(ctx) == other, other);
+        }
+        s = match state {
+            S::Initial => s.behavior(|ctx: &mut Ctx, _| {
+                ctx.set_body(BodyGoal::Stand);
+                gaze(ctx, None);
+                Status::Running
+            }),
+            S::Ready => s.behavior(|ctx: &mut Ctx, _| {
+                let kicking = ctx.directive().kicking == Kicking::Us;
+                let target = kickoff_pose(&ctx.field, ctx.player, kicking);
+                going_to_field_position(ctx, target)
+            }),
+            S::Set | S::Finished => s.behavior(|ctx: &mut Ctx, _| {
+                ctx.set_body(BodyGoal::Stand);
+                ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+                Status::Running
+            }),
+            S::Penalized => s.behavior(|ctx: &mut Ctx, _| {
+                ctx.set_body(BodyGoal::Stand);
+                ctx.out.head = ScoreVector::single(HeadGoal::Scan);
+                Status::Running
+            }),
+            S::Playing => s.initial_child(if goalie { S::GoaliePlaying } else { S::FieldPlaying }),
+            _ => s,
+        };
+        builder = builder.state(s);
+    }
+    // Goalie playing.
+    builder = builder
+        .state(
+            State::new(S::GoaliePlaying)
+                .name("Goalie playing")
+                .parent(S::Playing)
+                .initial_child(S::GoalCovering)
+                .transition(|ctx: &Ctx, _| ctx.role() != Role::Goalie, S::FieldPlaying),
+        )
+        .state(
+            State::new(S::GoalCovering)
+                .name("Goal covering")
+                .parent(S::GoaliePlaying)
+                .transition(|ctx: &Ctx, _| should_clear(ctx), S::Clearing)
+                .tree(Tree::new(reactive_selector(
+                    "goal covering",
+                    [
+                        sequence(
+                            "localizing",
+                            [
+                                condition("lost", |ctx: &Ctx| ctx.lost()),
+                                action("look for landmarks", |ctx: &mut Ctx, _| localizing(ctx)),
+                            ],
+                        ),
+                        sequence(
+                            "searching for object",
+                            [
+                                condition("ball unknown", |ctx: &Ctx| {
+                                    !ctx.ball_known() && ctx.ball_unknown_for() > 1.0
+                                }),
+                                action("passive search", |ctx: &mut Ctx, _| {
+                                    let home = covering_pose(
+                                        &ctx.field,
+                                        Point::new(0.0, 0.0),
+                                        ctx.config.keeper_depth,
+                                    );
+                                    ctx.set_body(BodyGoal::GoToPosition { pose: home });
+                                    ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+                                    Status::Running
+                                }),
+                            ],
+                        ),
+                        action("cover", |ctx: &mut Ctx, _| {
+                            let depth = ctx.config.keeper_depth;
+                            goal_covering(ctx, depth)
+                        }),
+                    ],
+                ))),
+        )
+        .state(
+            State::new(S::Clearing)
+                .name("Clearing")
+                .parent(S::GoaliePlaying)
+                .transition(|ctx: &Ctx, _| !should_clear(ctx), S::GoalCovering)
+                .behavior(|ctx: &mut Ctx, _| go_to_ball(ctx)),
+        );
+    // Field playing.
+    let mut field_playing = State::new(S::FieldPlaying)
+        .name("Field playing")
+        .parent(S::Playing)
+        .initial_child(S::Striker)
+        .transition(|ctx: &Ctx, _| ctx.role() == Role::Goalie, S::GoaliePlaying);
+    field_playing = field_playing.name("Field playing");
+    builder = builder.state(field_playing);
+    for (state, role) in FIELD_ROLES {
+        let mut s = State::new(state).name(role.name()).parent(S::FieldPlaying);
+        for (other, other_role) in FIELD_ROLES.iter().copied().filter(|(o, _)| *o != state) {
+            s = s.transition(
+                move |ctx: &Ctx, _| role_state(ctx.role()) == other && ctx.role() == other_role,
+                other,
+            );
+        }
+        s = match state {
+            S::Striker => s.tree(Tree::new(reactive_selector(
+                "go to ball",
+                [
+                    sequence(
+                        "localizing",
+                        [
+                            condition("lost", |ctx: &Ctx| ctx.lost() && !ctx.ball_known()),
+                            action("look for landmarks", |ctx: &mut Ctx, _| localizing(ctx)),
+                        ],
+                    ),
+                    sequence(
+                        "searching for object",
+                        [
+                            condition("ball unknown", |ctx: &Ctx| !ctx.ball_known()),
+                            action("search ball", |ctx: &mut Ctx, _| searching_for_object(ctx)),
+                        ],
+                    ),
+                    sequence(
+                        "avoiding obstacle",
+                        [
+                            condition("obstacle in the way", obstacle_in_the_way),
+                            action("detour", |ctx: &mut Ctx, _| avoiding_obstacle(ctx)),
+                        ],
+                    ),
+                    action("kick to goal", |ctx: &mut Ctx, _| go_to_ball(ctx)),
+                ],
+            ))),
+            S::StrikerCover => s.behavior(|ctx: &mut Ctx, _| partner_following(ctx)),
+            S::PassReceiver => s.behavior(|ctx: &mut Ctx, _| pass_receiving(ctx)),
+            S::ActiveDefender => s.behavior(|ctx: &mut Ctx, _| {
+                if ctx.ball_known() { go_to_ball(ctx) } else { searching_for_object(ctx) }
+            }),
+            S::DefenderPositioning => s.behavior(|ctx: &mut Ctx, _| match ctx.ball_field() {
+                Some(_) => goal_covering(ctx, ctx.field.penalty_area_length + 0.3),
+                None => searching_for_object(ctx),
+            }),
+            _ => s,
+        };
+        builder = builder.state(s);
+    }
+    builder.build()
+}
+
+/// Soccer's deliberative layer.
+pub struct SoccerBehavior {
+    machine: StateMachine<S, Ctx>,
+    ctx: Ctx,
+}
+
+impl std::fmt::Debug for SoccerBehavior {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SoccerBehavior")
+            .field("path", &self.machine.active_path())
+            .finish_non_exhaustive()
+    }
+}
+
+impl SoccerBehavior {
+    pub fn new(
+        player: u8,
+        field: Arc<TeamField>,
+        config: BehaviorConfig,
+        vision: ActiveVisionConfig,
+    ) -> Result<SoccerBehavior, String> {
+        let machine = build_machine(player == GOALKEEPER_NUMBER).map_err(|e| format!("{e:?}"))?;
+        let groups = landmark_groups(&field);
+        Ok(SoccerBehavior {
+            machine,
+            ctx: Ctx {
+                now: Time::ZERO,
+                world: None,
+                decision: None,
+                stability: Stability::Stable,
+                field,
+                player,
+                config,
+                out: Output::default(),
+                vision: ActiveVision::new(vision),
+                vision_report: None,
+                ball_unknown_since: None,
+                landmark_groups: groups,
+            },
+        })
+    }
+
+    pub fn active_path(&self) -> String {
+        self.machine.active_path()
+    }
+
+    pub fn vision_report(&self) -> Option<&ActiveVisionReport> {
+        self.ctx.vision_report.as_ref()
+    }
+}
+
+impl DeliberativePolicy for SoccerBehavior {
+    type HeadGoal = HeadGoal;
+    type BodyGoal = BodyGoal;
+    type WholeBodyGoal = WholeBodyGoal;
+    type World = WorldState;
+    type Assignment = Decision;
+
+    fn tick(&mut self, input: &DeliberativeInput<'_, WorldState, Decision>) -> Output {
+        let ctx = &mut self.ctx;
+        ctx.now = input.now;
+        ctx.world = input.world.cloned();
+        ctx.decision = input.assignment.cloned();
+        ctx.stability = input.stability;
+        ctx.out = Output::default();
+        ctx.vision_report = None;
+        if ctx.ball_known() {
+            ctx.ball_unknown_since = None;
+        } else if ctx.ball_unknown_since.is_none() {
+            ctx.ball_unknown_since = Some(input.now);
+        }
+        self.machine.tick(&mut self.ctx, input.now);
+        let mut out = std::mem::take(&mut self.ctx.out);
+        out.behavior_path = self.machine.active_path();
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_machine_builds_for_goalie_and_field_players() {
+        assert!(build_machine(true).is_ok());
+        assert!(build_machine(false).is_ok());
+    }
+
+    #[test]
+    fn the_keeper_covers_from_the_bisector_and_stays_in_front_of_its_goal() {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let straight = covering_pose(&field, Point::new(-2.0, 0.0), 0.45);
+        assert!((straight.y).abs() < 1e-9 && (straight.x - (-4.05)).abs() < 1e-9);
+        let wide = covering_pose(&field, Point::new(-3.0, 2.5), 0.45);
+        assert!(wide.y > 0.0 && wide.y <= field.goal_half_width + 1e-9, "{wide:?}");
+        // It faces the ball.
+        let to_ball = (Point::<FieldFrame>::new(-3.0, 2.5) - wide.position()).angle();
+        assert!((strata_robot::normalize_angle(to_ball - wide.theta)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn kickoff_positions_are_legal() {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        for player in 1..=7 {
+            for kicking in [true, false] {
+                let p = kickoff_pose(&field, player, kicking).position();
+                assert!(p.x < 0.0 && field.is_inside(p, 0.0), "player {player}: {p:?}");
+                let in_circle = p.range() < field.center_circle_radius;
+                assert!(
+                    !in_circle || (kicking && player == 2),
+                    "player {player} kicking {kicking}"
+                );
+            }
+        }
+    }
+}

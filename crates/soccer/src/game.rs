@@ -1,0 +1,296 @@
+//! The GameController, from the robot's side: what the referee's packets tell the
+//! deliberative layer (the game state), the planning layer (penalties, the message budget) and
+//! world modeling (where the robot was placed), and the return packet the robot sends back.
+//! The same bytes arrive from a real GameController over UDP and from the simulator's referee.
+
+use serde::{Deserialize, Serialize};
+use strata_robot::control::planning::{MessageBudget, OwnState, StandingStatus};
+use strata_robot::control::planning_module::Referee;
+use strata_robot::geometry::Pose;
+use strata_robot::world::{PosePrior, SymmetryHint, WorldCommand, WorldState};
+use strata_runtime::Time;
+use strata_spl::gamecontroller::{
+    GameControlData, GamePhase, GameState, Penalty, ReturnData, SetPlay,
+};
+
+use crate::field::TeamField;
+use crate::world_config::BALL;
+
+/// Who takes the next kick-off or set play.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kicking {
+    Us,
+    Them,
+    #[default]
+    Nobody,
+}
+
+/// What the deliberative layer needs of the game.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GameDirective {
+    pub state: GameState,
+    pub set_play: SetPlay,
+    pub kicking: Kicking,
+    pub penalized: bool,
+    pub first_half: bool,
+    pub penalty_shootout: bool,
+    pub secs_remaining: i16,
+    pub secondary_time: i16,
+    /// Goals for this team and the other.
+    pub score: [u8; 2],
+    /// Whether any GameController packet has arrived.
+    pub connected: bool,
+}
+
+impl Default for GameDirective {
+    /// Before the first packet, a robot plays: a robot without a GameController (a test
+    /// field, the paper's experiments) must not stand still forever.
+    fn default() -> Self {
+        GameDirective {
+            state: GameState::Playing,
+            set_play: SetPlay::None,
+            kicking: Kicking::Nobody,
+            penalized: false,
+            first_half: true,
+            penalty_shootout: false,
+            secs_remaining: 600,
+            secondary_time: 0,
+            score: [0, 0],
+            connected: false,
+        }
+    }
+}
+
+/// The GameController as the planning layer sees it.
+#[derive(Debug, Clone)]
+pub struct GameControllerReferee {
+    team_number: u8,
+    player: u8,
+    field: TeamField,
+    directive: GameDirective,
+    last: Option<GameControlData>,
+    budget: Option<MessageBudget>,
+    half_duration: f64,
+    pending_commands: Vec<WorldCommand>,
+    last_status: Option<Time>,
+    status_interval: f64,
+    pub packets: u64,
+    pub rejected: u64,
+}
+
+impl GameControllerReferee {
+    pub fn new(
+        team_number: u8,
+        player: u8,
+        field: TeamField,
+        half_duration: f64,
+    ) -> GameControllerReferee {
+        GameControllerReferee {
+            team_number,
+            player,
+            field,
+            directive: GameDirective::default(),
+            last: None,
+            budget: None,
+            half_duration,
+            pending_commands: Vec::new(),
+            last_status: None,
+            status_interval: 1.0,
+            packets: 0,
+            rejected: 0,
+        }
+    }
+
+    fn side_line_priors(&self, x: f64) -> Vec<PosePrior> {
+        [1.0, -1.0]
+            .into_iter()
+            .map(|side| PosePrior {
+                pose: Pose::new(
+                    x,
+                    side * self.field.half_width,
+                    -side * std::f64::consts::FRAC_PI_2,
+                ),
+                sigma: [0.4, 0.15, 0.3],
+            })
+            .collect()
+    }
+
+    fn apply(&mut self, data: GameControlData) {
+        let ours = data.teams.iter().position(|t| t.team_number == self.team_number);
+        let Some(ours) = ours else {
+            // Packets for another game: ignore, as a real robot on a shared network must.
+            return;
+        };
+        let team = data.teams[ours];
+        let them = data.teams[1 - ours];
+        let penalized = team.player(self.player).is_some_and(|p| p.penalty != Penalty::None);
+        let previous = self.directive.clone();
+        self.directive = GameDirective {
+            state: data.state,
+            set_play: data.set_play,
+            kicking: match data.kicking_team {
+                Some(n) if n == self.team_number => Kicking::Us,
+                Some(_) => Kicking::Them,
+                None => Kicking::Nobody,
+            },
+            penalized,
+            first_half: data.first_half,
+            penalty_shootout: data.game_phase == GamePhase::PenaltyShoot,
+            secs_remaining: data.secs_remaining,
+            secondary_time: data.secondary_time,
+            score: [team.score, them.score],
+            connected: true,
+        };
+        // Where the referee puts a robot tells world modeling where it is.
+        if previous.connected && previous.penalized && !penalized {
+            let x = -self.field.half_length + self.field.field.dimensions().penalty_mark_distance;
+            self.pending_commands.push(WorldCommand::SetHints {
+                hints: vec![SymmetryHint::NearPoses { poses: self.side_line_priors(x) }],
+            });
+        }
+        if (!previous.connected || previous.state != GameState::Initial)
+            && data.state == GameState::Initial
+        {
+            let x = -self.field.half_length / 2.0;
+            self.pending_commands.push(WorldCommand::SetHints {
+                hints: vec![SymmetryHint::NearPoses { poses: self.side_line_priors(x) }],
+            });
+        }
+        let players = data.players_per_team.max(1);
+        let half = self.half_duration.max(1.0);
+        let time_left =
+            f64::from(data.secs_remaining.max(0)) + if data.first_half { half } else { 0.0 };
+        self.budget = Some(MessageBudget {
+            team_remaining: u32::from(team.message_budget),
+            robots: u32::from(players),
+            time_left,
+            reserve: 3,
+        });
+        self.last = Some(data);
+    }
+}
+
+impl Referee for GameControllerReferee {
+    type Directive = GameDirective;
+
+    fn receive(&mut self, _now: Time, packet: &[u8]) -> Result<(), String> {
+        match GameControlData::decode(packet) {
+            Ok(data) => {
+                self.packets += 1;
+                self.apply(data);
+                Ok(())
+            }
+            Err(error) => {
+                self.rejected += 1;
+                Err(error.to_string())
+            }
+        }
+    }
+
+    fn directive(&self) -> GameDirective {
+        self.directive.clone()
+    }
+
+    fn penalized(&self) -> bool {
+        self.directive.penalized
+    }
+
+    fn budget(&self) -> Option<MessageBudget> {
+        self.budget.clone()
+    }
+
+    fn status_packet(
+        &mut self,
+        now: Time,
+        own: &OwnState,
+        world: Option<&WorldState>,
+    ) -> Option<Vec<u8>> {
+        if self.last.is_none()
+            || self.last_status.is_some_and(|t| (now - t).as_secs_f64() < self.status_interval)
+        {
+            return None;
+        }
+        self.last_status = Some(now);
+        let ball = world.and_then(|w| w.object(BALL)).filter(|b| b.last_seen.is_some());
+        let (ball_age, ball_position) = match (world, ball) {
+            (Some(w), Some(b)) => (
+                b.last_seen.map_or(-1.0, |t| (w.stamp - t).as_secs_f64() as f32),
+                [(b.position.x * 1000.0) as f32, (b.position.y * 1000.0) as f32],
+            ),
+            _ => (-1.0, [0.0, 0.0]),
+        };
+        let data = ReturnData {
+            player_number: self.player,
+            team_number: self.team_number,
+            fallen: own.status == StandingStatus::Fallen,
+            pose: [
+                (own.pose.x * 1000.0) as f32,
+                (own.pose.y * 1000.0) as f32,
+                own.pose.theta as f32,
+            ],
+            ball_age,
+            ball: ball_position,
+        };
+        data.encode().ok().map(|bytes| bytes.to_vec())
+    }
+
+    fn world_commands(&mut self) -> Vec<WorldCommand> {
+        std::mem::take(&mut self.pending_commands)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn referee() -> GameControllerReferee {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        GameControllerReferee::new(5, 2, field, 600.0)
+    }
+
+    fn packet(state: GameState, penalized: bool) -> Vec<u8> {
+        let mut data = GameControlData {
+            state,
+            players_per_team: 5,
+            kicking_team: Some(9),
+            ..Default::default()
+        };
+        data.teams[0].team_number = 5;
+        data.teams[1].team_number = 9;
+        data.teams[0].message_budget = 1000;
+        if penalized {
+            data.teams[0].players[1].penalty = Penalty::Manual;
+        }
+        data.encode().to_vec()
+    }
+
+    #[test]
+    fn packets_become_the_directive_budget_and_penalty() {
+        let mut r = referee();
+        assert!(!r.directive().connected);
+        r.receive(Time::ZERO, &packet(GameState::Ready, false)).expect("valid");
+        let d = r.directive();
+        assert_eq!((d.state, d.kicking, d.connected), (GameState::Ready, Kicking::Them, true));
+        let budget = r.budget().expect("budget");
+        assert_eq!((budget.team_remaining, budget.robots), (1000, 5));
+        r.receive(Time::ZERO, &packet(GameState::Playing, true)).expect("valid");
+        assert!(r.penalized());
+        r.receive(Time::ZERO, &packet(GameState::Playing, false)).expect("valid");
+        assert!(!r.penalized());
+        // Back from a penalty: world modeling is told where the robot was placed.
+        assert!(matches!(r.world_commands().as_slice(), [WorldCommand::SetHints { .. }]));
+    }
+
+    #[test]
+    fn garbage_is_rejected_and_counted_and_other_games_ignored() {
+        let mut r = referee();
+        assert!(r.receive(Time::ZERO, b"RGme but not really").is_err());
+        assert_eq!(r.rejected, 1);
+        let mut data = GameControlData { state: GameState::Finished, ..Default::default() };
+        data.teams[0].team_number = 1;
+        data.teams[1].team_number = 2;
+        r.receive(Time::ZERO, &data.encode()).expect("valid");
+        assert!(!r.directive().connected, "not our game");
+    }
+}

@@ -1,0 +1,171 @@
+//! The planning layer's soccer knowledge: which mission the team pursues (MAMS), how well each
+//! robot would fill each role (ARS), and the team message codec.
+
+use strata_robot::control::planning::{
+    Candidate, MissionCatalog, OwnState, PlanningPolicy, TeamMessage, TeammateRecord,
+};
+use strata_robot::control::planning_module::TeamCodec;
+use strata_robot::geometry::{Field as FieldFrame, Point};
+use strata_runtime::Time;
+
+use crate::catalog::{Mission, Role, catalog};
+use crate::field::TeamField;
+use crate::message;
+use crate::world_config::BALL;
+
+/// Tunables of mission and role selection.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SoccerPlanningConfig {
+    /// The team defends (Defend mission) while the ball is behind this x (team frame), m.
+    pub defend_line: f64,
+    /// Hysteresis on the defend line, m: the mission does not flicker as the ball crosses it.
+    pub mission_hysteresis: f64,
+    /// Walking speed assumed when estimating time to reach the ball, m/s.
+    pub walk_speed: f64,
+    /// Turning speed assumed, rad/s.
+    pub turn_speed: f64,
+    /// A striker that has not come closer to the ball for this long is not accomplishing its
+    /// mission (MAMC), s.
+    pub striker_patience: f64,
+}
+
+impl Default for SoccerPlanningConfig {
+    fn default() -> Self {
+        SoccerPlanningConfig {
+            defend_line: -1.2,
+            mission_hysteresis: 0.3,
+            walk_speed: 0.25,
+            turn_speed: 1.0,
+            striker_patience: 20.0,
+        }
+    }
+}
+
+/// The soccer planning policy.
+#[derive(Debug, Clone)]
+pub struct SoccerPlanning {
+    catalog: MissionCatalog<Mission, Role>,
+    config: SoccerPlanningConfig,
+    field: TeamField,
+    // Mission selection runs before role assignment in every evaluation; it leaves here what
+    // the assignment needs, so that every candidate is measured against the same ball.
+    defending: std::cell::Cell<bool>,
+    team_ball: std::cell::Cell<Option<Point<FieldFrame>>>,
+}
+
+impl SoccerPlanning {
+    pub fn new(field: TeamField, config: SoccerPlanningConfig) -> SoccerPlanning {
+        SoccerPlanning {
+            catalog: catalog(),
+            config,
+            field,
+            defending: std::cell::Cell::new(false),
+            team_ball: std::cell::Cell::new(None),
+        }
+    }
+}
+
+/// The ball as the candidates share it: the freshest, most confident estimate among them.
+fn shared_ball<'a>(
+    objects: impl Iterator<Item = &'a strata_robot::control::planning::SharedObject>,
+) -> Option<Point<FieldFrame>> {
+    objects
+        .filter(|o| o.name == BALL && o.age < 5.0 && o.confidence > 0.1)
+        .max_by(|a, b| (a.confidence - a.age * 0.1).total_cmp(&(b.confidence - b.age * 0.1)))
+        .map(|o| o.position)
+}
+
+impl SoccerPlanning {
+    fn time_to_ball(&self, candidate: &Candidate<'_>, ball: Point<FieldFrame>) -> f64 {
+        let to_ball = ball - candidate.pose.position();
+        let turn = strata_robot::normalize_angle(to_ball.angle() - candidate.pose.theta).abs();
+        to_ball.norm() / self.config.walk_speed + turn / self.config.turn_speed
+    }
+
+    /// Where a supporting robot should stand: behind the ball, toward the own goal.
+    fn cover_spot(&self, ball: Point<FieldFrame>) -> Point<FieldFrame> {
+        let back = (self.field.own_goal() - ball).normalized() * 1.5;
+        ball + back
+    }
+}
+
+impl PlanningPolicy for SoccerPlanning {
+    type Mission = Mission;
+    type Role = Role;
+
+    fn catalog(&self) -> &MissionCatalog<Mission, Role> {
+        &self.catalog
+    }
+
+    fn select_mission(
+        &self,
+        own: &OwnState,
+        teammates: &[&TeammateRecord<Mission, Role>],
+    ) -> Mission {
+        let ball = shared_ball(
+            own.objects.iter().chain(teammates.iter().flat_map(|t| t.message.objects.iter())),
+        );
+        self.team_ball.set(ball);
+        let Some(ball) = ball else { return Mission::Attack };
+        // Hysteresis: once defending, the ball must come clearly forward again.
+        let line = if self.defending.get() {
+            self.config.defend_line + self.config.mission_hysteresis
+        } else {
+            self.config.defend_line
+        };
+        let defending = ball.x < line;
+        self.defending.set(defending);
+        if defending { Mission::Defend } else { Mission::Attack }
+    }
+
+    fn role_utility(&self, candidate: &Candidate<'_>, role: Role, _mission: Mission) -> f64 {
+        // The same ball for every candidate: the best the team shares. A candidate measured
+        // against its own, older estimate would disagree with the others' computation.
+        let Some(ball) = self.team_ball.get().or_else(|| shared_ball(candidate.objects.iter()))
+        else {
+            // A robot that does not see the ball knows where it stands only.
+            return match role {
+                Role::Striker | Role::ActiveDefender => -100.0,
+                _ => 0.0,
+            };
+        };
+        match role {
+            Role::Striker | Role::ActiveDefender => -self.time_to_ball(candidate, ball),
+            Role::StrikerCover => -candidate.pose.position().distance(self.cover_spot(ball)),
+            Role::DefenderGoingToPosition => {
+                -candidate.pose.position().distance(self.field.own_goal())
+            }
+            Role::PassReceiver | Role::Goalie => 0.0,
+        }
+    }
+
+    fn accomplishing(&self, teammate: &TeammateRecord<Mission, Role>, _now: Time) -> bool {
+        // A striker that has lost the ball for long is not striking.
+        teammate.message.role != Role::Striker
+            || teammate
+                .message
+                .objects
+                .iter()
+                .any(|o| o.name == BALL && o.age < self.config.striker_patience)
+    }
+
+    fn instant_worthy(&self, previous: &OwnState, current: &OwnState) -> bool {
+        let sees = |s: &OwnState| s.objects.iter().any(|o| o.name == BALL && o.age < 1.0);
+        sees(previous) != sees(current)
+    }
+}
+
+/// The Fig. 2 message in 128 bytes.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SoccerCodec;
+
+impl TeamCodec<Mission, Role> for SoccerCodec {
+    fn encode(&self, m: &TeamMessage<Mission, Role>) -> Result<Vec<u8>, String> {
+        message::encode(m).map_err(|e| e.to_string())
+    }
+
+    fn decode(&self, bytes: &[u8]) -> Result<TeamMessage<Mission, Role>, String> {
+        message::decode(bytes).map_err(|e| e.to_string())
+    }
+}

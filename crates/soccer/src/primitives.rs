@@ -1,0 +1,646 @@
+//! Primitive behaviors (paper Table 4): short-term policies that turn a goal and the newest
+//! percepts into one command for their resource. They know nothing of the consequences of their
+//! actions; the multiplexers choose among them.
+
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+use strata_robot::command::{BodyCommand, BodyMotion, HeadCommand, HeadMotion, WholeBodyCommand};
+use strata_robot::control::active_vision::GazeCandidate;
+use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput, Stability};
+use strata_robot::geometry::{Point, Pose, Robot, Velocity, normalize_angle};
+use strata_robot::platform::{FallDirection, HeadAngles, SpecialMotion};
+use strata_robot::world::WorldState;
+use strata_runtime::Time;
+
+use crate::field::TeamField;
+use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
+use crate::situation::{ball, head_goal_objects, obstacle_ahead};
+
+/// Names of the primitive behaviors, as the multiplexers and the deliberative layer refer to
+/// them (deactivation).
+pub mod names {
+    pub const SEARCH_OBJECT_ELLIPSE: &str = "search object ellipse";
+    pub const OBJECT_TRACKING: &str = "object tracking";
+    pub const LOOK_AT_TARGET: &str = "look at target";
+    pub const GO_TO_POSITION: &str = "go to position";
+    pub const GO_TO_BALL: &str = "go to ball";
+    pub const DRIBBLING: &str = "dribbling";
+    pub const AVOID_COLLISION: &str = "avoid collision";
+    pub const KICK_BALL: &str = "kick ball";
+    pub const STAND: &str = "stand";
+    pub const STAND_UP: &str = "stand-up";
+    pub const FALL: &str = "fall";
+    pub const DIVE: &str = "dive";
+}
+
+/// The robot's motion abilities as the primitives assume them (NAO-like defaults, matching the
+/// simulator's).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MotionModel {
+    pub max_forward: f64,
+    pub max_sideways: f64,
+    pub max_turn: f64,
+    pub head_speed: f64,
+    pub camera_height: f64,
+    /// The ball must be in this box (robot frame) for a kick to hit it.
+    pub kick_reach_x: [f64; 2],
+    pub kick_reach_y: [f64; 2],
+    /// Alignment needed between the kick direction and the target, rad.
+    pub kick_alignment: f64,
+    /// Distance behind the ball the approach aims at, m.
+    pub approach_distance: f64,
+    /// An obstacle closer than this, straight ahead, must be avoided, m.
+    pub collision_distance: f64,
+    /// How long each walk command lasts if no newer one replaces it, s.
+    pub walk_command_duration: f64,
+}
+
+impl Default for MotionModel {
+    fn default() -> Self {
+        MotionModel {
+            max_forward: 0.25,
+            max_sideways: 0.15,
+            max_turn: 1.2,
+            head_speed: 3.0,
+            camera_height: 0.5,
+            kick_reach_x: [0.08, 0.24],
+            kick_reach_y: [-0.1, 0.1],
+            kick_alignment: 0.25,
+            approach_distance: 0.16,
+            collision_distance: 0.45,
+            walk_command_duration: 0.4,
+        }
+    }
+}
+
+type Input<'a, 'b> = ReactiveInput<'a, WorldState>;
+
+fn limit(v: f64, max: f64) -> f64 {
+    v.clamp(-max, max)
+}
+
+/// An omnidirectional walking controller: turn toward far targets, side-step near ones, and
+/// settle at the final heading (`heading`, relative to the robot).
+pub fn walk_velocity(model: &MotionModel, target: Point<Robot>, heading: f64) -> Velocity {
+    let distance = target.range();
+    let bearing = target.bearing();
+    if distance > 0.5 {
+        let turn = limit(2.0 * bearing, model.max_turn);
+        // Walk forward only once roughly facing the target.
+        let forward = model.max_forward * (1.0 - (bearing.abs() / 1.0)).clamp(0.0, 1.0);
+        Velocity::new(forward, limit(0.3 * target.y, model.max_sideways), turn)
+    } else {
+        let k = 1.5;
+        Velocity::new(
+            limit(k * target.x, model.max_forward),
+            limit(k * target.y, model.max_sideways),
+            limit(2.0 * heading, model.max_turn),
+        )
+    }
+}
+
+/// Sends a walk only when it differs from the last one or is about to expire: fewer commands,
+/// same behavior.
+#[derive(Debug, Default, Clone)]
+struct WalkSender {
+    last: Option<(Velocity, Time)>,
+}
+
+impl WalkSender {
+    fn send(&mut self, model: &MotionModel, now: Time, velocity: Velocity) -> Option<BodyCommand> {
+        let fresh = self.last.is_some_and(|(v, t)| {
+            (v.vx - velocity.vx).abs() < 0.02
+                && (v.vy - velocity.vy).abs() < 0.02
+                && (v.omega - velocity.omega).abs() < 0.05
+                && (now - t).as_secs_f64() < model.walk_command_duration * 0.5
+        });
+        if fresh {
+            return None;
+        }
+        self.last = Some((velocity, now));
+        Some(BodyCommand::NonQueue(BodyMotion::Walk {
+            velocity,
+            duration: model.walk_command_duration,
+        }))
+    }
+
+    fn reset(&mut self) {
+        self.last = None;
+    }
+}
+
+/// Head angles that put a robot-frame point in the middle of the image.
+fn gaze_at(model: &MotionModel, point: Point<Robot>) -> HeadAngles {
+    let range = point.range().max(0.05);
+    // Look down at near objects so they stay above the lower edge of the image.
+    let pitch = if range < 0.6 { (model.camera_height / range).atan() - 0.6 } else { 0.0 };
+    HeadAngles { yaw: point.bearing().clamp(-2.0, 2.0), pitch: pitch.clamp(-0.6, 0.5) }
+}
+
+fn head_command(model: &MotionModel, target: HeadAngles) -> HeadCommand {
+    HeadCommand::NonQueue(HeadMotion { target, max_speed: model.head_speed })
+}
+
+/// Sends a head target only when it moved.
+#[derive(Debug, Default, Clone)]
+struct HeadSender {
+    last: Option<HeadAngles>,
+}
+
+impl HeadSender {
+    fn send(&mut self, model: &MotionModel, target: HeadAngles) -> Option<HeadCommand> {
+        if self.last.is_some_and(|l| {
+            (l.yaw - target.yaw).abs() < 0.03 && (l.pitch - target.pitch).abs() < 0.03
+        }) {
+            return None;
+        }
+        self.last = Some(target);
+        Some(head_command(model, target))
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Head
+
+/// Search object ellipse: a predefined head path whose shape depends on the object, followed
+/// with the queue policy (the next point is queued when actuation announces the current one is
+/// about to be reached).
+#[derive(Debug)]
+pub struct SearchObjectEllipse {
+    model: Arc<MotionModel>,
+    phase: usize,
+    started: bool,
+}
+
+impl SearchObjectEllipse {
+    pub fn new(model: Arc<MotionModel>) -> Self {
+        SearchObjectEllipse { model, phase: 0, started: false }
+    }
+
+    const POINTS: usize = 8;
+
+    fn point(goal: &HeadGoal, phase: usize) -> HeadAngles {
+        // The ball lies on the ground near the robot: a low, wide ellipse. Landmarks stand at
+        // the field's edges: a flatter, wider one.
+        let (yaw_amplitude, pitch_centre, pitch_amplitude) = match goal {
+            HeadGoal::ObserveBall => (1.6, 0.15, 0.2),
+            _ => (1.9, 0.0, 0.08),
+        };
+        let angle = phase as f64 / Self::POINTS as f64 * std::f64::consts::TAU;
+        HeadAngles {
+            yaw: yaw_amplitude * angle.sin(),
+            pitch: pitch_centre + pitch_amplitude * angle.cos(),
+        }
+    }
+}
+
+impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for SearchObjectEllipse {
+    fn name(&self) -> &'static str {
+        names::SEARCH_OBJECT_ELLIPSE
+    }
+
+    fn activate(&mut self, _: &HeadGoal, input: &Input<'_, '_>) {
+        // Start the ellipse where the head already is, not at a fixed corner.
+        let yaw = input.percepts.head.yaw;
+        self.phase = (0..Self::POINTS)
+            .min_by(|a, b| {
+                let pa = Self::point(&HeadGoal::ObserveBall, *a).yaw;
+                let pb = Self::point(&HeadGoal::ObserveBall, *b).yaw;
+                (pa - yaw).abs().total_cmp(&(pb - yaw).abs())
+            })
+            .unwrap_or(0);
+        self.started = false;
+    }
+
+    fn step(&mut self, goal: &HeadGoal, input: &Input<'_, '_>) -> Option<HeadCommand> {
+        let due = !self.started
+            || input.actuation.finishing.contains(&strata_robot::command::Resource::Head);
+        if !due {
+            return None;
+        }
+        self.started = true;
+        self.phase = (self.phase + 1) % Self::POINTS;
+        Some(HeadCommand::Queue(HeadMotion {
+            target: Self::point(goal, self.phase),
+            max_speed: self.model.head_speed * 0.6,
+        }))
+    }
+}
+
+/// Object tracking: keep the goal's object in the middle of the image, predicting a moving
+/// object a little ahead.
+#[derive(Debug)]
+pub struct ObjectTracking {
+    model: Arc<MotionModel>,
+    sender: HeadSender,
+}
+
+impl ObjectTracking {
+    pub fn new(model: Arc<MotionModel>) -> Self {
+        ObjectTracking { model, sender: HeadSender::default() }
+    }
+}
+
+impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for ObjectTracking {
+    fn name(&self) -> &'static str {
+        names::OBJECT_TRACKING
+    }
+
+    fn activate(&mut self, _: &HeadGoal, _: &Input<'_, '_>) {
+        self.sender = HeadSender::default();
+    }
+
+    fn step(&mut self, goal: &HeadGoal, input: &Input<'_, '_>) -> Option<HeadCommand> {
+        let world = input.world?;
+        let object = head_goal_objects(world, goal).into_iter().next()?;
+        let lookahead = 0.15;
+        let target = match object.velocity {
+            Some(v) => object.position + v * lookahead,
+            None => object.position,
+        };
+        self.sender.send(&self.model, gaze_at(&self.model, target))
+    }
+}
+
+/// Look at target: a direction chosen by the goal — the point from which several objects are
+/// seen together, a partner's reported position, the nearest point of a field line.
+#[derive(Debug)]
+pub struct LookAtTarget {
+    model: Arc<MotionModel>,
+    field: Arc<TeamField>,
+    sender: HeadSender,
+}
+
+impl LookAtTarget {
+    pub fn new(model: Arc<MotionModel>, field: Arc<TeamField>) -> Self {
+        LookAtTarget { model, field, sender: HeadSender::default() }
+    }
+}
+
+/// Where a head goal that is about a place rather than a tracked object looks.
+pub fn look_target(
+    field: &TeamField,
+    world: &WorldState,
+    goal: &HeadGoal,
+    fov: f64,
+) -> Option<Point<Robot>> {
+    let pose = world.pose.pose;
+    match goal {
+        HeadGoal::ObserveTogether { objects } => {
+            let ids: Vec<_> = head_goal_objects(world, goal).iter().map(|o| o.id).collect();
+            if ids.len() != objects.len() {
+                return None;
+            }
+            let candidate = GazeCandidate::covering(world, &ids, fov * 0.8, "together")?;
+            Some(Point::from_polar(2.0, candidate.direction))
+        }
+        HeadGoal::ObservePartner { position, .. } => Some(pose.to_robot(*position)),
+        HeadGoal::ObserveFieldLine { line } => {
+            let segment = field.field.lines().get(usize::from(*line))?;
+            let a = field.to_team(segment.start.x, segment.start.y);
+            let b = field.to_team(segment.end.x, segment.end.y);
+            let closest = strata_robot::geometry::Segment::new(a, b).closest_point(pose.position());
+            Some(pose.to_robot(closest))
+        }
+        _ => head_goal_objects(world, goal).first().map(|o| o.position),
+    }
+}
+
+impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for LookAtTarget {
+    fn name(&self) -> &'static str {
+        names::LOOK_AT_TARGET
+    }
+
+    fn activate(&mut self, _: &HeadGoal, _: &Input<'_, '_>) {
+        self.sender = HeadSender::default();
+    }
+
+    fn step(&mut self, goal: &HeadGoal, input: &Input<'_, '_>) -> Option<HeadCommand> {
+        let world = input.world?;
+        let target = look_target(&self.field, world, goal, 1.06)?;
+        self.sender.send(&self.model, gaze_at(&self.model, target))
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Body
+
+/// Go to position: walk to a field pose (or turn in place toward a target).
+#[derive(Debug)]
+pub struct GoToPosition {
+    model: Arc<MotionModel>,
+    sender: WalkSender,
+}
+
+impl GoToPosition {
+    pub fn new(model: Arc<MotionModel>) -> Self {
+        GoToPosition { model, sender: WalkSender::default() }
+    }
+}
+
+/// The pose a body goal walks to, relative to the robot, with its final heading.
+pub fn body_target(world: &WorldState, goal: &BodyGoal) -> Option<(Point<Robot>, f64)> {
+    let pose = world.pose.pose;
+    match goal {
+        BodyGoal::GoToPosition { pose: target } => {
+            Some((pose.to_robot(target.position()), normalize_angle(target.theta - pose.theta)))
+        }
+        BodyGoal::ObserveTarget { target } => {
+            Some((Point::new(0.0, 0.0), pose.to_robot(*target).bearing()))
+        }
+        _ => None,
+    }
+}
+
+impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToPosition {
+    fn name(&self) -> &'static str {
+        names::GO_TO_POSITION
+    }
+
+    fn activate(&mut self, _: &BodyGoal, _: &Input<'_, '_>) {
+        self.sender.reset();
+    }
+
+    fn step(&mut self, goal: &BodyGoal, input: &Input<'_, '_>) -> Option<BodyCommand> {
+        let (target, heading) = body_target(input.world?, goal)?;
+        let arrived = target.range() < 0.08 && heading.abs() < 0.15;
+        let velocity =
+            if arrived { Velocity::ZERO } else { walk_velocity(&self.model, target, heading) };
+        if arrived {
+            return self
+                .sender
+                .send(&self.model, input.now, velocity)
+                .map(|_| BodyCommand::NonQueue(BodyMotion::Stand));
+        }
+        self.sender.send(&self.model, input.now, velocity)
+    }
+}
+
+/// Where to stand to kick the ball toward `target` with `kick`: behind the ball, so the kick's
+/// direction points at the target.
+pub fn approach_pose(
+    model: &MotionModel,
+    world: &WorldState,
+    kick: Kick,
+    target: Point<strata_robot::Field>,
+) -> Option<(Point<Robot>, f64)> {
+    let ball = ball(world)?;
+    let pose = world.pose.pose;
+    let target_robot = pose.to_robot(target);
+    let shot = (target_robot - ball.robot).angle();
+    // The robot's heading such that the kick direction points along the shot.
+    let heading = normalize_angle(shot - kick.direction());
+    let behind =
+        Point::<Robot>::from_polar(model.approach_distance + 0.04, heading + std::f64::consts::PI);
+    let stand = Point::new(ball.robot.x + behind.x, ball.robot.y + behind.y);
+    Some((stand, heading))
+}
+
+/// Whether the ball is where `kick` hits it, with the kick pointing at the target.
+pub fn kickable(
+    model: &MotionModel,
+    world: &WorldState,
+    kick: Kick,
+    target: Point<strata_robot::Field>,
+) -> bool {
+    let Some(ball) = ball(world).filter(|b| b.known && !b.from_team) else { return false };
+    let in_reach = (model.kick_reach_x[0]..=model.kick_reach_x[1]).contains(&ball.robot.x)
+        && (model.kick_reach_y[0]..=model.kick_reach_y[1]).contains(&ball.robot.y);
+    let target_robot = world.pose.pose.to_robot(target);
+    let shot = (target_robot - ball.robot).angle();
+    in_reach && normalize_angle(shot - kick.direction()).abs() < model.kick_alignment
+}
+
+/// Go to ball: like go to position, but ends where the ball can be kicked toward the target.
+#[derive(Debug)]
+pub struct GoToBall {
+    model: Arc<MotionModel>,
+    sender: WalkSender,
+}
+
+impl GoToBall {
+    pub fn new(model: Arc<MotionModel>) -> Self {
+        GoToBall { model, sender: WalkSender::default() }
+    }
+}
+
+impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToBall {
+    fn name(&self) -> &'static str {
+        names::GO_TO_BALL
+    }
+
+    fn activate(&mut self, _: &BodyGoal, _: &Input<'_, '_>) {
+        self.sender.reset();
+    }
+
+    fn step(&mut self, goal: &BodyGoal, input: &Input<'_, '_>) -> Option<BodyCommand> {
+        let BodyGoal::GoToBallAndKick { kick, target } = goal else { return None };
+        let world = input.world?;
+        let ball = ball(world)?;
+        let (stand, heading) = approach_pose(&self.model, world, *kick, *target)?;
+        // Far away: head straight for the ball; near: circle to the kicking pose without
+        // touching the ball.
+        let velocity = if ball.robot.range() > 0.8 {
+            walk_velocity(&self.model, ball.robot, ball.robot.bearing())
+        } else {
+            let mut v = walk_velocity(&self.model, stand, heading);
+            v.vx = v.vx.min(0.6 * self.model.max_forward);
+            v
+        };
+        self.sender.send(&self.model, input.now, velocity)
+    }
+}
+
+/// Kick ball: the kick sequence chosen by the deliberative layer's parameter.
+#[derive(Debug, Default)]
+pub struct KickBall;
+
+impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for KickBall {
+    fn name(&self) -> &'static str {
+        names::KICK_BALL
+    }
+
+    fn step(&mut self, goal: &BodyGoal, input: &Input<'_, '_>) -> Option<BodyCommand> {
+        let BodyGoal::GoToBallAndKick { kick, .. } = goal else { return None };
+        if input.actuation.is_busy(strata_robot::command::ResourceGroup::Body) {
+            return None;
+        }
+        Some(BodyCommand::Special(SpecialMotion::Kick(kick.sequence())))
+    }
+}
+
+/// Avoid collision: step aside from a robot right in front.
+#[derive(Debug)]
+pub struct AvoidCollision {
+    model: Arc<MotionModel>,
+    sender: WalkSender,
+}
+
+impl AvoidCollision {
+    pub fn new(model: Arc<MotionModel>) -> Self {
+        AvoidCollision { model, sender: WalkSender::default() }
+    }
+}
+
+impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for AvoidCollision {
+    fn name(&self) -> &'static str {
+        names::AVOID_COLLISION
+    }
+
+    fn activate(&mut self, _: &BodyGoal, _: &Input<'_, '_>) {
+        self.sender.reset();
+    }
+
+    fn step(&mut self, _: &BodyGoal, input: &Input<'_, '_>) -> Option<BodyCommand> {
+        let obstacle = obstacle_ahead(input.world?, self.model.collision_distance, 0.7)?;
+        let away = if obstacle.y > 0.0 { -1.0 } else { 1.0 };
+        let velocity = Velocity::new(-0.05, away * self.model.max_sideways, 0.0);
+        self.sender.send(&self.model, input.now, velocity)
+    }
+}
+
+/// Stand still.
+#[derive(Debug, Default)]
+pub struct Stand {
+    sent: bool,
+}
+
+impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for Stand {
+    fn name(&self) -> &'static str {
+        names::STAND
+    }
+
+    fn activate(&mut self, _: &BodyGoal, _: &Input<'_, '_>) {
+        self.sent = false;
+    }
+
+    fn step(&mut self, _: &BodyGoal, _: &Input<'_, '_>) -> Option<BodyCommand> {
+        (!std::mem::replace(&mut self.sent, true))
+            .then_some(BodyCommand::NonQueue(BodyMotion::Stand))
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Head and body
+
+/// Dribbling: walk the ball toward the target while the head keeps it in view.
+#[derive(Debug)]
+pub struct Dribbling {
+    model: Arc<MotionModel>,
+    walk: WalkSender,
+    head: HeadSender,
+}
+
+impl Dribbling {
+    pub fn new(model: Arc<MotionModel>) -> Self {
+        Dribbling { model, walk: WalkSender::default(), head: HeadSender::default() }
+    }
+}
+
+impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribbling {
+    fn name(&self) -> &'static str {
+        names::DRIBBLING
+    }
+
+    fn activate(&mut self, _: &WholeBodyGoal, _: &Input<'_, '_>) {
+        self.walk.reset();
+        self.head = HeadSender::default();
+    }
+
+    fn step(&mut self, goal: &WholeBodyGoal, input: &Input<'_, '_>) -> Option<WholeBodyCommand> {
+        let WholeBodyGoal::GoToBallAndDribble { target } = goal else { return None };
+        let world = input.world?;
+        let ball = ball(world)?;
+        let target_robot = world.pose.pose.to_robot(*target);
+        let through = (target_robot - ball.robot).normalized();
+        // Aim a little behind the ball on the line to the target: walking there pushes it.
+        let aim = ball.robot + through * 0.1;
+        let velocity = walk_velocity(&self.model, aim, through.angle());
+        let head = head_command(&self.model, gaze_at(&self.model, ball.robot));
+        let body = self.walk.send(&self.model, input.now, velocity)?;
+        let _ = self.head.send(&self.model, gaze_at(&self.model, ball.robot));
+        Some(WholeBodyCommand::Coordinated { head, body })
+    }
+}
+
+/// Stand-up: the sequence for the side the robot lies on.
+#[derive(Debug, Default)]
+pub struct StandUp;
+
+impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for StandUp {
+    fn name(&self) -> &'static str {
+        names::STAND_UP
+    }
+
+    fn step(&mut self, _: &WholeBodyGoal, input: &Input<'_, '_>) -> Option<WholeBodyCommand> {
+        let sequence = match input.stability {
+            Stability::Fallen(FallDirection::Back) => 1,
+            Stability::Fallen(_) => 0,
+            _ => return None,
+        };
+        if input.actuation.is_busy(strata_robot::command::ResourceGroup::HeadAndBody) {
+            return None;
+        }
+        Some(WholeBodyCommand::Special { motion: SpecialMotion::StandUp(sequence) })
+    }
+}
+
+/// Fall: relax the joints and protect the robot once instability is detected.
+#[derive(Debug, Default)]
+pub struct Fall;
+
+impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Fall {
+    fn name(&self) -> &'static str {
+        names::FALL
+    }
+
+    fn step(&mut self, goal: &WholeBodyGoal, _: &Input<'_, '_>) -> Option<WholeBodyCommand> {
+        let sequence = match goal {
+            WholeBodyGoal::Fall { sequence } => *sequence,
+            _ => 0,
+        };
+        Some(WholeBodyCommand::Special { motion: SpecialMotion::Fall(sequence) })
+    }
+}
+
+/// Dive: the goalkeeper throws itself to the side the ball will cross.
+#[derive(Debug, Default)]
+pub struct Dive;
+
+/// Where a moving ball will cross the robot's lateral axis (y at x = 0) and when, if it comes
+/// toward the robot.
+pub fn ball_crossing(world: &WorldState) -> Option<(f64, f64)> {
+    let b = ball(world)?;
+    let v = b.velocity?;
+    if v.x >= -0.1 || b.robot.x <= 0.0 {
+        return None;
+    }
+    let t = -b.robot.x / v.x;
+    Some((b.robot.y + v.y * t, t))
+}
+
+impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dive {
+    fn name(&self) -> &'static str {
+        names::DIVE
+    }
+
+    fn step(&mut self, _: &WholeBodyGoal, input: &Input<'_, '_>) -> Option<WholeBodyCommand> {
+        let (y, _) = ball_crossing(input.world?)?;
+        // Catalogue: 0 left, 1 right, 2 block (both sides, for balls straight at the keeper).
+        let sequence = if y.abs() < 0.15 {
+            2
+        } else if y > 0.0 {
+            0
+        } else {
+            1
+        };
+        Some(WholeBodyCommand::Special { motion: SpecialMotion::Dive(sequence) })
+    }
+}
+
+/// Pose helper for behaviors: facing a point from a position.
+pub fn facing(from: Point<strata_robot::Field>, toward: Point<strata_robot::Field>) -> Pose {
+    Pose::new(from.x, from.y, (toward - from).angle())
+}

@@ -1,0 +1,131 @@
+//! Reading the world state the way soccer behaviors need it.
+
+use strata_robot::geometry::{Field as FieldFrame, Point, Robot, Vector};
+use strata_robot::world::{ObjectCategory, ObjectEstimate, WorldState};
+use strata_spl::field::Side;
+
+use crate::goals::{GoalSide, HeadGoal};
+use crate::world_config::{BALL, GOAL_POST, OBSTACLE, OPPONENT_GOAL_POST, OWN_GOAL_POST};
+
+/// The ball as a behavior uses it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BallView {
+    pub robot: Point<Robot>,
+    pub field: Point<FieldFrame>,
+    pub velocity: Option<Vector<Robot>>,
+    pub confidence: f64,
+    /// Above the world model's "unknown" threshold.
+    pub known: bool,
+    /// Known from teammates only.
+    pub from_team: bool,
+}
+
+/// The robot's own ball estimate if known; otherwise the team's fused ball (MAWM); otherwise
+/// the own estimate, unknown.
+pub fn ball(world: &WorldState) -> Option<BallView> {
+    let own = world.object(BALL);
+    if let Some(b) = own.filter(|b| b.known) {
+        return Some(BallView {
+            robot: b.position,
+            field: b.field_position,
+            velocity: b.velocity,
+            confidence: b.confidence,
+            known: true,
+            from_team: false,
+        });
+    }
+    if let Some(t) = world.team_object(BALL).filter(|t| !t.teammates.is_empty()) {
+        return Some(BallView {
+            robot: world.pose.pose.to_robot(t.position),
+            field: t.position,
+            velocity: None,
+            confidence: 0.5,
+            known: !world.pose.lost,
+            from_team: true,
+        });
+    }
+    own.map(|b| BallView {
+        robot: b.position,
+        field: b.field_position,
+        velocity: b.velocity,
+        confidence: b.confidence,
+        known: false,
+        from_team: false,
+    })
+}
+
+/// Other robots seen recently, relative to this one.
+pub fn obstacles(world: &WorldState) -> impl Iterator<Item = &ObjectEstimate> {
+    world
+        .objects
+        .iter()
+        .filter(|o| o.category == ObjectCategory::Obstacle && o.known && o.group == OBSTACLE)
+}
+
+/// The nearest obstacle ahead within `range`, if any.
+pub fn obstacle_ahead(world: &WorldState, range: f64, half_angle: f64) -> Option<Point<Robot>> {
+    obstacles(world)
+        .map(|o| o.position)
+        .filter(|p| p.range() < range && p.bearing().abs() < half_angle && p.x > 0.0)
+        .min_by(|a, b| a.range().total_cmp(&b.range()))
+}
+
+/// The best-placed instance of a landmark group: the most confident, then the nearest.
+pub fn best_instance<'a>(world: &'a WorldState, group: &'a str) -> Option<&'a ObjectEstimate> {
+    world.group(group).filter(|o| o.tracked || !world.pose.lost).max_by(|a, b| {
+        (a.confidence - 0.01 * a.position.range())
+            .total_cmp(&(b.confidence - 0.01 * b.position.range()))
+    })
+}
+
+/// The goal posts of one goal, whether the field's posts are coloured or not.
+pub fn goal_posts(world: &WorldState, side: GoalSide) -> Vec<&ObjectEstimate> {
+    let coloured = match side {
+        GoalSide::Own => OWN_GOAL_POST,
+        GoalSide::Opponent => OPPONENT_GOAL_POST,
+    };
+    let posts: Vec<_> = world.group(coloured).collect();
+    if !posts.is_empty() {
+        return posts;
+    }
+    let sign = match side {
+        GoalSide::Own => -1.0,
+        GoalSide::Opponent => 1.0,
+    };
+    world.group(GOAL_POST).filter(|o| o.map_position.is_some_and(|m| m.x * sign > 0.0)).collect()
+}
+
+pub fn side_of(side: GoalSide) -> Side {
+    match side {
+        GoalSide::Own => Side::Own,
+        GoalSide::Opponent => Side::Opponent,
+    }
+}
+
+/// The world-model objects a head goal is about.
+pub fn head_goal_objects<'a>(world: &'a WorldState, goal: &'a HeadGoal) -> Vec<&'a ObjectEstimate> {
+    match goal {
+        HeadGoal::ObserveBall => world.object(BALL).into_iter().collect(),
+        HeadGoal::ObserveGoal { side } => {
+            let posts = goal_posts(world, *side);
+            posts
+                .into_iter()
+                .max_by(|a, b| a.confidence.total_cmp(&b.confidence))
+                .into_iter()
+                .collect()
+        }
+        HeadGoal::ObserveLandmark { name } => {
+            world.object(name).or_else(|| best_instance(world, name)).into_iter().collect()
+        }
+        HeadGoal::ObserveTogether { objects } => objects
+            .iter()
+            .filter_map(|n| world.object(n).or_else(|| best_instance(world, n)))
+            .collect(),
+        HeadGoal::ObserveRival { player } => {
+            obstacles(world).nth(usize::from(*player)).into_iter().collect()
+        }
+        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } | HeadGoal::Scan => {
+            Vec::new()
+        }
+    }
+}

@@ -1,0 +1,316 @@
+//! A team of soccer robots: its configuration (which behavior variants it plays with) and the
+//! function that adds one of its robots to a module graph over any platform.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+use strata_robot::actuation::ActuationConfig;
+use strata_robot::assembly::{RobotModules, RobotParts, RobotTiming, add_robot};
+use strata_robot::command::ResourceGroup;
+use strata_robot::control::active_vision::ActiveVisionConfig;
+use strata_robot::control::planning::{Planner, PlanningConfig};
+use strata_robot::control::reactive::{
+    FallDetectorConfig, Multiplexer, MultiplexerConfig, ReactiveLayer,
+};
+use strata_robot::control::scores::{GoalScore, ScoreVector};
+use strata_robot::perception::PerceptionConfig;
+use strata_robot::platform::{ExternalLink, SharedPlatform, TeamLink, lock_platform};
+use strata_runtime::GraphBuilder;
+
+use crate::activation::{BodyActivation, HeadActivation, WholeBodyActivation};
+use crate::behaviors::{BehaviorConfig, SoccerBehavior};
+use crate::field::TeamField;
+use crate::game::GameControllerReferee;
+use crate::goals::WholeBodyGoal;
+use crate::planning::{SoccerCodec, SoccerPlanning, SoccerPlanningConfig};
+use crate::primitives::{
+    AvoidCollision, Dive, Dribbling, Fall, GoToBall, GoToPosition, KickBall, LookAtTarget,
+    MotionModel, ObjectTracking, SearchObjectEllipse, Stand, StandUp,
+};
+use crate::world_config::{BALL, OBSTACLE, world_config};
+
+/// Everything that makes one team play the way it does. Loaded from TOML; every field has a
+/// default, so a file only states what differs from the full architecture.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TeamConfig {
+    pub name: String,
+    /// Team coordination through the planning layer. Off: no team messages, every field
+    /// player attacks as striker (the no-coordination baseline).
+    pub coordination: bool,
+    pub behavior: BehaviorConfig,
+    pub multiplexer: MultiplexerConfig,
+    pub fall_detector: FallDetectorConfig,
+    pub perception: PerceptionConfig,
+    pub actuation: ActuationConfig,
+    pub motion: MotionModel,
+    pub planning: PlanningConfig,
+    pub soccer_planning: SoccerPlanningConfig,
+    pub timing: RobotTiming,
+    /// Extra computation per deliberative tick, s (the rates experiment's load).
+    pub deliberative_load: f64,
+}
+
+impl Default for TeamConfig {
+    fn default() -> Self {
+        TeamConfig {
+            name: "strata".into(),
+            coordination: true,
+            behavior: BehaviorConfig::default(),
+            multiplexer: MultiplexerConfig::default(),
+            fall_detector: FallDetectorConfig::default(),
+            perception: PerceptionConfig::default(),
+            actuation: ActuationConfig::default(),
+            motion: MotionModel::default(),
+            planning: PlanningConfig::default(),
+            soccer_planning: SoccerPlanningConfig::default(),
+            timing: RobotTiming::default(),
+            deliberative_load: 0.0,
+        }
+    }
+}
+
+/// A team configuration that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum TeamConfigError {
+    #[error("cannot read team configuration {path}: {error}")]
+    Read { path: String, error: std::io::Error },
+    #[error("{source_name}: {error}")]
+    Parse { source_name: String, error: String },
+    #[error("{source_name}: `{field}` {problem}")]
+    Invalid { source_name: String, field: String, problem: String },
+    #[error(
+        "no built-in team `{0}` (try: full, no-coordination, no-active-vision, always-ball, fixed-scan, entropy)"
+    )]
+    UnknownPreset(String),
+}
+
+const PRESETS: [(&str, &str); 6] = [
+    ("full", include_str!("../teams/full.toml")),
+    ("no-coordination", include_str!("../teams/no-coordination.toml")),
+    ("no-active-vision", include_str!("../teams/no-active-vision.toml")),
+    ("always-ball", include_str!("../teams/always-ball.toml")),
+    ("fixed-scan", include_str!("../teams/fixed-scan.toml")),
+    ("entropy", include_str!("../teams/entropy.toml")),
+];
+
+impl TeamConfig {
+    pub fn preset_names() -> impl Iterator<Item = &'static str> {
+        PRESETS.iter().map(|(n, _)| *n)
+    }
+
+    pub fn preset(name: &str) -> Result<TeamConfig, TeamConfigError> {
+        let (_, text) = PRESETS
+            .iter()
+            .find(|(n, _)| *n == name)
+            .ok_or_else(|| TeamConfigError::UnknownPreset(name.to_owned()))?;
+        TeamConfig::from_toml_str(text, &format!("built-in team `{name}`"))
+    }
+
+    /// A preset name or a path to a TOML file.
+    pub fn resolve(name_or_path: &str) -> Result<TeamConfig, TeamConfigError> {
+        if Path::new(name_or_path).exists() {
+            TeamConfig::load(name_or_path)
+        } else {
+            TeamConfig::preset(name_or_path)
+        }
+    }
+
+    pub fn load(path: impl AsRef<Path>) -> Result<TeamConfig, TeamConfigError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path)
+            .map_err(|error| TeamConfigError::Read { path: path.display().to_string(), error })?;
+        TeamConfig::from_toml_str(&text, &path.display().to_string())
+    }
+
+    pub fn from_toml_str(text: &str, source_name: &str) -> Result<TeamConfig, TeamConfigError> {
+        let config: TeamConfig = toml::from_str(text).map_err(|e| TeamConfigError::Parse {
+            source_name: source_name.to_owned(),
+            error: e.to_string(),
+        })?;
+        config.validate(source_name)?;
+        Ok(config)
+    }
+
+    pub fn validate(&self, source_name: &str) -> Result<(), TeamConfigError> {
+        let invalid = |field: &str, problem: String| TeamConfigError::Invalid {
+            source_name: source_name.to_owned(),
+            field: field.to_owned(),
+            problem,
+        };
+        let positive = |field: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(invalid(field, format!("must be > 0, got {v}")))
+            }
+        };
+        for (name, timing) in [
+            ("timing.perception", &self.timing.perception),
+            ("timing.deliberative", &self.timing.deliberative),
+            ("timing.planning", &self.timing.planning),
+        ] {
+            if let Some(hz) = timing.rate_hz {
+                positive(&format!("{name}.rate_hz"), hz)?;
+            }
+        }
+        positive("motion.max_forward", self.motion.max_forward)?;
+        positive("motion.head_speed", self.motion.head_speed)?;
+        positive("planning.message_interval", self.planning.message_interval)?;
+        positive("behavior.fov", self.behavior.fov)?;
+        if !(0.0..=1.0).contains(&self.multiplexer.hysteresis) {
+            return Err(invalid(
+                "multiplexer.hysteresis",
+                format!("must be in [0, 1], got {}", self.multiplexer.hysteresis),
+            ));
+        }
+        if !(self.deliberative_load.is_finite() && self.deliberative_load >= 0.0) {
+            return Err(invalid(
+                "deliberative_load",
+                format!("must be >= 0, got {}", self.deliberative_load),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What a soccer robot needs from its surroundings.
+pub struct SoccerRobotSpec {
+    /// Prefix of the robot's module names.
+    pub name: String,
+    pub team_number: u8,
+    pub player: u8,
+    pub field: Arc<TeamField>,
+    pub platform: SharedPlatform,
+    pub team_link: Option<Box<dyn TeamLink>>,
+    pub game_controller: Option<Box<dyn ExternalLink>>,
+    pub half_duration: f64,
+}
+
+impl std::fmt::Debug for SoccerRobotSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SoccerRobotSpec")
+            .field("name", &self.name)
+            .field("player", &self.player)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Adds one soccer robot (all four modules, all three layers) to `graph`.
+pub fn add_soccer_robot(
+    graph: &mut GraphBuilder,
+    spec: SoccerRobotSpec,
+    config: &TeamConfig,
+) -> Result<RobotModules, String> {
+    let info = lock_platform(&spec.platform).info();
+    let model = Arc::new(config.motion.clone());
+    let field = Arc::clone(&spec.field);
+    let mux = config.multiplexer.clone();
+    let head = Multiplexer::new(
+        ResourceGroup::Head,
+        mux.clone(),
+        Box::new(HeadActivation { fov: info.camera_fov }),
+    )
+    .with_primitive(Box::new(SearchObjectEllipse::new(Arc::clone(&model))))
+    .with_primitive(Box::new(ObjectTracking::new(Arc::clone(&model))))
+    .with_primitive(Box::new(LookAtTarget::new(Arc::clone(&model), Arc::clone(&field))));
+    let body = Multiplexer::new(
+        ResourceGroup::Body,
+        mux.clone(),
+        Box::new(BodyActivation { model: Arc::clone(&model) }),
+    )
+    .with_primitive(Box::new(GoToPosition::new(Arc::clone(&model))))
+    .with_primitive(Box::new(GoToBall::new(Arc::clone(&model))))
+    .with_primitive(Box::new(KickBall))
+    .with_primitive(Box::new(AvoidCollision::new(Arc::clone(&model))))
+    .with_primitive(Box::new(Stand::default()));
+    // The fall and stand-up reflexes are always offered: they must not wait for the slow
+    // deliberative layer (the paper's 51 ms fall detection).
+    let reflexes = ScoreVector::default()
+        .with(GoalScore::new(WholeBodyGoal::Fall { sequence: 0 }, 1.0))
+        .with(GoalScore::new(WholeBodyGoal::StandUp { sequence: 0 }, 1.0));
+    let whole = Multiplexer::new(
+        ResourceGroup::HeadAndBody,
+        mux,
+        Box::new(WholeBodyActivation {
+            dive_horizon: 1.0,
+            dive_reach: 0.8,
+            field: Arc::clone(&field),
+        }),
+    )
+    .with_primitive(Box::new(Dribbling::new(Arc::clone(&model))))
+    .with_primitive(Box::new(StandUp))
+    .with_primitive(Box::new(Fall))
+    .with_primitive(Box::new(Dive))
+    .with_reflexes(reflexes);
+    let reactive = ReactiveLayer::new(head, body, whole, config.fall_detector.clone());
+    let vision = ActiveVisionConfig {
+        fov: info.camera_fov,
+        range: info.camera_range,
+        yaw_limits: info.head_yaw_limits,
+        ..ActiveVisionConfig::default()
+    };
+    let deliberative =
+        SoccerBehavior::new(spec.player, Arc::clone(&field), config.behavior.clone(), vision)?;
+    let planner = Planner::new(
+        SoccerPlanning::new((*field).clone(), config.soccer_planning.clone()),
+        config.planning.clone(),
+    );
+    let referee = GameControllerReferee::new(
+        spec.team_number,
+        spec.player,
+        (*field).clone(),
+        spec.half_duration,
+    );
+    let parts = RobotParts {
+        name: spec.name,
+        player: spec.player,
+        platform: spec.platform,
+        perception: config.perception.clone(),
+        world: world_config(&field),
+        reactive,
+        deliberative,
+        planner,
+        codec: SoccerCodec,
+        referee,
+        team_link: if config.coordination { spec.team_link } else { None },
+        external_link: spec.game_controller,
+        shared_objects: vec![BALL.to_owned(), OBSTACLE.to_owned()],
+        actuation: config.actuation.clone(),
+        timing: config.timing.clone(),
+        deliberative_load: Duration::from_secs_f64(config.deliberative_load),
+    };
+    add_robot(graph, parts).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_preset_loads() {
+        for name in TeamConfig::preset_names() {
+            TeamConfig::preset(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+        assert!(!TeamConfig::preset("no-coordination").expect("preset").coordination);
+    }
+
+    #[test]
+    fn bad_values_name_the_file_and_the_field() {
+        let e =
+            TeamConfig::from_toml_str("[timing.deliberative]\nrate_hz = -1.0\n", "teams/bad.toml")
+                .expect_err("invalid");
+        assert_eq!(
+            e.to_string(),
+            "teams/bad.toml: `timing.deliberative.rate_hz` must be > 0, got -1"
+        );
+        let e = TeamConfig::from_toml_str("coordinaton = true\n", "teams/typo.toml")
+            .expect_err("unknown key");
+        assert!(
+            e.to_string().starts_with("teams/typo.toml:") && e.to_string().contains("coordinaton"),
+            "{e}"
+        );
+    }
+}

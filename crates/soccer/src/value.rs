@@ -1,0 +1,145 @@
+//! Value functions of soccer's deliberative behaviors (paper 3.4): V(x) grows with how
+//! convenient the world state is for the behavior. Active vision ([`strata_robot::control::
+//! active_vision`]) differentiates them numerically, so they are written smooth.
+
+use std::sync::Arc;
+
+use strata_robot::control::active_vision::{ValueFunction, ValueState};
+use strata_robot::geometry::{Field as FieldFrame, Point, normalize_angle};
+use strata_robot::world::ObjectId;
+
+use crate::field::TeamField;
+
+/// How much of the goal's angle, seen from the ball, the keeper's body covers.
+///
+/// The goal spans the angles from the ball to its two posts; the keeper blocks the angles
+/// within its reach of the line from the ball to its centre. Coverage is computed with a soft
+/// edge (a logistic of width `edge`) over samples of the goal's angle, so V is smooth in the
+/// keeper's pose and the ball's position.
+pub fn goal_coverage(
+    field: &TeamField,
+    ball: Point<FieldFrame>,
+    keeper: Point<FieldFrame>,
+    reach: f64,
+    edge: f64,
+) -> f64 {
+    let [left, right] = field.posts(strata_spl::field::Side::Own);
+    let a_left = (left - ball).angle();
+    let a_right = (right - ball).angle();
+    let span = normalize_angle(a_left - a_right);
+    if span.abs() < 1e-6 {
+        return 0.0;
+    }
+    let to_keeper = keeper - ball;
+    let distance = to_keeper.norm().max(1e-3);
+    let centre = to_keeper.angle();
+    let half = (reach / distance).min(1.0).asin();
+    const SAMPLES: usize = 24;
+    let mut covered = 0.0;
+    for i in 0..SAMPLES {
+        let t = (i as f64 + 0.5) / SAMPLES as f64;
+        let angle = a_right + span * t;
+        let off = normalize_angle(angle - centre).abs();
+        covered += 1.0 / (1.0 + ((off - half) / edge).exp());
+    }
+    covered / SAMPLES as f64
+}
+
+/// V of goal covering: the fraction of the own goal's angle from the ball the keeper covers.
+#[derive(Debug, Clone)]
+pub struct GoalCoveringValue {
+    pub field: Arc<TeamField>,
+    pub ball: ObjectId,
+    /// Half the width the keeper blocks, m.
+    pub reach: f64,
+}
+
+impl ValueFunction for GoalCoveringValue {
+    fn name(&self) -> &str {
+        "goal covering"
+    }
+
+    fn objects(&self) -> Vec<ObjectId> {
+        vec![self.ball]
+    }
+
+    fn value(&self, state: &ValueState<'_>) -> f64 {
+        let Some(ball) = state.object_field(self.ball) else { return 0.0 };
+        goal_coverage(&self.field, ball, state.pose.position(), self.reach, 0.03)
+    }
+}
+
+/// V of go to ball: a striker wants to be close to the ball, on the side away from the goal it
+/// attacks, facing it. With the ball seen relative to the robot, the pose matters through the
+/// direction of the goal: aiming needs localization.
+#[derive(Debug, Clone)]
+pub struct GoToBallValue {
+    pub field: Arc<TeamField>,
+    pub ball: ObjectId,
+}
+
+impl ValueFunction for GoToBallValue {
+    fn name(&self) -> &str {
+        "go to ball"
+    }
+
+    fn objects(&self) -> Vec<ObjectId> {
+        vec![self.ball]
+    }
+
+    fn value(&self, state: &ValueState<'_>) -> f64 {
+        let Some(ball) = state.object_field(self.ball) else { return 0.0 };
+        let robot = state.pose.position();
+        let shot = (self.field.opponent_goal() - ball).angle();
+        let approach = (ball - robot).angle();
+        let distance = (ball - robot).norm();
+        // Close and coming from behind the ball along the shot: high value.
+        let alignment = normalize_angle(shot - approach);
+        (-0.5 * distance).exp() * (0.5 + 0.5 * alignment.cos())
+    }
+}
+
+/// V of going to a field position: closeness to it, which only localization improves.
+#[derive(Debug, Clone)]
+pub struct PositionValue {
+    pub target: Point<FieldFrame>,
+}
+
+impl ValueFunction for PositionValue {
+    fn name(&self) -> &str {
+        "going to field position"
+    }
+
+    fn objects(&self) -> Vec<ObjectId> {
+        Vec::new()
+    }
+
+    fn value(&self, state: &ValueState<'_>) -> f64 {
+        (-0.5 * state.pose.position().distance(self.target)).exp()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn field() -> TeamField {
+        TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0)
+    }
+
+    #[test]
+    fn a_keeper_on_the_line_from_ball_to_goal_covers_more_than_one_beside_it() {
+        let f = field();
+        let ball = Point::new(-2.5, 0.0);
+        let centred = goal_coverage(&f, ball, Point::new(-4.2, 0.0), 0.3, 0.02);
+        let beside = goal_coverage(&f, ball, Point::new(-4.2, 0.6), 0.3, 0.02);
+        let near_ball = goal_coverage(&f, ball, Point::new(-3.0, 0.0), 0.3, 0.02);
+        assert!(centred > beside, "{centred} {beside}");
+        // Closer to the ball, the same body hides more of the goal.
+        assert!(near_ball > centred, "{near_ball} {centred}");
+        assert!((0.0..=1.0).contains(&centred));
+        // Hand check: from 1.7 m the keeper's 0.3 m half-width hides asin(0.3/1.7) ~ 0.177 rad
+        // each side; the goal spans 2 atan(0.75/2.0) ~ 0.72 rad: about 49%.
+        assert!((centred - 0.49).abs() < 0.05, "{centred}");
+    }
+}

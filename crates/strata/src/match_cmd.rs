@@ -1,0 +1,175 @@
+//! `strata match`: a complete simulated game.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use strata::matches::{Match, MatchConfig, MatchReport};
+use strata_sim::NoiseLevel;
+use strata_soccer::team::TeamConfig;
+
+#[derive(Debug, Args)]
+pub struct MatchArgs {
+    /// Robots per team (7: the SPL Champions Cup; 4: the paper's games).
+    #[arg(long, default_value_t = 7)]
+    pub players: u8,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The home team: a built-in team (full, no-coordination, no-active-vision, always-ball,
+    /// fixed-scan, entropy) or a team TOML file.
+    #[arg(long, default_value = "full")]
+    pub home: String,
+    /// The away team, as --home.
+    #[arg(long, default_value = "full")]
+    pub away: String,
+    /// Stop after this many simulated seconds (default: the whole game).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Length of a half, simulated seconds.
+    #[arg(long, default_value_t = 600.0)]
+    pub half: f64,
+    /// Sensor and actuation noise: none, default or high.
+    #[arg(long, default_value = "default")]
+    pub noise: String,
+    /// Field preset (spl, paper2010) or a field TOML file.
+    #[arg(long, default_value = "spl")]
+    pub field: String,
+    /// Team-message loss in [0, 1].
+    #[arg(long, default_value_t = 0.0)]
+    pub packet_loss: f64,
+    /// Play on the threaded host, paced to real time.
+    #[arg(long)]
+    pub realtime: bool,
+    /// Print the report as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn parse_noise(name: &str) -> Result<NoiseLevel> {
+    Ok(match name {
+        "none" => NoiseLevel::None,
+        "default" => NoiseLevel::Default,
+        "high" => NoiseLevel::High,
+        other => bail!("unknown noise preset `{other}` (none, default, high)"),
+    })
+}
+
+pub fn config(args: &MatchArgs) -> Result<MatchConfig> {
+    Ok(MatchConfig {
+        players: args.players,
+        seed: args.seed,
+        home: TeamConfig::resolve(&args.home)?,
+        away: TeamConfig::resolve(&args.away)?,
+        half_duration: args.half,
+        limit: args.duration,
+        noise: parse_noise(&args.noise)?,
+        field: args.field.clone(),
+        packet_loss: args.packet_loss,
+        realtime: args.realtime,
+        sim: None,
+    })
+}
+
+pub fn run(args: MatchArgs) -> Result<()> {
+    let config = config(&args)?;
+    let game = Match::new(config)?;
+    let bar = if args.json { ProgressBar::hidden() } else { ProgressBar::new(1000) };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let report = game.play(&mut |fraction, score| {
+        bar.set_position((fraction * 1000.0) as u64);
+        bar.set_message(score.to_owned());
+    })?;
+    bar.finish_and_clear();
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print_report(&report);
+    }
+    Ok(())
+}
+
+pub fn print_report(r: &MatchReport) {
+    let [home, away] = &r.teams;
+    println!(
+        "{} {} - {} {}   ({} vs {}, seed {}, {})",
+        home.name,
+        r.score[0],
+        r.score[1],
+        away.name,
+        r.players_per_team,
+        r.players_per_team,
+        r.seed,
+        if r.finished { "full time" } else { "stopped early" }
+    );
+    println!(
+        "{:.0} s simulated in {:.1} s wall: {:.0}x real time ({} host)",
+        r.simulated_s, r.wall_s, r.real_time_factor, r.host
+    );
+    println!("\nEvents");
+    for e in r.events.iter().filter(|e| e.kind == "goal" || e.kind == "penalty") {
+        let (m, s) = ((e.time / 60.0).floor(), e.time % 60.0);
+        println!("  {m:>3.0}:{s:04.1}  {:<8} {}", e.kind, e.detail);
+    }
+    println!("\nTeams");
+    println!(
+        "  {:<18} {:>5} {:>6} {:>9} {:>12} {:>12} {:>11} {:>13}",
+        "team",
+        "goals",
+        "falls",
+        "penalties",
+        "messages",
+        "budget left",
+        "1 striker",
+        "double s (s)"
+    );
+    for t in &r.teams {
+        println!(
+            "  {:<18} {:>5} {:>6} {:>9} {:>12} {:>12} {:>10.1}% {:>13.1}",
+            t.name,
+            t.goals,
+            t.falls,
+            t.penalties,
+            t.messages_sent,
+            t.message_budget_left,
+            100.0 * t.roles.one_striker,
+            t.roles.double_striker_s
+        );
+    }
+    println!("\nLayer rates per robot (Hz, min / mean / max — the columns of the paper's Table 6)");
+    println!(
+        "  {:<8} {:>22} {:>22} {:>22}   main roles",
+        "robot", "planning", "deliberative", "reactive"
+    );
+    for robot in &r.robots {
+        let rate = |name: &str| {
+            robot
+                .layers
+                .iter()
+                .find(|l| l.layer == name)
+                .map(|l| format!("{:.1}/{:.1}/{:.1}", l.min_hz, l.mean_hz, l.max_hz))
+                .unwrap_or_default()
+        };
+        let mut roles: Vec<_> = robot.roles.iter().collect();
+        roles.sort_by(|a, b| b.1.total_cmp(a.1));
+        let roles: Vec<String> =
+            roles.iter().take(2).map(|(k, v)| format!("{k} {:.0}%", **v * 100.0)).collect();
+        println!(
+            "  {:<8} {:>22} {:>22} {:>22}   {}",
+            robot.name,
+            rate("planning"),
+            rate("deliberative"),
+            rate("reactive"),
+            roles.join(", ")
+        );
+    }
+    println!(
+        "\nTeam messages: {} sent, {} delivered, {} lost, {} over budget, {} oversize",
+        r.team_messages.sent,
+        r.team_messages.delivered,
+        r.team_messages.lost,
+        r.team_messages.over_budget,
+        r.team_messages.rejected_oversize
+    );
+}
