@@ -327,8 +327,12 @@ fn head_multiplexer_table() {
         let report = layer.step(Time::from_nanos(1), &upright(), Some(&row.world));
         assert_eq!(report.head.selected_goal.as_deref(), row.selected, "{}", row.name);
         assert_eq!(report.head.primitive.as_deref(), row.primitive, "{}", row.name);
-        let scored: Vec<(String, f64, f64)> =
-            report.head.goals.iter().map(|g| (g.goal.clone(), g.reactive, g.final_score)).collect();
+        let scored: Vec<(String, f64, f64)> = report
+            .head
+            .goals
+            .iter()
+            .map(|g| (g.goal.to_string(), g.reactive, g.final_score))
+            .collect();
         assert_eq!(scored.len(), row.scores.len(), "{}: {scored:?}", row.name);
         for ((goal, sr, s), (eg, esr, es)) in scored.iter().zip(&row.scores) {
             assert_eq!(goal, eg, "{}", row.name);

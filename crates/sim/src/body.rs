@@ -17,7 +17,7 @@ use strata_runtime::Time;
 use crate::config::{DiveSide, RobotConfig};
 use crate::noise::NoiseParams;
 use crate::random::Stream;
-use crate::util::{Rotating, approach, compose, length, smoothstep, wrap_near};
+use crate::util::{Rotating, approach, compose, length, sin_cos, smoothstep, wrap_near};
 
 /// Why a robot fell.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -130,14 +130,15 @@ pub(crate) struct Body {
     pub pitch: f64,
     /// True angular rates (roll, pitch, yaw), rad/s.
     pub gyro: [f64; 3],
+    /// (roll, pitch) and [sin roll, cos roll, sin pitch, cos pitch] for them: a lying robot's
+    /// angles do not change, so neither do these.
+    tilt_trig: ((f64, f64), [f64; 4]),
     /// Specific force scale (below 1 while falling freely).
     pub accel_scale: f64,
     /// Acceleration spike of an impact, shown by the next inertial sample.
     pub impact: f64,
     /// Odometry accumulated since the platform last read it.
     pub odometry: Odometry,
-    /// Motion the legs made during the last update (what odometry measures), robot frame.
-    pub last_walk: Odometry,
     /// The current fall was started by [`Body::start_fall`] (and so already recorded).
     fall_announced: bool,
     /// Distance walked and angle turned since the current step began (odometry error).
@@ -167,10 +168,10 @@ impl Body {
             roll: 0.0,
             pitch: 0.0,
             gyro: [0.0; 3],
+            tilt_trig: ((0.0, 0.0), [0.0, 1.0, 0.0, 1.0]),
             accel_scale: 1.0,
             impact: 0.0,
             odometry: Odometry::ZERO,
-            last_walk: Odometry::ZERO,
             fall_announced: false,
             step_walked: [0.0; 2],
         }
@@ -180,6 +181,16 @@ impl Body {
     pub fn set_pose(&mut self, pose: Pose) {
         self.pose = pose;
         self.heading = Rotating::new(pose.theta);
+    }
+
+    /// [sin roll, cos roll, sin pitch, cos pitch] of the torso.
+    pub fn tilt_trig(&mut self) -> [f64; 4] {
+        if self.tilt_trig.0 != (self.roll, self.pitch) {
+            let (sr, cr) = sin_cos(self.roll);
+            let (sp, cp) = sin_cos(self.pitch);
+            self.tilt_trig = ((self.roll, self.pitch), [sr, cr, sp, cp]);
+        }
+        self.tilt_trig.1
     }
 
     /// Sine and cosine of the heading.
@@ -287,59 +298,88 @@ impl Body {
         }
     }
 
-    /// Applies a body order. Returns false when the order names a motion the catalogue does not
-    /// have (the caller reports it as unsupported).
-    pub fn order_body(&mut self, order: BodyOrder, config: &RobotConfig) -> bool {
+    /// Applies a body order. Refuses (with the reason) a motion the catalogue does not have, and
+    /// a sequence that cannot start in the body's state (a kick while lying); the robot's
+    /// actuation learns of it as an unsupported order.
+    pub fn order_body(&mut self, order: BodyOrder, config: &RobotConfig) -> Result<(), String> {
         match order {
             BodyOrder::Stand | BodyOrder::Walk { .. } => {
                 if !matches!(self.activity, Activity::Special(_)) {
                     self.pending_special = None;
                 }
-                self.order = order;
-                true
+                // The engine's limits apply once, when the order arrives.
+                self.order = match order {
+                    BodyOrder::Walk { velocity } => {
+                        BodyOrder::Walk { velocity: clamp_velocity(velocity, config) }
+                    }
+                    other => other,
+                };
+                Ok(())
             }
             BodyOrder::Special { motion } => {
                 if !catalogue_has(config, motion) {
-                    return false;
+                    return Err(format!("{motion:?} is not in the motion catalogue"));
                 }
-                self.order_special(motion, config);
-                true
+                self.order_special(motion, config)
             }
         }
     }
 
-    fn order_special(&mut self, motion: SpecialMotion, config: &RobotConfig) {
+    fn order_special(&mut self, motion: SpecialMotion, config: &RobotConfig) -> Result<(), String> {
+        let is_fall = matches!(motion, SpecialMotion::Fall(_));
         match self.activity {
             Activity::Special(run) => {
-                // A running sequence cannot be interrupted, except by a protective fall.
-                if run.motion != motion && matches!(motion, SpecialMotion::Fall(_)) {
+                if run.motion == motion {
+                    // Already running: orders are held until replaced, so this is a repeat.
+                    Ok(())
+                } else if is_fall {
+                    // A protective fall interrupts anything.
                     self.start_special(motion, config, None);
+                    Ok(())
+                } else {
+                    Err(format!("{:?} is running; {motion:?} must wait", run.motion))
                 }
             }
-            Activity::Falling { .. } => {
-                if matches!(motion, SpecialMotion::Fall(_)) {
+            Activity::Falling { .. } => match motion {
+                SpecialMotion::Fall(_) => {
                     self.start_special(motion, config, None);
+                    Ok(())
                 }
-            }
-            Activity::Fallen { .. } => {
-                if matches!(motion, SpecialMotion::StandUp(_)) {
+                SpecialMotion::StandUp(_) => {
+                    // Getting up starts once the robot lies on the ground.
+                    self.pending_special = Some(motion);
+                    Ok(())
+                }
+                _ => Err(format!("the robot is falling: no {motion:?}")),
+            },
+            Activity::Fallen { .. } => match motion {
+                SpecialMotion::StandUp(_) => {
                     // Whether it will fail is drawn when it starts (in `update`).
                     self.pending_special = Some(motion);
                     self.order = BodyOrder::Special { motion };
+                    Ok(())
                 }
-            }
+                // Already down: a short sequence that ends lying, so the order completes.
+                SpecialMotion::Fall(_) => {
+                    self.start_special(motion, config, None);
+                    Ok(())
+                }
+                _ => Err(format!("the robot is lying on the ground: no {motion:?}")),
+            },
             Activity::Walking { .. } => {
                 self.order = BodyOrder::Special { motion };
-                if matches!(motion, SpecialMotion::Fall(_) | SpecialMotion::Dive(_)) {
+                if is_fall || matches!(motion, SpecialMotion::Dive(_)) {
                     self.start_special(motion, config, None);
                 } else {
                     // The walk ends first: kicking out of a running gait is not possible.
                     self.pending_special = Some(motion);
                 }
+                Ok(())
             }
             Activity::Standing => {
                 self.order = BodyOrder::Special { motion };
                 self.pending_special = Some(motion);
+                Ok(())
             }
         }
     }
@@ -452,7 +492,6 @@ impl Body {
             dy: v.vy * (1.0 + self.slip[1]) * dt,
             dtheta: v.omega * (1.0 + self.slip[2]) * dt,
         };
-        self.last_walk = walked;
         if walked != Odometry::ZERO {
             let (dx, dy) = self.to_field(walked.dx, walked.dy);
             self.pose.x += dx;
@@ -561,8 +600,7 @@ impl Body {
             }
             Activity::Walking { stage: CycleStage::Execution, elapsed } => {
                 match (self.order, self.pending_special) {
-                    (BodyOrder::Walk { velocity }, None) => {
-                        let target = clamp_velocity(velocity, config);
+                    (BodyOrder::Walk { velocity: target }, None) => {
                         self.velocity = Velocity {
                             vx: approach(self.velocity.vx, target.vx, lin),
                             vy: approach(self.velocity.vy, target.vy, lin),
@@ -847,7 +885,6 @@ mod tests {
     use super::*;
     use crate::noise::NoiseLevel;
     use crate::random::Stream;
-    use crate::util::sin_cos;
 
     fn run(body: &mut Body, seconds: f64, config: &RobotConfig) -> Vec<BodyEvents> {
         let noise = NoiseParams::preset(NoiseLevel::None);
@@ -860,7 +897,8 @@ mod tests {
     fn walk_goes_through_initialization_execution_and_end() {
         let config = RobotConfig::default();
         let mut body = Body::new(Pose::default());
-        body.order_body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) }, &config);
+        body.order_body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) }, &config)
+            .expect("accepted");
         run(&mut body, 0.1, &config);
         assert!(matches!(
             body.motion_state(),
@@ -875,7 +913,7 @@ mod tests {
         assert!((body.velocity.vx - 0.2).abs() < 1e-9, "reached the commanded speed");
         let x = body.pose.x;
         assert!(x > 0.1);
-        body.order_body(BodyOrder::Stand, &config);
+        body.order_body(BodyOrder::Stand, &config).expect("accepted");
         run(&mut body, 0.05, &config);
         assert!(matches!(
             body.motion_state(),
@@ -915,10 +953,14 @@ mod tests {
         assert!(events.iter().any(|e| e.landed == Some(FallDirection::Front)));
         assert!(body.is_fallen());
         // Walking is impossible while lying; a stand-up is.
-        body.order_body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) }, &config);
+        body.order_body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) }, &config)
+            .expect("accepted");
         run(&mut body, 0.5, &config);
         assert!(body.is_fallen());
-        body.order_body(BodyOrder::Special { motion: SpecialMotion::StandUp(0) }, &config);
+        let kick = BodyOrder::Special { motion: SpecialMotion::Kick(0) };
+        assert!(body.order_body(kick, &config).is_err(), "no kicking while lying");
+        body.order_body(BodyOrder::Special { motion: SpecialMotion::StandUp(0) }, &config)
+            .expect("accepted");
         run(&mut body, 2.0, &config);
         assert!(matches!(body.motion_state(), BodyMotionState::Special { .. }));
         let events = run(&mut body, 2.0, &config);
@@ -931,9 +973,11 @@ mod tests {
     fn a_kick_waits_for_the_walk_to_end_and_touches_once() {
         let config = RobotConfig::default();
         let mut body = Body::new(Pose::default());
-        body.order_body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) }, &config);
+        body.order_body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) }, &config)
+            .expect("accepted");
         run(&mut body, 1.0, &config);
-        body.order_body(BodyOrder::Special { motion: SpecialMotion::Kick(0) }, &config);
+        body.order_body(BodyOrder::Special { motion: SpecialMotion::Kick(0) }, &config)
+            .expect("accepted");
         run(&mut body, 0.05, &config);
         assert!(matches!(
             body.motion_state(),
@@ -942,7 +986,10 @@ mod tests {
         let events = run(&mut body, 3.0, &config);
         assert_eq!(events.iter().filter(|e| e.kick_contact == Some(0)).count(), 1);
         assert_eq!(body.motion_state(), BodyMotionState::Standing);
-        assert!(!body.order_body(BodyOrder::Special { motion: SpecialMotion::Kick(9) }, &config));
+        assert!(
+            body.order_body(BodyOrder::Special { motion: SpecialMotion::Kick(9) }, &config)
+                .is_err()
+        );
     }
 
     #[test]

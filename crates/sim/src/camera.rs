@@ -17,19 +17,6 @@ use crate::noise::CameraNoise;
 use crate::random::Stream;
 use crate::util::{atan2, length, sin_cos, wrap_half_turn};
 
-/// A stable code for a painted colour, used as the detection variant of coloured goal posts.
-pub fn colour_code(colour: Colour) -> u16 {
-    match colour {
-        Colour::White => 0,
-        Colour::Yellow => 1,
-        Colour::SkyBlue => 2,
-        Colour::Pink => 3,
-        Colour::Blue => 4,
-        Colour::Green => 5,
-        Colour::Orange => 6,
-    }
-}
-
 /// What the camera reports about a fixed point feature.
 #[derive(Clone, Copy, Debug)]
 struct PointFeature {
@@ -80,7 +67,7 @@ impl Scene {
                         Side::Opponent => colours.opponent,
                     };
                     // White posts look alike; coloured ones tell their goal apart.
-                    feature.variant = (colour != Colour::White).then(|| colour_code(colour));
+                    feature.variant = (colour != Colour::White).then(|| colour.code());
                     feature.tall = true;
                 }
                 Landmark::Crossing { orientation, .. } => {
@@ -126,6 +113,8 @@ pub(crate) struct Viewer {
     pub index: Option<usize>,
     /// Lying, falling or getting up: the camera sees the sky or the carpet.
     pub blind: bool,
+    /// The ground distances the camera covers at the head's pitch ([`ground_band`]).
+    pub band: (f64, f64),
 }
 
 /// An object in the camera frame: x along the optical axis, y to the left.
@@ -149,6 +138,35 @@ pub(crate) struct Scratch {
     seen: Vec<(Local, u16)>,
     xs: Vec<f64>,
     ys: Vec<f64>,
+    left: Vec<f64>,
+    right: Vec<f64>,
+    seen_points: Vec<u64>,
+    seen_lines: Vec<u64>,
+}
+
+/// Sets `mask` to the bits `i < n` for which `keep(i)`, 64 per word, without branches.
+#[inline]
+fn bitmask(mask: &mut Vec<u64>, n: usize, keep: impl Fn(usize) -> bool) {
+    mask.clear();
+    mask.resize(n.div_ceil(64), 0);
+    for i in 0..n {
+        mask[i / 64] |= u64::from(keep(i)) << (i % 64);
+    }
+}
+
+/// The indices of the set bits, ascending.
+#[inline]
+fn set_bits(mask: &[u64]) -> impl Iterator<Item = usize> + '_ {
+    mask.iter().enumerate().flat_map(|(word, &bits)| {
+        let mut bits = bits;
+        std::iter::from_fn(move || {
+            (bits != 0).then(|| {
+                let bit = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                word * 64 + bit
+            })
+        })
+    })
 }
 
 pub(crate) struct Camera<'a> {
@@ -195,7 +213,7 @@ impl Camera<'_> {
         let range2 = range * range;
         let in_view =
             |x: f64, y: f64| x > 0.0 && y.abs() <= x * tan_half && x * x + y * y <= range2;
-        let (near, far) = ground_band(config, viewer.head.pitch);
+        let (near, far) = viewer.band;
 
         // Robots in or beside the view can hide what is behind them; those in it are seen.
         let radius = self.robot_radius;
@@ -267,21 +285,39 @@ impl Camera<'_> {
             }
         }
 
-        // Every fixed point and line end into the camera frame at once.
-        scratch.xs.resize(scene.xs.len(), 0.0);
-        scratch.ys.resize(scene.ys.len(), 0.0);
-        for (((lx, ly), &px), &py) in
-            scratch.xs.iter_mut().zip(scratch.ys.iter_mut()).zip(&scene.xs).zip(&scene.ys)
-        {
-            let dx = px - ox;
-            let dy = py - oy;
-            *lx = cos * dx + sin * dy;
-            *ly = -sin * dx + cos * dy;
+        // Every fixed point and line end into the camera frame at once, with its side of the
+        // two edges of the view (inside both: `left >= 0` and `right >= 0`), in one
+        // vectorizable loop.
+        let n = scene.xs.len();
+        scratch.xs.resize(n, 0.0);
+        scratch.ys.resize(n, 0.0);
+        scratch.left.resize(n, 0.0);
+        scratch.right.resize(n, 0.0);
+        // Slices of one length: no bounds checks, so the loop vectorizes.
+        let (xs, ys) = (&mut scratch.xs[..n], &mut scratch.ys[..n]);
+        let (left, right) = (&mut scratch.left[..n], &mut scratch.right[..n]);
+        let (px, py) = (&scene.xs[..n], &scene.ys[..n]);
+        for i in 0..n {
+            let dx = px[i] - ox;
+            let dy = py[i] - oy;
+            let x = cos * dx + sin * dy;
+            let y = -sin * dx + cos * dy;
+            xs[i] = x;
+            ys[i] = y;
+            left[i] = x * tan_half - y;
+            right[i] = x * tan_half + y;
         }
         let landmark = noise.landmark_factor;
-        for (i, feature) in scene.points.iter().enumerate() {
-            let (x, y) = (scratch.xs[i], scratch.ys[i]);
-            if !in_view(x, y) {
+        let points = scene.points.len();
+        // Which points are in the view, as bits: deciding per point with a branch mispredicts
+        // about every other point, a bitmask built without branches does not.
+        bitmask(&mut scratch.seen_points, points, |i| {
+            (left[i] >= 0.0) & (right[i] >= 0.0) & (xs[i] * xs[i] + ys[i] * ys[i] <= range2)
+        });
+        for i in set_bits(&scratch.seen_points) {
+            let feature = &scene.points[i];
+            let (x, y) = (xs[i], ys[i]);
+            if x <= 0.0 {
                 continue;
             }
             let local = Local::new(x, y);
@@ -292,18 +328,24 @@ impl Camera<'_> {
             report(rng, out, feature.class, feature.variant, &local, orientation, landmark);
         }
         let line_class = class(ObjectKind::FieldLine);
-        let starts = scene.points.len();
-        let ends = starts + scene.lines.len();
-        for (i, direction) in scene.lines.iter().enumerate() {
-            let a = (scratch.xs[starts + i], scratch.ys[starts + i]);
-            let b = (scratch.xs[ends + i], scratch.ys[ends + i]);
-            let Some(closest) = visible_piece(a, b, tan_half, config.min_line_length) else {
+        let lines = scene.lines.len();
+        let (starts, ends) = (points, points + lines);
+        // A line with both ends beyond the same edge of the view has nothing in it.
+        bitmask(&mut scratch.seen_lines, lines, |i| {
+            let (a, b) = (starts + i, ends + i);
+            !(((left[a] < 0.0) & (left[b] < 0.0)) | ((right[a] < 0.0) & (right[b] < 0.0)))
+        });
+        for i in set_bits(&scratch.seen_lines) {
+            let (a, b) = (starts + i, ends + i);
+            let Some(closest) =
+                visible_piece((xs[a], ys[a]), (xs[b], ys[b]), tan_half, config.min_line_length)
+            else {
                 continue;
             };
             if closest.distance > range.min(far) || hidden(&closest) {
                 continue;
             }
-            let orientation = Some(wrap_half_turn(direction - axis));
+            let orientation = Some(wrap_half_turn(scene.lines[i] - axis));
             report(rng, out, line_class, None, &closest, orientation, landmark);
         }
 

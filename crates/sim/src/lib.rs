@@ -59,7 +59,6 @@ mod util;
 mod world;
 
 pub use body::FallCause;
-pub use camera::colour_code;
 pub use config::{ConfigError, SimConfig};
 pub use module::{SIMULATOR_PRIORITY, SimulatorModule, SimulatorPorts, add_simulator};
 pub use noise::{NoiseConfig, NoiseLevel, NoiseParams};

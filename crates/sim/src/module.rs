@@ -29,7 +29,12 @@ impl Module for SimulatorModule {
             let mut sim = self.sim.lock();
             sim.advance_to(now);
             if now >= self.next_truth {
-                self.next_truth = now + self.truth_period;
+                // On the schedule, not `period` after each publication: the sensor period does
+                // not divide the publication period.
+                self.next_truth += self.truth_period;
+                if self.next_truth <= now {
+                    self.next_truth = now + self.truth_period;
+                }
                 let mut truth = sim.snapshot();
                 truth.events = sim.events_since(self.published_events).to_vec();
                 self.published_events += truth.events.len();

@@ -13,15 +13,20 @@ use crate::body::{Activity, Body, SpecialKind};
 use crate::config::RobotConfig;
 use crate::noise::ImuNoise;
 use crate::random::Stream;
-use crate::util::sin_cos;
 
 /// Standard gravity, m/s^2.
 pub const GRAVITY: f64 = 9.81;
 
-/// One inertial sample of `body`; consumes the impact spike.
-pub(crate) fn inertial(body: &mut Body, noise: &ImuNoise, rng: &mut Stream) -> InertialData {
-    let (sr, cr) = sin_cos(body.roll);
-    let (sp, cp) = sin_cos(body.pitch);
+/// One sample of every proprioceptive sensor: inertial unit, head encoders, foot pressure.
+/// Consumes the impact spike. All twelve noise values are drawn together.
+pub(crate) fn sample(
+    body: &mut Body,
+    lifted: bool,
+    config: &RobotConfig,
+    noise: &ImuNoise,
+    rng: &mut Stream,
+) -> (InertialData, HeadAngles, FootContact) {
+    let [sr, cr, sp, cp] = body.tilt_trig();
     let g = GRAVITY * body.accel_scale;
     let mut accelerometer = [-g * sp, g * sr * cp, g * cr * cp];
     if body.impact > 0.0 {
@@ -31,41 +36,24 @@ pub(crate) fn inertial(body: &mut Body, noise: &ImuNoise, rng: &mut Stream) -> I
         accelerometer[2] += body.impact * 0.5;
         body.impact = 0.0;
     }
-    let a = noise.accel_sigma;
-    let w = noise.gyro_sigma;
-    let angle = noise.angle_sigma;
-    InertialData {
-        accelerometer: [
-            accelerometer[0] + rng.gauss(a),
-            accelerometer[1] + rng.gauss(a),
-            accelerometer[2] + rng.gauss(a),
-        ],
-        gyroscope: [
-            body.gyro[0] + rng.gauss(w),
-            body.gyro[1] + rng.gauss(w),
-            body.gyro[2] + rng.gauss(w),
-        ],
-        body_angles: [body.roll + rng.gauss(angle), body.pitch + rng.gauss(angle)],
-    }
+    let (a, w, s) = (noise.accel_sigma, noise.gyro_sigma, noise.angle_sigma);
+    let (j, f) = (noise.joint_sigma, noise.foot_sigma);
+    let n = rng.gauss_n([a, a, a, w, w, w, s, s, j, j, f, f]);
+    let inertial = InertialData {
+        accelerometer: [accelerometer[0] + n[0], accelerometer[1] + n[1], accelerometer[2] + n[2]],
+        gyroscope: [body.gyro[0] + n[3], body.gyro[1] + n[4], body.gyro[2] + n[5]],
+        body_angles: [body.roll + n[6], body.pitch + n[7]],
+    };
+    let head = HeadAngles { yaw: body.head.yaw + n[8], pitch: body.head.pitch + n[9] };
+    let (left, right) = foot_load(body, lifted, config);
+    let feet = FootContact { left: (left + n[10]).max(0.0), right: (right + n[11]).max(0.0) };
+    (inertial, head, feet)
 }
 
-/// The head joint encoders.
-pub(crate) fn encoders(body: &Body, noise: &ImuNoise, rng: &mut Stream) -> HeadAngles {
-    HeadAngles {
-        yaw: body.head.yaw + rng.gauss(noise.joint_sigma),
-        pitch: body.head.pitch + rng.gauss(noise.joint_sigma),
-    }
-}
-
-/// Foot pressure: the weight shifts between the feet while walking, rests on the support foot
-/// during a kick, fades while falling and is gone lying down or lifted.
-pub(crate) fn foot_contact(
-    body: &Body,
-    lifted: bool,
-    config: &RobotConfig,
-    noise: &ImuNoise,
-    rng: &mut Stream,
-) -> FootContact {
+/// Foot pressure (left, right) without noise: the weight shifts between the feet while walking,
+/// rests on the support foot during a kick, fades while falling and is gone lying down or
+/// lifted.
+fn foot_load(body: &Body, lifted: bool, config: &RobotConfig) -> (f64, f64) {
     let m = config.mass;
     let (left, right) = if lifted {
         (0.0, 0.0)
@@ -95,8 +83,7 @@ pub(crate) fn foot_contact(
             Activity::Fallen { .. } => (0.0, 0.0),
         }
     };
-    let s = noise.foot_sigma;
-    FootContact { left: (left + rng.gauss(s)).max(0.0), right: (right + rng.gauss(s)).max(0.0) }
+    (left, right)
 }
 
 #[cfg(test)]
@@ -112,9 +99,8 @@ mod tests {
         let noise = NoiseParams::preset(NoiseLevel::None);
         let mut rng = Stream::new(1, "imu");
         let mut body = Body::new(Pose::default());
-        let upright = inertial(&mut body, &noise.imu, &mut rng);
+        let (upright, _, feet) = sample(&mut body, false, &config, &noise.imu, &mut rng);
         assert_eq!(upright.accelerometer, [0.0, 0.0, GRAVITY]);
-        let feet = foot_contact(&body, false, &config, &noise.imu, &mut rng);
         assert!((feet.left + feet.right - config.mass).abs() < 1e-12);
 
         body.start_fall(FallDirection::Right);
@@ -122,19 +108,18 @@ mod tests {
         let mut previous_roll = 0.0;
         for step in 0..80 {
             let events = body.update(0.012, &config, &noise, &mut rng);
-            let sample = inertial(&mut body, &noise.imu, &mut rng);
-            assert!(sample.body_angles[0] >= previous_roll, "roll grows monotonically");
-            previous_roll = sample.body_angles[0];
+            let (inertial, _, _) = sample(&mut body, false, &config, &noise.imu, &mut rng);
+            assert!(inertial.body_angles[0] >= previous_roll, "roll grows monotonically");
+            previous_roll = inertial.body_angles[0];
             if events.landed.is_some() {
-                landed_sample = Some((step, sample));
+                landed_sample = Some((step, inertial));
             }
         }
         let (_, at_impact) = landed_sample.expect("the robot landed");
         let magnitude = at_impact.accelerometer.iter().map(|a| a * a).sum::<f64>().sqrt();
         assert!(magnitude > 1.5 * GRAVITY, "impact spike: {magnitude}");
-        let lying = inertial(&mut body, &noise.imu, &mut rng);
+        let (lying, _, feet) = sample(&mut body, false, &config, &noise.imu, &mut rng);
         assert!(lying.accelerometer[1] > 9.0, "lying on the right side: {:?}", lying);
-        let feet = foot_contact(&body, false, &config, &noise.imu, &mut rng);
         assert_eq!((feet.left, feet.right), (0.0, 0.0));
     }
 }

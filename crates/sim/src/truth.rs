@@ -49,8 +49,10 @@ pub struct RobotTruth {
     pub body: BodyMotionState,
     pub falling: bool,
     pub fallen: bool,
-    /// Onset of the current or most recent fall.
+    /// Onset, direction and cause of the current or most recent fall.
     pub fall_onset: Option<Time>,
+    pub fall_direction: Option<FallDirection>,
+    pub fall_cause: Option<FallCause>,
     pub penalty: Penalty,
     pub penalty_remaining: Option<f64>,
 }

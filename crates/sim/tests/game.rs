@@ -73,3 +73,47 @@ fn a_twenty_minute_game_of_fourteen_robots_is_deterministic() {
     let b = serde_json::to_string(&second).expect("serializable");
     assert!(a == b, "the same seed gave two different games");
 }
+
+/// Keeps what the simulator module publishes.
+struct Recorder {
+    input: strata_runtime::Input<GroundTruth>,
+    received: std::sync::Arc<std::sync::Mutex<Vec<GroundTruth>>>,
+}
+
+impl strata_runtime::Module for Recorder {
+    fn cycle(
+        &mut self,
+        ctx: &mut strata_runtime::Context<'_>,
+    ) -> Result<(), strata_runtime::ModuleError> {
+        let packages = ctx.drain(self.input);
+        let mut received = self.received.lock().map_err(|_| "poisoned")?;
+        received.extend(packages.into_iter().map(|p| p.value));
+        Ok(())
+    }
+}
+
+#[test]
+fn the_simulator_module_publishes_ground_truth_with_new_events() {
+    let sim = SimHandle::new(Simulation::new(SimConfig::default()).expect("valid"));
+    let mut graph = GraphBuilder::new();
+    let ports = add_simulator(&mut graph, sim.clone());
+    let received = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let sink = graph.add("recorder", |p| {
+        let input = p.input("truth", strata_runtime::Policy::queue(1000));
+        (Recorder { input, received: received.clone() }, input)
+    });
+    graph.connect(ports.ground_truth, sink);
+    let mut host =
+        LockstepHost::new(graph.build().expect("a valid graph"), HostConfig::with_seed(1));
+    host.run_for(Duration::from_secs(5)).expect("runs");
+    let received = received.lock().expect("not poisoned");
+    assert!((49..=51).contains(&received.len()), "10 Hz: {}", received.len());
+    let events: Vec<_> = received.iter().flat_map(|t| t.events.iter()).collect();
+    assert_eq!(events.len(), sim.lock().events().len(), "each event published once");
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e.kind, EventKind::GameState { state: GameState::Ready, .. }))
+    );
+    assert!(received.windows(2).all(|w| w[0].time < w[1].time));
+}

@@ -199,6 +199,7 @@ fn a_robot_that_disconnects_mid_game_is_removed_and_may_reconnect() {
     assert!(server.sim().lock().is_present(id));
     // The server stopping ends the robot's connection with an error it can read.
     server.stop().expect("stops cleanly");
-    until("the connection to close", || again.platform.closed());
+    let reason = until("the connection to close", || again.platform.closed());
+    assert!(reason.contains("ServerShutdown"), "{reason}");
     assert!(again.platform.read_motion(now()).is_err());
 }

@@ -282,3 +282,53 @@ fn line_features_and_crossings_are_reported_with_their_orientation() {
     let stem = t[0].orientation.expect("crossings have an orientation");
     assert!((stem.abs() - std::f64::consts::PI).abs() < 1e-12, "{stem}");
 }
+
+#[test]
+fn odometry_errors_have_the_configured_bias_and_deviation() {
+    // Exact legs, odometry with a 10 % forward bias and sigma_xy = 0.05 per sqrt(m).
+    let mut sim = quiet(|c| {
+        c.noise.odometry.scale_x = Some(0.1);
+        c.noise.odometry.sigma_xy = Some(0.05);
+    });
+    only(&mut sim, &[A1]);
+    let mut errors = Vec::new();
+    for run in 0..300 {
+        // Every run walks about 1 m straight ahead from the same place.
+        place(&mut sim, A1, -2.0, 0.0, 0.0);
+        walk(&mut sim, A1, 0.0, 0.0, 0.0);
+        steps(&mut sim, 1.0);
+        let _ = sim.read_motion(A1);
+        let start = sim.robot(A1).expect("a").pose;
+        walk(&mut sim, A1, 0.25, 0.0, 0.0);
+        steps(&mut sim, 4.3 + 0.001 * f64::from(run % 3));
+        walk(&mut sim, A1, 0.0, 0.0, 0.0);
+        steps(&mut sim, 1.5);
+        let odometry = sim.read_motion(A1).expect("motion").odometry;
+        let truth = start.odometry_to(&sim.robot(A1).expect("a").pose);
+        errors.push(((odometry.dx - 1.1 * truth.dx) / truth.dx.sqrt(), truth.dx));
+    }
+    let walked = errors.iter().map(|e| e.1).sum::<f64>() / errors.len() as f64;
+    assert!((0.8..1.2).contains(&walked), "walked {walked} m per run");
+    let (mean, std) = mean_std(&errors.iter().map(|e| e.0).collect::<Vec<_>>());
+    assert!(mean.abs() < 0.01, "random error mean {mean}");
+    assert!((std / 0.05 - 1.0).abs() < 0.12, "random error per sqrt(m) {std}, configured 0.05");
+}
+
+#[test]
+fn the_paper_field_has_beacons_and_coloured_goals() {
+    let mut sim = quiet(|c| c.field = "paper2010".to_owned());
+    only(&mut sim, &[A1]);
+    place(&mut sim, A1, 0.0, 0.0, std::f64::consts::FRAC_PI_2);
+    look(&mut sim, A1, 0.0, 0.0);
+    steps(&mut sim, 0.5);
+    let beacons = of(&one_image(&mut sim), ObjectKind::Beacon);
+    assert_eq!(beacons.len(), 1);
+    assert_eq!(beacons[0].variant, Some(0), "the left beacon (index 0)");
+    assert!((beacons[0].range - 2.4).abs() < 1e-12);
+    place(&mut sim, A1, 0.0, 0.0, 0.0);
+    steps(&mut sim, 0.1);
+    let posts = of(&one_image(&mut sim), ObjectKind::GoalPost);
+    assert_eq!(posts.len(), 2);
+    let yellow = strata_spl::field::Colour::Yellow.code();
+    assert!(posts.iter().all(|p| p.variant == Some(yellow)), "{posts:?}");
+}

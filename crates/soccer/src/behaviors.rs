@@ -237,14 +237,14 @@ fn gaze_candidates(ctx: &Ctx, world: &WorldState) -> Vec<(GazeCandidate, Vec<Str
     landmarks.sort_by(|a, b| a.position.range().total_cmp(&b.position.range()));
     for landmark in landmarks.iter().take(6) {
         if let Some(c) = GazeCandidate::toward(world, landmark.id, landmark.name.clone()) {
-            out.push((c, vec![landmark.name.clone()]));
+            out.push((c, vec![landmark.name.to_string()]));
         }
         if let Some(ball) = ball_id {
             let label = format!("{BALL}+{}", landmark.name);
             if let Some(c) =
                 GazeCandidate::covering(world, &[ball, landmark.id], ctx.config.fov * 0.8, label)
             {
-                out.push((c, vec![BALL.to_owned(), landmark.name.clone()]));
+                out.push((c, vec![BALL.to_owned(), landmark.name.to_string()]));
             }
         }
     }

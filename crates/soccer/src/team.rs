@@ -16,14 +16,15 @@ use strata_robot::control::reactive::{
 };
 use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::perception::PerceptionConfig;
-use strata_robot::platform::{ExternalLink, SharedPlatform, TeamLink, lock_platform};
+use strata_robot::platform::{ExternalLink, PlatformInfo, SharedPlatform, TeamLink, lock_platform};
+use strata_robot::world::WorldState;
 use strata_runtime::GraphBuilder;
 
 use crate::activation::{BodyActivation, HeadActivation, WholeBodyActivation};
 use crate::behaviors::{BehaviorConfig, SoccerBehavior};
 use crate::field::TeamField;
 use crate::game::GameControllerReferee;
-use crate::goals::WholeBodyGoal;
+use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
 use crate::planning::{SoccerCodec, SoccerPlanning, SoccerPlanningConfig};
 use crate::primitives::{
     AvoidCollision, Dive, Dribbling, Fall, GoToBall, GoToPosition, KickBall, LookAtTarget,
@@ -198,15 +199,14 @@ impl std::fmt::Debug for SoccerRobotSpec {
     }
 }
 
-/// Adds one soccer robot (all four modules, all three layers) to `graph`.
-pub fn add_soccer_robot(
-    graph: &mut GraphBuilder,
-    spec: SoccerRobotSpec,
+/// Soccer's reactive layer: the three multiplexers of Table 4 with their primitive behaviors,
+/// the fall and stand-up reflexes, and the fall detector.
+pub fn reactive_layer(
     config: &TeamConfig,
-) -> Result<RobotModules, String> {
-    let info = lock_platform(&spec.platform).info();
+    info: &PlatformInfo,
+    field: &Arc<TeamField>,
+) -> SoccerReactiveLayer {
     let model = Arc::new(config.motion.clone());
-    let field = Arc::clone(&spec.field);
     let mux = config.multiplexer.clone();
     let head = Multiplexer::new(
         ResourceGroup::Head,
@@ -215,7 +215,7 @@ pub fn add_soccer_robot(
     )
     .with_primitive(Box::new(SearchObjectEllipse::new(Arc::clone(&model))))
     .with_primitive(Box::new(ObjectTracking::new(Arc::clone(&model))))
-    .with_primitive(Box::new(LookAtTarget::new(Arc::clone(&model), Arc::clone(&field))));
+    .with_primitive(Box::new(LookAtTarget::new(Arc::clone(&model), Arc::clone(field))));
     let body = Multiplexer::new(
         ResourceGroup::Body,
         mux.clone(),
@@ -237,7 +237,7 @@ pub fn add_soccer_robot(
         Box::new(WholeBodyActivation {
             dive_horizon: 1.0,
             dive_reach: 0.8,
-            field: Arc::clone(&field),
+            field: Arc::clone(field),
         }),
     )
     .with_primitive(Box::new(Dribbling::new(Arc::clone(&model))))
@@ -245,7 +245,21 @@ pub fn add_soccer_robot(
     .with_primitive(Box::new(Fall))
     .with_primitive(Box::new(Dive))
     .with_reflexes(reflexes);
-    let reactive = ReactiveLayer::new(head, body, whole, config.fall_detector.clone());
+    ReactiveLayer::new(head, body, whole, config.fall_detector.clone())
+}
+
+/// The reactive layer type of a soccer robot.
+pub type SoccerReactiveLayer = ReactiveLayer<HeadGoal, BodyGoal, WholeBodyGoal, WorldState>;
+
+/// Adds one soccer robot (all four modules, all three layers) to `graph`.
+pub fn add_soccer_robot(
+    graph: &mut GraphBuilder,
+    spec: SoccerRobotSpec,
+    config: &TeamConfig,
+) -> Result<RobotModules, String> {
+    let info = lock_platform(&spec.platform).info();
+    let field = Arc::clone(&spec.field);
+    let reactive = reactive_layer(config, &info, &field);
     let vision = ActiveVisionConfig {
         fov: info.camera_fov,
         range: info.camera_range,

@@ -5,10 +5,14 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 mod demo;
+mod experiment_cmd;
 mod log_cmd;
 mod match_cmd;
 mod replay_cmd;
+mod robot_cmd;
+mod sim_cmd;
 mod spl_cmd;
+mod view_cmd;
 
 #[derive(Debug, Parser)]
 #[command(name = "strata", version, about = "A real-time hybrid control architecture for humanoid robots", long_about = None)]
@@ -28,9 +32,20 @@ enum Command {
     Log(log_cmd::LogCommand),
     /// Re-run modules of one robot from a log and compare their outputs with the logged ones.
     Replay(replay_cmd::ReplayArgs),
+    /// The web viewer on a log (or, without one, on a live match): field, robots, estimates,
+    /// behavior paths, score plots, timeline.
+    View(view_cmd::ViewArgs),
     /// SPL wire formats: decode captured packets, listen to a port.
     #[command(subcommand)]
     Spl(spl_cmd::SplCommand),
+    /// The simulator as a TCP server: the world in real time, one process per robot.
+    Server(sim_cmd::ServerArgs),
+    /// One robot in real time: the full soccer robot over the simulator server or a NAO, its
+    /// game state and teammates through the server or a real network (--net).
+    Robot(robot_cmd::RobotArgs),
+    /// The paper's experiments (section 4) against baselines: goal-covering, rates, fall,
+    /// team, or all. Writes a report with tables and plots, and the raw data.
+    Experiment(experiment_cmd::ExperimentArgs),
 }
 
 fn main() -> Result<()> {
@@ -40,6 +55,10 @@ fn main() -> Result<()> {
         Command::DemoRuntime(args) => demo::run(args),
         Command::Spl(cmd) => spl_cmd::run(cmd),
         Command::Log(cmd) => log_cmd::run(cmd),
-        Command::Replay(args) => replay_cmd::run(args, &strata_log::replay::ModuleRegistry::new()),
+        Command::Server(args) => sim_cmd::run_server(args),
+        Command::Robot(args) => robot_cmd::run(args),
+        Command::Experiment(args) => experiment_cmd::run(args),
+        Command::View(args) => view_cmd::run(args),
+        Command::Replay(args) => replay_cmd::run(args, &strata::replay_registry::soccer()),
     }
 }

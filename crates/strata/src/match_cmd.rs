@@ -1,9 +1,15 @@
 //! `strata match`: a complete simulated game.
 
-use anyhow::{Result, bail};
+use std::path::PathBuf;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, PoisonError};
+
+use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use strata::logging::{LogSettings, MatchLog, parse_robots};
 use strata::matches::{Match, MatchConfig, MatchReport};
+use strata::view::{LiveTap, ViewServer};
 use strata_sim::NoiseLevel;
 use strata_soccer::team::TeamConfig;
 
@@ -42,6 +48,38 @@ pub struct MatchArgs {
     /// Print the report as one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Record the match into this MCAP file: every package of the chosen robots, ground truth,
+    /// game state and behavior paths, with the configuration replay needs (docs/logging.md).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub log: Option<PathBuf>,
+    /// The robots whose packages are logged, e.g. `home/1,away/2` (default: all).
+    #[arg(long, value_name = "ROBOTS", requires = "log")]
+    pub log_robots: Option<String>,
+    /// World-state packages logged per second and robot (0: every one, needed to replay the
+    /// modules that read the world state, and the world model's own outputs).
+    #[arg(long, value_name = "HZ", default_value_t = 0.0, requires = "log")]
+    pub log_world_hz: f64,
+    /// Show the match live in the web viewer (prints its address; docs/viewer.md).
+    #[arg(long)]
+    pub view: bool,
+    /// The viewer's port on 127.0.0.1 (0: any free port).
+    #[arg(long, default_value_t = 8080, requires = "view")]
+    pub port: u16,
+    /// With --view: simulated seconds per real second (0: as fast as possible).
+    #[arg(long, default_value_t = 1.0, requires = "view")]
+    pub speed: f64,
+}
+
+impl MatchArgs {
+    /// Every option at its default.
+    pub fn defaults() -> MatchArgs {
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            args: MatchArgs,
+        }
+        <Defaults as clap::Parser>::parse_from(["strata"]).args
+    }
 }
 
 pub fn parse_noise(name: &str) -> Result<NoiseLevel> {
@@ -71,7 +109,32 @@ pub fn config(args: &MatchArgs) -> Result<MatchConfig> {
 
 pub fn run(args: MatchArgs) -> Result<()> {
     let config = config(&args)?;
-    let game = Match::new(config)?;
+    let mut game = Match::new(config)?;
+    let log = match &args.log {
+        Some(path) => {
+            let settings = LogSettings {
+                path: path.clone(),
+                robots: match &args.log_robots {
+                    Some(text) => parse_robots(text, args.players)?,
+                    None => Vec::new(),
+                },
+                world_state_hz: (args.log_world_hz > 0.0).then_some(args.log_world_hz),
+            };
+            Some(MatchLog::attach(&mut game, &settings)?)
+        }
+        None => None,
+    };
+    let viewer = if args.view {
+        let speed = (args.speed > 0.0 && !args.realtime).then_some(args.speed);
+        let (data, tap) = LiveTap::for_match(&game, speed);
+        game.add_tap(Arc::new(tap));
+        let server = ViewServer::start(Arc::clone(&data), args.port)
+            .with_context(|| format!("serving the viewer on 127.0.0.1:{}", args.port))?;
+        eprintln!("viewer: {}", server.url());
+        Some((data, server))
+    } else {
+        None
+    };
     let bar = if args.json { ProgressBar::hidden() } else { ProgressBar::new(1000) };
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg}")
@@ -82,10 +145,32 @@ pub fn run(args: MatchArgs) -> Result<()> {
         bar.set_message(score.to_owned());
     })?;
     bar.finish_and_clear();
+    // After the last simulated second or Ctrl-C: the lockstep loop stopped at the interrupt
+    // flag, so the log is closed properly either way.
+    if let Some(log) = &log {
+        let summary = log.finish()?;
+        eprintln!(
+            "log: {} ({} messages, {} dropped, {:.1} MB)",
+            log.path().display(),
+            summary.messages,
+            summary.dropped,
+            summary.bytes as f64 / 1e6
+        );
+    }
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
     } else {
         print_report(&report);
+    }
+    if let Some((data, server)) = viewer {
+        data.write().unwrap_or_else(PoisonError::into_inner).set_complete();
+        let interrupted = strata_runtime::signal::interrupt_flag()
+            .map_err(anyhow::Error::msg)?
+            .load(Ordering::Relaxed);
+        if !interrupted {
+            eprintln!("the match is over; the viewer stays at {} until Ctrl-C", server.url());
+            crate::view_cmd::wait_for_interrupt()?;
+        }
     }
     Ok(())
 }

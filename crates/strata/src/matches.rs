@@ -296,11 +296,14 @@ impl Match {
             let mut host = self.lockstep()?;
             let interrupt = strata_runtime::signal::interrupt_flag().map_err(anyhow::Error::msg)?;
             host.set_interrupt(interrupt.clone());
+            let end = Time::from_secs_f64(total);
             loop {
-                host.run_for(Duration::from_secs(1))?;
+                // The simulator's clock trails the host's by a frame: the host's decides when
+                // the limit is reached, so `--duration 4` is 4 s and not 5.
+                host.run_until(end.min(host.now() + Duration::from_secs(1)))?;
                 let (now, over) = self.observe(&mut sampler);
                 progress((now / total).min(1.0), &self.score_line());
-                if over || now >= total || host.interrupted() {
+                if over || host.now() >= end || host.interrupted() {
                     break;
                 }
             }

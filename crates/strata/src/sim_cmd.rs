@@ -59,7 +59,10 @@ pub fn run_server(args: ServerArgs) -> Result<()> {
     };
     let server = Server::bind(args.addr.as_str(), SimHandle::new(simulation), options)?;
     let addr = server.local_addr();
-    println!("strata server listening on {addr}: {field}, teams {} and {}, {players} players each, seed {seed}", teams[0], teams[1]);
+    println!(
+        "strata server listening on {addr}: {field}, teams {} and {}, {players} players each, seed {seed}",
+        teams[0], teams[1]
+    );
     println!(
         "connect robots with: strata robot --server {addr} --team {} --player 1   (Ctrl-C stops)",
         teams[0]

@@ -312,6 +312,7 @@ impl ActiveVision {
                         .observations
                         .iter()
                         .filter_map(|o| world.get(o.object).map(|e| e.name.clone()))
+                        .map(String::from)
                         .collect(),
                     value_variance: variance,
                     expected_value: expected,

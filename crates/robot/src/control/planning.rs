@@ -312,6 +312,9 @@ pub struct Planner<P: PlanningPolicy> {
     assignment: Assignment<P::Mission, P::Role>,
     own: Option<OwnState>,
     own_utility: f64,
+    /// This robot was out (fallen, penalized) since its last assignment: its old role is no
+    /// claim any more (teammates have taken it over meanwhile).
+    relinquished: bool,
     last_sent: Option<Time>,
     /// Token bucket of the message budget: refilled at the sustainable rate.
     tokens: f64,
@@ -352,6 +355,7 @@ impl<P: PlanningPolicy> Planner<P> {
             assignment,
             own: None,
             own_utility: 0.0,
+            relinquished: false,
             last_sent: None,
             tokens: 0.0,
             last_refill: None,
@@ -454,15 +458,19 @@ impl<P: PlanningPolicy> Planner<P> {
             self.teammates.values().filter(|r| r.unavailable.is_none()).collect();
         let catalog = self.policy.catalog();
         let alone = available.is_empty();
-        let (mission, role, utility) = if own.penalized || own.status != StandingStatus::Stable {
+        let out = own.penalized || own.status != StandingStatus::Stable;
+        if out {
+            self.relinquished = true;
+        }
+        let (mission, role, utility) = if out {
             // An unavailable robot keeps its assignment; teammates free its role.
             (self.assignment.mission, self.assignment.role, 0.0)
+        } else if let Some((mission, role)) = self.designated_role(own.id) {
+            // A designated robot (the goalkeeper) has its role's own mission, whatever the
+            // field players' mission is.
+            (mission, role, 1.0)
         } else if alone {
-            let designated = self.designated_role(own.id);
-            match designated {
-                Some((mission, role)) => (mission, role, 1.0),
-                None => (catalog.default_mission, catalog.default_role, 0.0),
-            }
+            (catalog.default_mission, catalog.default_role, 0.0)
         } else {
             let mission = self.policy.select_mission(&own, &available);
             let (role, utility) = self.assign_role(mission, &own, &available);
@@ -478,6 +486,10 @@ impl<P: PlanningPolicy> Planner<P> {
             self.stats.conflicts_detected += 1;
             self.conflict_pending = true;
             self.instant_pending = true;
+        }
+        if !out {
+            // Back in: the role just computed, without the old claim, is the claim from now on.
+            self.relinquished = false;
         }
         let next = Assignment { mission, role, alone };
         if next != self.assignment {
@@ -506,16 +518,15 @@ impl<P: PlanningPolicy> Planner<P> {
         available: &[&TeammateRecord<P::Mission, P::Role>],
     ) -> (P::Role, f64) {
         let catalog = self.policy.catalog();
-        if let Some((designated_mission, role)) = self.designated_role(own.id) {
-            return (role, if designated_mission == mission { 1.0 } else { 0.5 });
-        }
         let Some(spec) = catalog.mission(mission) else {
             return (catalog.default_role, 0.0);
         };
         let mut candidates: Vec<Candidate<'_>> =
             vec![Candidate { id: own.id, pose: own.pose, objects: &own.objects }];
-        // The role each candidate holds now: ours, and what each teammate last claimed.
-        let mut holding: Vec<P::Role> = vec![self.assignment.role];
+        // The role each candidate holds now: ours (unless we were out meanwhile), and what each
+        // teammate last claimed.
+        let mut holding: Vec<Option<P::Role>> =
+            vec![(!self.relinquished).then_some(self.assignment.role)];
         for r in available {
             // Robots bound to a designated role (the goalkeeper) are not candidates for others.
             if self.designated_role(r.message.sender).is_none() {
@@ -524,7 +535,7 @@ impl<P: PlanningPolicy> Planner<P> {
                     pose: r.message.pose,
                     objects: &r.message.objects,
                 });
-                holding.push(r.message.role);
+                holding.push(Some(r.message.role));
             }
         }
         let mut unassigned: Vec<usize> = (0..candidates.len()).collect();
@@ -534,7 +545,7 @@ impl<P: PlanningPolicy> Planner<P> {
                 .iter()
                 .map(|&i| {
                     let utility = self.policy.role_utility(&candidates[i], role_spec.role, mission);
-                    let bonus = if holding[i] == role_spec.role {
+                    let bonus = if holding[i] == Some(role_spec.role) {
                         self.config.role_hysteresis
                     } else {
                         0.0

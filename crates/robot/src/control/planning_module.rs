@@ -182,7 +182,7 @@ where
                     // from how long ago it was seen (MAMC), not from its absence.
                     .filter(|o| o.last_seen.is_some() && o.category != ObjectCategory::Landmark)
                     .map(|o| SharedObject {
-                        name: o.name.clone(),
+                        name: o.name.to_string(),
                         position: o.field_position,
                         sigma: o.field_covariance.trace().max(0.0).sqrt(),
                         confidence: o.confidence,

@@ -226,8 +226,10 @@ pub trait ActivationPolicy<G, W>: Send {
 /// One goal as the activation function scored it this cycle.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GoalReport {
-    pub goal: String,
-    pub objects: Vec<String>,
+    /// Shared with the multiplexer's cache: reports are made every cycle and must not copy
+    /// strings they already have.
+    pub goal: std::sync::Arc<str>,
+    pub objects: std::sync::Arc<[String]>,
     /// S_d
     pub deliberative: f64,
     /// S_r
@@ -243,8 +245,8 @@ pub struct GoalReport {
 pub struct MuxReport {
     pub group: Option<ResourceGroup>,
     pub goals: Vec<GoalReport>,
-    pub selected_goal: Option<String>,
-    pub primitive: Option<String>,
+    pub selected_goal: Option<std::sync::Arc<str>>,
+    pub primitive: Option<std::borrow::Cow<'static, str>>,
     /// The multiplexer whose selection inhibited this one.
     pub inhibited_by: Option<ResourceGroup>,
     /// When the score vector in use was received.
@@ -278,6 +280,7 @@ pub struct Selection<G> {
     pub goal: GoalScore<G>,
     pub final_score: f64,
     primitive: usize,
+    label: std::sync::Arc<str>,
 }
 
 /// Manages one resource group: holds the deliberative score vector, runs the activation
@@ -291,6 +294,9 @@ pub struct Multiplexer<G, Cmd, W> {
     /// Goals the reactive layer always offers this multiplexer (reflexes such as the fall
     /// goal): they must not wait for a slow deliberative layer.
     reflexes: ScoreVector<G>,
+    /// Labels of the reflexes and offered goals, made once per score vector rather than every
+    /// cycle (a reactive cycle must not format strings it already has).
+    labels: Vec<(std::sync::Arc<str>, std::sync::Arc<[String]>)>,
     deactivated: BTreeSet<String>,
     active: Option<Active<G>>,
     report: MuxReport,
@@ -319,6 +325,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
             primitives: Vec::new(),
             scores: ScoreVector::default(),
             reflexes: ScoreVector::default(),
+            labels: Vec::new(),
             deactivated: BTreeSet::new(),
             active: None,
             report: MuxReport { group: Some(group), ..MuxReport::default() },
@@ -334,7 +341,20 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
 
     pub fn with_reflexes(mut self, reflexes: ScoreVector<G>) -> Self {
         self.reflexes = reflexes;
+        self.relabel();
         self
+    }
+
+    fn relabel(&mut self) {
+        self.labels = self
+            .reflexes
+            .goals
+            .iter()
+            .chain(&self.scores.goals)
+            .map(|g| {
+                (std::sync::Arc::from(g.goal.label()), std::sync::Arc::from(g.objects.as_slice()))
+            })
+            .collect();
     }
 
     pub fn group(&self) -> ResourceGroup {
@@ -356,6 +376,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         self.scores = scores;
         self.deactivated = deactivated.clone();
         self.report.scores_received = Some(received);
+        self.relabel();
     }
 
     pub fn scores(&self) -> &ScoreVector<G> {
@@ -367,7 +388,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         self.report.goals.clear();
         let mut best: Option<(Selection<G>, f64)> = None;
         let offered = self.reflexes.goals.iter().chain(self.scores.goals.iter());
-        for offered_goal in offered {
+        for (offered_index, offered_goal) in offered.enumerate() {
             for goal in self.policy.split(offered_goal, input) {
                 let reactive = self.policy.reactive_score(&goal, input).clamp(0.0, 1.0);
                 let final_score = self.config.combination.combine(goal.deliberative, reactive);
@@ -377,9 +398,18 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                     .into_iter()
                     .filter(|name| !self.deactivated.contains(*name))
                     .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
+                let (label, objects) = match self.labels.get(offered_index) {
+                    Some((label, objects)) if goal.goal == offered_goal.goal => {
+                        (label.clone(), objects.clone())
+                    }
+                    _ => (
+                        std::sync::Arc::from(goal.goal.label()),
+                        std::sync::Arc::from(goal.objects.as_slice()),
+                    ),
+                };
                 self.report.goals.push(GoalReport {
-                    goal: goal.goal.label(),
-                    objects: goal.objects.clone(),
+                    goal: label.clone(),
+                    objects,
                     deliberative: goal.deliberative,
                     reactive,
                     final_score,
@@ -393,7 +423,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                 };
                 let ranked = final_score + bonus;
                 if best.as_ref().is_none_or(|(_, b)| ranked > *b) {
-                    best = Some((Selection { goal, final_score, primitive }, ranked));
+                    best = Some((Selection { goal, final_score, primitive, label }, ranked));
                 }
             }
         }
@@ -420,8 +450,8 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                 Some(Active { goal: selection.goal.goal.clone(), primitive: selection.primitive });
         }
         let primitive = &mut self.primitives[selection.primitive];
-        self.report.selected_goal = Some(selection.goal.goal.label());
-        self.report.primitive = Some(primitive.name().to_owned());
+        self.report.selected_goal = Some(selection.label.clone());
+        self.report.primitive = Some(std::borrow::Cow::Borrowed(primitive.name()));
         self.report.inhibited_by = None;
         primitive.step(&selection.goal.goal, input)
     }
@@ -438,6 +468,16 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
 
     pub fn report(&self) -> &MuxReport {
         &self.report
+    }
+
+    /// The cycle's report, moved out (the next evaluation builds a new one).
+    fn take_report(&mut self) -> MuxReport {
+        let fresh = MuxReport {
+            group: Some(self.group),
+            scores_received: self.report.scores_received,
+            ..MuxReport::default()
+        };
+        std::mem::replace(&mut self.report, fresh)
     }
 }
 
@@ -564,9 +604,9 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
         ReactiveReport {
             stamp: percepts.stamp,
             stability,
-            head: self.head.report().clone(),
-            body: self.body.report().clone(),
-            whole_body: self.whole_body.report().clone(),
+            head: self.head.take_report(),
+            body: self.body.take_report(),
+            whole_body: self.whole_body.take_report(),
             commands,
         }
     }

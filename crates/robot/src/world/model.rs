@@ -22,7 +22,7 @@ use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
 use super::pose::PoseFilter;
 use super::recovery::{MapInstance, RecoveryInput, RecoveryOutcome, Sighting, TeamCue, recover};
 use super::state::{
-    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, PoseEstimate,
+    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectName, PoseEstimate,
     WorldDiagnostics, WorldState,
 };
 use super::team::{
@@ -58,7 +58,7 @@ const MIN_VISIBLE_RANGE: f64 = 0.2;
 
 #[derive(Clone, Debug)]
 struct Group {
-    name: String,
+    name: ObjectName,
     class: ObjectClass,
     variant: Option<u16>,
     category: ObjectCategory,
@@ -86,7 +86,7 @@ struct Pending {
 
 #[derive(Clone, Debug)]
 struct Slot {
-    name: String,
+    name: ObjectName,
     group: usize,
     map_position: Option<Point<Field>>,
     track: Option<Track>,
@@ -207,7 +207,12 @@ impl WorldModel {
                         } else {
                             format!("{}#{k}", o.name)
                         };
-                        slots.push(Slot { name, group: g, map_position: Some(*p), track: None });
+                        slots.push(Slot {
+                            name: name.into(),
+                            group: g,
+                            map_position: Some(*p),
+                            track: None,
+                        });
                     }
                     (
                         ObjectCategory::Landmark,
@@ -219,7 +224,7 @@ impl WorldModel {
                 }
                 ObjectKind::Mobile { friction, acceleration_noise, max_speed } => {
                     slots.push(Slot {
-                        name: o.name.clone(),
+                        name: o.name.as_str().into(),
                         group: g,
                         map_position: None,
                         track: None,
@@ -243,7 +248,7 @@ impl WorldModel {
                 } => {
                     for k in 0..*max_tracks {
                         slots.push(Slot {
-                            name: format!("{}#{k}", o.name),
+                            name: format!("{}#{k}", o.name).into(),
                             group: g,
                             map_position: None,
                             track: None,
@@ -262,7 +267,7 @@ impl WorldModel {
                 }
             };
             groups.push(Group {
-                name: o.name.clone(),
+                name: o.name.as_str().into(),
                 class: o.class,
                 variant: o.variant,
                 category,
@@ -422,6 +427,12 @@ impl WorldModel {
             Some(camera) => self.update(camera),
             None => self.finish_frame(false),
         }
+    }
+
+    /// A frame without an image that the caller does not run the filters for (its odometry is
+    /// merged into the next one): only the lift detector needs every frame.
+    pub fn note_frame_without_image(&mut self, percepts: &Percepts) {
+        self.check_lift(&percepts.foot_contact);
     }
 
     fn check_lift(&mut self, contact: &FootContact) {
@@ -1203,7 +1214,7 @@ impl WorldModel {
                 lost_reason: self.lost,
                 last_correction: self.last_pose_correction,
             },
-            objects,
+            objects: objects.into(),
             map_accuracy,
             odometry_error: self.odometry_error.estimate(),
             team: self.team_objects.clone(),

@@ -32,11 +32,19 @@ pub struct WorldPorts {
     pub world_state: Output<WorldState>,
 }
 
+/// Between camera images only odometry changes the estimates, so the world state is published
+/// when an image was processed, or at least this often (readers still see the robot's own
+/// motion between images).
+pub const MIN_PUBLISH_PERIOD: std::time::Duration = std::time::Duration::from_millis(50);
+
 /// Runs a [`WorldModel`] on the module's inputs.
 #[derive(Debug)]
 pub struct WorldModule {
     model: WorldModel,
     ports: WorldPorts,
+    last_published: Option<strata_runtime::Time>,
+    /// Odometry of frames whose filtering was deferred to the next image or publication.
+    pending_odometry: Odometry,
 }
 
 impl WorldModule {
@@ -60,18 +68,29 @@ impl Module for WorldModule {
         // Merged odometry covers the motion up to the newest percepts: it is applied before
         // the first of them (odometry packages carry no finer timing after merging).
         let mut odometry = ctx.take(self.ports.odometry).map_or(Odometry::ZERO, |p| p.value);
-        let mut stamp = None;
+        // Between images only odometry moves the estimates: frames without one are folded into
+        // the next image or publication instead of running every filter at the sensor rate.
+        let mut published = None;
         while let Some(package) = ctx.take(self.ports.percepts) {
-            self.model.process(odometry, &package.value);
+            let frame = &package.value;
+            self.pending_odometry = self.pending_odometry.then(odometry);
             odometry = Odometry::ZERO;
-            stamp = Some(package.stamp);
-        }
-        match stamp {
-            Some(stamp) => {
-                let state = self.model.state();
-                ctx.send_stamped(self.ports.world_state, state, stamp);
+            let due = self.last_published.is_none_or(|t| package.stamp - t >= MIN_PUBLISH_PERIOD);
+            if frame.camera.is_some() || due {
+                let motion = std::mem::replace(&mut self.pending_odometry, Odometry::ZERO);
+                self.model.process(motion, frame);
+                published = Some(package.stamp);
+            } else {
+                self.model.note_frame_without_image(frame);
             }
-            None => self.model.predict(odometry),
+        }
+        if odometry != Odometry::ZERO {
+            self.pending_odometry = self.pending_odometry.then(odometry);
+        }
+        if let Some(stamp) = published {
+            self.last_published = Some(stamp);
+            let state = self.model.state();
+            ctx.send_stamped(self.ports.world_state, state, stamp);
         }
         Ok(())
     }
@@ -92,6 +111,9 @@ pub fn add_world_module(
         let world_state = p.output("world_state");
         p.trigger(Trigger::on_any([percepts.into()]));
         let ports = WorldPorts { percepts, odometry, team, commands, world_state };
-        (WorldModule { model, ports }, ports)
+        (
+            WorldModule { model, ports, last_published: None, pending_odometry: Odometry::ZERO },
+            ports,
+        )
     }))
 }

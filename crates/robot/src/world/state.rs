@@ -31,14 +31,104 @@ pub enum ObjectCategory {
     Obstacle,
 }
 
+/// The name of an object of interest: shared, never copied. A world state is published tens
+/// of times a second with every object's name; sharing them keeps that free of allocations.
+/// Compares with `&str` and `String` like a string does.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct ObjectName(std::sync::Arc<str>);
+
+impl ObjectName {
+    pub fn new(name: &str) -> ObjectName {
+        ObjectName(std::sync::Arc::from(name))
+    }
+
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+impl std::ops::Deref for ObjectName {
+    type Target = str;
+    fn deref(&self) -> &str {
+        &self.0
+    }
+}
+
+impl std::fmt::Display for ObjectName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::borrow::Borrow<str> for ObjectName {
+    fn borrow(&self) -> &str {
+        &self.0
+    }
+}
+
+impl From<&str> for ObjectName {
+    fn from(name: &str) -> ObjectName {
+        ObjectName::new(name)
+    }
+}
+
+impl From<String> for ObjectName {
+    fn from(name: String) -> ObjectName {
+        ObjectName(std::sync::Arc::from(name))
+    }
+}
+
+impl From<ObjectName> for String {
+    fn from(name: ObjectName) -> String {
+        name.0.to_string()
+    }
+}
+
+impl PartialEq<str> for ObjectName {
+    fn eq(&self, other: &str) -> bool {
+        &*self.0 == other
+    }
+}
+
+impl PartialEq<&str> for ObjectName {
+    fn eq(&self, other: &&str) -> bool {
+        &*self.0 == *other
+    }
+}
+
+impl PartialEq<String> for ObjectName {
+    fn eq(&self, other: &String) -> bool {
+        &*self.0 == other.as_str()
+    }
+}
+
+impl PartialEq<ObjectName> for str {
+    fn eq(&self, other: &ObjectName) -> bool {
+        self == &*other.0
+    }
+}
+
+impl PartialEq<ObjectName> for &str {
+    fn eq(&self, other: &ObjectName) -> bool {
+        *self == &*other.0
+    }
+}
+
+impl PartialEq<ObjectName> for String {
+    fn eq(&self, other: &ObjectName) -> bool {
+        self.as_str() == &*other.0
+    }
+}
+
 /// The estimate of one object of interest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectEstimate {
     pub id: ObjectId,
     /// The object of interest's name; `name#k` for landmark instances and obstacle tracks.
-    pub name: String,
+    pub name: ObjectName,
     /// The object of interest's name without the instance suffix.
-    pub group: String,
+    pub group: ObjectName,
     pub class: ObjectClass,
     pub variant: Option<u16>,
     pub category: ObjectCategory,
@@ -155,7 +245,8 @@ pub struct WorldState {
     pub stamp: Time,
     pub pose: PoseEstimate,
     /// Indexed by [`ObjectId`].
-    pub objects: Vec<ObjectEstimate>,
+    /// Shared: every reader of a world state gets the same list, not a copy of it.
+    pub objects: std::sync::Arc<[ObjectEstimate]>,
     pub map_accuracy: Option<MapAccuracy>,
     pub odometry_error: OdometryErrorEstimate,
     /// Mobile objects fused with the teammates' estimates (MAWM).

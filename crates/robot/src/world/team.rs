@@ -103,7 +103,7 @@ impl TeammateEstimate {
 pub struct TeamObject {
     /// The object filter of this robot it corresponds to.
     pub id: ObjectId,
-    pub name: String,
+    pub name: super::state::ObjectName,
     pub class: ObjectClass,
     pub position: Point<Field>,
     pub velocity: Option<Vector<Field>>,

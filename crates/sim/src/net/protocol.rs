@@ -124,8 +124,6 @@ pub enum ErrorCode {
     SlotTaken,
     /// A message that is not valid at this point (orders before `hello`, a second `hello`).
     UnexpectedMessage,
-    /// Orders the robot cannot execute (a motion not in its catalogue).
-    InvalidOrder,
     /// No `hello` in time.
     HandshakeTimeout,
     /// The server is stopping.

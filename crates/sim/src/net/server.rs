@@ -217,10 +217,9 @@ impl Server {
         let shared = Arc::clone(&self.shared);
         let accept_shared = Arc::clone(&shared);
         let listener = self.listener;
-        let accept_stop = Arc::clone(&stop);
         let acceptor = std::thread::Builder::new()
             .name("sim-accept".to_owned())
-            .spawn(move || accept_loop(listener, accept_shared, accept_stop))
+            .spawn(move || accept_loop(listener, accept_shared))
             .map_err(ServerError::Spawn)?;
 
         let tick = shared.options.tick.unwrap_or_else(|| {
@@ -260,19 +259,16 @@ impl Server {
                 on_status(&status);
             }
         }
-        shared.stop.store(true, Ordering::Relaxed);
-        let _ = acceptor.join();
-        // Tell every client, then close every connection; connection threads end on their own.
-        let registry = shared.registry();
-        for client in registry.clients.iter().flatten() {
+        // Tell every client first; only then does the acceptor stop and close every
+        // connection, and each connection's writer sends what is queued before it ends.
+        for client in shared.registry().clients.iter().flatten() {
             let _ = client.sender.try_send(Outgoing::Close(ServerMessage::Error {
                 code: ErrorCode::ServerShutdown,
                 message: "the simulator server is stopping".to_owned(),
             }));
         }
-        for (_, stream) in &registry.streams {
-            let _ = stream.shutdown(Shutdown::Read);
-        }
+        shared.stop.store(true, Ordering::Relaxed);
+        let _ = acceptor.join();
         Ok(())
     }
 
@@ -391,9 +387,9 @@ fn step_and_collect(
     }
 }
 
-fn accept_loop(listener: TcpListener, shared: Arc<Shared>, stop: Arc<AtomicBool>) {
+fn accept_loop(listener: TcpListener, shared: Arc<Shared>) {
     let mut threads: Vec<JoinHandle<()>> = Vec::new();
-    while !stop.load(Ordering::Relaxed) && !shared.stop.load(Ordering::Relaxed) {
+    while !shared.stop.load(Ordering::Relaxed) {
         match listener.accept() {
             Ok((stream, peer)) => {
                 let connection = shared.next_connection.fetch_add(1, Ordering::Relaxed);
@@ -590,8 +586,10 @@ fn read_loop(reader: &mut TcpStream, shared: &Shared, robot: RobotId) -> Option<
         }
         match message {
             ClientMessage::Orders { orders } => {
-                if let Err(e) = shared.sim.lock().apply_orders(robot, &orders) {
-                    return Some(error(ErrorCode::InvalidOrder, e.to_string()));
+                // A sequence the body cannot start in its state (a kick while lying) is refused
+                // by the motion engine; over the network that is not an error of the protocol.
+                if let Err(refusal) = shared.sim.lock().apply_orders(robot, &orders) {
+                    tracing::debug!(%robot, %refusal, "order refused");
                 }
             }
             ClientMessage::TeamMessage { payload } => {

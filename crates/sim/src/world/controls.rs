@@ -28,6 +28,8 @@ impl Simulation {
             falling: body.is_falling(),
             fallen: body.is_fallen(),
             fall_onset: robot.last_fall.map(|f| f.onset),
+            fall_direction: robot.last_fall.map(|f| f.direction),
+            fall_cause: robot.last_fall.map(|f| f.cause),
             penalty: robot.penalty,
             penalty_remaining: robot.penalty_remaining,
         }

@@ -84,11 +84,7 @@ impl Simulation {
                     "non-finite walk velocity {velocity:?}"
                 )));
             }
-            if !r.body.order_body(body, config) {
-                return Err(PlatformError::Unsupported(format!(
-                    "{body:?} is not in the motion catalogue"
-                )));
-            }
+            r.body.order_body(body, config).map_err(PlatformError::Unsupported)?;
         }
         Ok(())
     }

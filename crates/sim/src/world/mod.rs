@@ -20,7 +20,7 @@ use strata_spl::Field;
 use strata_spl::gamecontroller::{GameControlData, GameState, Penalty, ReturnData, RobotInfo};
 
 use crate::body::{Body, FallCause, FallRecord, push_direction};
-use crate::camera::{Camera, RobotMark, Scene, Scratch, Viewer};
+use crate::camera::{Camera, RobotMark, Scene, Scratch, Viewer, ground_band};
 use crate::comms::Broadcast;
 use crate::config::{ConfigError, DiveSide, SimConfig};
 use crate::noise::NoiseParams;
@@ -77,6 +77,8 @@ struct RobotSlot {
     last_fall: Option<FallRecord>,
     last_return: Option<ReturnData>,
     jersey: u16,
+    /// The camera's ground band and the head pitch it was computed for.
+    band: (f64, (f64, f64)),
 }
 
 impl RobotSlot {
@@ -111,7 +113,8 @@ pub struct Simulation {
     next_packet: Time,
     comms_rng: Stream,
     previous_contacts: Vec<(usize, usize)>,
-    scratch: Buffers,
+    /// Taken out while a step uses it (a pointer's move, not the buffers').
+    scratch: Option<Box<Buffers>>,
 }
 
 /// Reused per-step buffers (the steady state allocates nothing).
@@ -186,6 +189,7 @@ impl Simulation {
                     last_fall: None,
                     last_return: None,
                     jersey: u16::from(u8::from(jersey)),
+                    band: (f64::NAN, (0.0, 0.0)),
                 });
             }
         }
@@ -219,7 +223,7 @@ impl Simulation {
             next_packet: Time::ZERO,
             comms_rng: Stream::new(seed, "comms"),
             previous_contacts: Vec::new(),
-            scratch: Buffers::default(),
+            scratch: Some(Box::default()),
             field,
             config,
         };
@@ -351,7 +355,7 @@ impl Simulation {
 
     fn physics(&mut self, h: f64) {
         let radius = self.config.robot.radius;
-        let mut scratch = std::mem::take(&mut self.scratch);
+        let mut scratch = self.scratch.take().unwrap_or_default();
 
         // Bodies.
         let n = self.robots.len();
@@ -471,11 +475,11 @@ impl Simulation {
         scratch.decisions.clear();
         self.referee.update(h, &view, &mut scratch.decisions);
         let decisions = std::mem::take(&mut scratch.decisions);
-        self.scratch = scratch;
         for decision in &decisions {
             self.carry_out(decision);
         }
-        self.scratch.decisions = decisions;
+        scratch.decisions = decisions;
+        self.scratch = Some(scratch);
     }
 
     fn record_fall(&mut self, slot: usize, direction: FallDirection, cause: FallCause) {
@@ -617,10 +621,8 @@ impl Simulation {
             }
             let lifted = robot.penalty != Penalty::None;
             let imu = &self.noise.imu;
-            let inertial = sensors::inertial(&mut robot.body, imu, &mut robot.imu_rng);
-            let head = sensors::encoders(&robot.body, imu, &mut robot.imu_rng);
-            let foot_contact = sensors::foot_contact(
-                &robot.body,
+            let (inertial, head, foot_contact) = sensors::sample(
+                &mut robot.body,
                 lifted,
                 &self.config.robot,
                 imu,
@@ -641,7 +643,7 @@ impl Simulation {
 
     fn take_images(&mut self) {
         let now = self.time;
-        let mut scratch = std::mem::take(&mut self.scratch);
+        let mut scratch = self.scratch.take().unwrap_or_default();
         scratch.marks.clear();
         for robot in &self.robots {
             scratch.marks.push(robot.active().then(|| RobotMark {
@@ -656,6 +658,10 @@ impl Simulation {
                 continue;
             }
             let body = &robot.body;
+            if robot.band.0 != body.head.pitch {
+                let band = ground_band(&self.config.robot.camera, body.head.pitch);
+                robot.band = (body.head.pitch, band);
+            }
             let viewer = Viewer {
                 pose: body.pose,
                 axis: {
@@ -668,6 +674,7 @@ impl Simulation {
                 head_rate: body.head_rate,
                 index: Some(index),
                 blind: body.is_down() || robot.penalty != Penalty::None,
+                band: robot.band.1,
             };
             // Reuse the allocation of an image nobody read.
             let mut detections = match robot.outbox.camera.take() {
@@ -687,14 +694,15 @@ impl Simulation {
             robot.outbox.camera =
                 Some(CameraFrame { stamp: now, head: robot.encoders, detections });
         }
-        self.scratch = scratch;
+        self.scratch = Some(scratch);
     }
 
     // ---------------------------------------------------------------------------------------
     // Communication.
 
     fn deliver_team_messages(&mut self) {
-        let mut deliveries = std::mem::take(&mut self.scratch.deliveries);
+        let mut scratch = self.scratch.take().unwrap_or_default();
+        let mut deliveries = std::mem::take(&mut scratch.deliveries);
         deliveries.clear();
         self.broadcast.due(self.time, &mut deliveries);
         for (to, at, bytes) in deliveries.drain(..) {
@@ -705,7 +713,8 @@ impl Simulation {
                 self.comms.delivered += 1;
             }
         }
-        self.scratch.deliveries = deliveries;
+        scratch.deliveries = deliveries;
+        self.scratch = Some(scratch);
     }
 
     /// The control packet the referee would send now (without sending it).

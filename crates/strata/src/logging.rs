@@ -1,0 +1,346 @@
+//! `--log FILE.mcap` for simulated matches (DESIGN principle 8): every package of the chosen
+//! robots, the simulator's ground truth, the game state and each layer's active behavior path,
+//! with the run's effective configuration and graph, so that `strata replay` can rebuild a
+//! module and `strata view` can show the match (`docs/logging.md`, `docs/viewer.md`).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
+
+use anyhow::{Context as _, Result, bail};
+use serde::{Deserialize, Serialize};
+use strata_log::{ConfigFormat, LogSummary, McapTap, McapTapOptions, RunInfo, WhenFull};
+use strata_robot::control::reactive::ReactiveReport;
+use strata_robot::platform::PlatformInfo;
+use strata_robot::world::WorldModelConfig;
+use strata_runtime::{ModuleId, Package, Tap, TapRecord, Time};
+use strata_sim::{GameTruth, GroundTruth, SimConfig};
+use strata_soccer::behaviors::{Decision, Output as DeliberativeOutput};
+use strata_soccer::field::TeamField;
+use strata_soccer::team::TeamConfig;
+use strata_soccer::world_config::world_config;
+use strata_spl::field::FieldDimensions;
+
+use crate::matches::{Match, robot_name};
+
+/// Topic of the game-state records (written when the game state changes).
+pub const GAME_STATE_TOPIC: &str = "game/state";
+/// Topic suffix of the behavior-path records: `home/3/behavior_path`.
+pub const BEHAVIOR_PATH_TOPIC: &str = "behavior_path";
+/// Output name of the world state, the one stream that may be decimated.
+const WORLD_STATE_OUTPUT: &str = "world_state";
+
+/// The effective configuration of a match, as stored in its log (`config.json`): what the
+/// replay registry rebuilds modules from and what `--set` overrides.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunConfig {
+    pub players: u8,
+    pub seed: u64,
+    pub half_duration: f64,
+    pub packet_loss: f64,
+    pub realtime: bool,
+    /// The teams' configurations, defaults filled in.
+    pub home: TeamConfig,
+    pub away: TeamConfig,
+    /// The world-model configuration each team's robots were built with (it derives from the
+    /// field and the side the team attacked at kick-off).
+    pub world: TeamWorldConfigs,
+    /// The simulator's configuration (field name, noise, timing, referee...).
+    pub sim: SimConfig,
+    /// The field the match was played on.
+    pub field: FieldDimensions,
+    /// What the robots' platform reported (camera field of view and range, head limits).
+    pub platform: PlatformInfo,
+    /// GameController team numbers, by team index.
+    pub team_numbers: [u8; 2],
+    /// +1 when the team attacked +x at kick-off, by team index.
+    pub attack_sign: [f64; 2],
+}
+
+/// One world-model configuration per team.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TeamWorldConfigs {
+    pub home: WorldModelConfig,
+    pub away: WorldModelConfig,
+}
+
+impl RunConfig {
+    /// The configuration `game` was built with.
+    pub fn of(game: &Match) -> RunConfig {
+        let sim = game.sim.lock();
+        let field = sim.field().clone();
+        let truth = sim.game();
+        let world =
+            |team: usize| world_config(&TeamField::new(field.clone(), truth.attack_sign[team]));
+        RunConfig {
+            players: game.config.players,
+            seed: game.config.seed,
+            half_duration: game.config.half_duration,
+            packet_loss: game.config.packet_loss,
+            realtime: game.config.realtime,
+            home: game.config.home.clone(),
+            away: game.config.away.clone(),
+            world: TeamWorldConfigs { home: world(0), away: world(1) },
+            sim: sim.config().clone(),
+            field: field.dimensions().clone(),
+            platform: sim.platform_info(),
+            team_numbers: truth.team_numbers,
+            attack_sign: truth.attack_sign,
+        }
+    }
+
+    /// `home` or `away`, from a robot name such as `home/3`.
+    pub fn team_of(robot: &str) -> Option<&'static str> {
+        match robot.split('/').next() {
+            Some("home") => Some("home"),
+            Some("away") => Some("away"),
+            _ => None,
+        }
+    }
+}
+
+/// What to log.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LogSettings {
+    pub path: PathBuf,
+    /// Robots to log (`home/1`, `away/2`); every robot when empty.
+    pub robots: Vec<String>,
+    /// World-state packages logged per second and robot; `None`: every package. The world state
+    /// is the one large stream (`docs/logging.md`, "Overhead").
+    pub world_state_hz: Option<f64>,
+}
+
+impl LogSettings {
+    /// Every package of every robot, nothing decimated.
+    pub fn full(path: impl Into<PathBuf>) -> LogSettings {
+        LogSettings { path: path.into(), robots: Vec::new(), world_state_hz: None }
+    }
+}
+
+/// Parses `home/1,away/2` (also `home/1 away/2`); checks each name.
+pub fn parse_robots(text: &str, players: u8) -> Result<Vec<String>> {
+    let mut robots = Vec::new();
+    for name in text.split([',', ' ']).map(str::trim).filter(|s| !s.is_empty()) {
+        let (team, player) = name
+            .split_once('/')
+            .with_context(|| format!("robot `{name}`: expected TEAM/PLAYER, e.g. home/3"))?;
+        if team != "home" && team != "away" {
+            bail!("robot `{name}`: the team is `home` or `away`");
+        }
+        let player: u8 =
+            player.parse().ok().filter(|p| (1..=players).contains(p)).with_context(|| {
+                format!("robot `{name}`: the player is a number from 1 to {players}")
+            })?;
+        robots.push(format!("{team}/{player}"));
+    }
+    if robots.is_empty() {
+        bail!("--log-robots names no robot (e.g. home/1,away/2)");
+    }
+    Ok(robots)
+}
+
+/// A match's log: an [`McapTap`] and the tap in front of it.
+pub struct MatchLog {
+    tap: Arc<McapTap>,
+    path: PathBuf,
+}
+
+impl std::fmt::Debug for MatchLog {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MatchLog").field("path", &self.path).finish_non_exhaustive()
+    }
+}
+
+impl MatchLog {
+    /// Creates the file, writes the run (seed, command line, effective configuration) and the
+    /// graph, and adds the logging tap to `game`. Call before the match is played.
+    pub fn attach(game: &mut Match, settings: &LogSettings) -> Result<MatchLog> {
+        let graph = game
+            .graph
+            .as_ref()
+            .context("the match's graph was already taken: attach the log before playing")?
+            .describe();
+        let mut modules: Vec<String> = settings.robots.iter().map(|r| format!("{r}/")).collect();
+        if !modules.is_empty() {
+            // Ground truth comes from the simulator module.
+            modules.push("simulator/".to_owned());
+        }
+        let options = McapTapOptions {
+            // The lockstep host runs in simulated time: waiting for the disk costs no deadline
+            // and gives the complete log replay needs. A real-time host must never wait.
+            when_full: if game.config.realtime { WhenFull::Drop } else { WhenFull::Wait },
+            modules,
+            ..McapTapOptions::default()
+        };
+        let tap = Arc::new(
+            McapTap::create(&settings.path, options)
+                .with_context(|| format!("creating the log {}", settings.path.display()))?,
+        );
+        let config = serde_json::to_string_pretty(&RunConfig::of(game))
+            .context("serializing the match configuration")?;
+        tap.write_run_info(
+            &RunInfo::current(game.config.seed).with_config(ConfigFormat::Json, config),
+        )?;
+        tap.write_graph("", &graph)?;
+        let robots: Vec<String> = game.robots.iter().map(|(id, _)| robot_name(*id)).collect();
+        let chosen =
+            |name: &str| settings.robots.is_empty() || settings.robots.iter().any(|r| r == name);
+        let filter = LogFilter {
+            tap: Arc::clone(&tap),
+            world_period: settings
+                .world_state_hz
+                .filter(|hz| hz.is_finite() && *hz > 0.0)
+                .map(|hz| Duration::from_secs_f64(1.0 / hz)),
+            last_world: Mutex::new(HashMap::new()),
+            last_game: Mutex::new(None),
+            paths: Mutex::new(
+                robots
+                    .iter()
+                    .filter(|r| chosen(r))
+                    .map(|r| (r.clone(), PathRecord::new(r)))
+                    .collect(),
+            ),
+        };
+        game.add_tap(Arc::new(filter));
+        Ok(MatchLog { tap, path: settings.path.clone() })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The tap, for application records.
+    pub fn tap(&self) -> &Arc<McapTap> {
+        &self.tap
+    }
+
+    /// Writes what is queued, the statistics, summary and footer. Also run when the last handle
+    /// is dropped; calling it again returns the same summary.
+    pub fn finish(&self) -> Result<LogSummary> {
+        self.tap.finish().with_context(|| format!("finishing the log {}", self.path.display()))
+    }
+}
+
+/// The newest active behavior path of each layer of one robot.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BehaviorPath {
+    /// `head+body: ... | head: observe ball > object tracking | body: ...`
+    pub reactive: String,
+    /// The deliberative layer's state and behavior-tree path.
+    pub deliberative: String,
+    /// Mission and role from the planning layer: `attacker/striker`.
+    pub planning: String,
+}
+
+struct PathRecord {
+    topic: String,
+    deliberative_module: String,
+    planning_module: String,
+    reactive_module: String,
+    /// The newest path of each layer, and the last one written.
+    path: BehaviorPath,
+    written: BehaviorPath,
+}
+
+impl PathRecord {
+    fn new(robot: &str) -> PathRecord {
+        PathRecord {
+            topic: format!("{robot}/{BEHAVIOR_PATH_TOPIC}"),
+            deliberative_module: format!("{robot}/deliberative"),
+            planning_module: format!("{robot}/planning"),
+            reactive_module: format!("{robot}/reactive"),
+            path: BehaviorPath::default(),
+            written: BehaviorPath::default(),
+        }
+    }
+}
+
+/// Passes packages to the log, decimating the world state if asked, and adds the records that
+/// are not packages: game-state changes and behavior-path changes (checked every reactive
+/// cycle).
+struct LogFilter {
+    tap: Arc<McapTap>,
+    world_period: Option<Duration>,
+    last_world: Mutex<HashMap<ModuleId, Time>>,
+    last_game: Mutex<Option<GameTruth>>,
+    /// By robot name.
+    paths: Mutex<Vec<(String, PathRecord)>>,
+}
+
+impl LogFilter {
+    fn keep_world_state(&self, record: &TapRecord<'_>) -> bool {
+        let Some(period) = self.world_period else { return true };
+        let mut last = self.last_world.lock().unwrap_or_else(PoisonError::into_inner);
+        match last.get(&record.module) {
+            Some(t) if record.time < *t + period => false,
+            _ => {
+                last.insert(record.module, record.time);
+                true
+            }
+        }
+    }
+
+    fn game_state(&self, record: &TapRecord<'_>) {
+        let Some(truth) = record.package.as_any().downcast_ref::<Package<GroundTruth>>() else {
+            return;
+        };
+        let game = &truth.value.game;
+        let mut last = self.last_game.lock().unwrap_or_else(PoisonError::into_inner);
+        // The clock runs down and the message budgets shrink all the time: a change of the
+        // game state is a change of anything else.
+        let changed = last.as_ref().is_none_or(|g| {
+            let mut g = g.clone();
+            g.secs_remaining = game.secs_remaining;
+            g.message_budget = game.message_budget;
+            g != *game
+        });
+        if changed {
+            self.tap.record_value(GAME_STATE_TOPIC, record.time, game);
+            *last = Some(game.clone());
+        }
+    }
+
+    fn behavior_path(&self, record: &TapRecord<'_>) {
+        let mut paths = self.paths.lock().unwrap_or_else(PoisonError::into_inner);
+        let Some((_, entry)) = paths.iter_mut().find(|(robot, _)| {
+            record.module_name.len() > robot.len() && record.module_name.starts_with(robot.as_str())
+        }) else {
+            return;
+        };
+        let any = record.package.as_any();
+        if record.module_name == entry.deliberative_module {
+            if let Some(p) = any.downcast_ref::<Package<DeliberativeOutput>>() {
+                entry.path.deliberative.clone_from(&p.value.behavior_path);
+            }
+        } else if record.module_name == entry.planning_module {
+            if let Some(p) = any.downcast_ref::<Package<Decision>>() {
+                let a = &p.value.assignment;
+                entry.path.planning = format!("{}/{}", a.mission.name(), a.role.name());
+            }
+        } else if record.module_name == entry.reactive_module
+            && let Some(p) = any.downcast_ref::<Package<ReactiveReport>>()
+        {
+            // Checked every reactive cycle, written when any layer's path changed: a path
+            // holds until the next record (the reactive report of every cycle has it too).
+            let reactive = p.value.active_path();
+            if reactive != entry.path.reactive || entry.written != entry.path {
+                entry.path.reactive = reactive;
+                self.tap.record_value(&entry.topic, record.time, &entry.path);
+                entry.written.clone_from(&entry.path);
+            }
+        }
+    }
+}
+
+impl Tap for LogFilter {
+    fn package(&self, record: &TapRecord<'_>) {
+        match record.output {
+            WORLD_STATE_OUTPUT if !self.keep_world_state(record) => return,
+            "ground_truth" => self.game_state(record),
+            "scores" | "decision" | "report" => self.behavior_path(record),
+            _ => {}
+        }
+        self.tap.package(record);
+    }
+}

@@ -1,0 +1,1045 @@
+//! `strata robot`: one robot, one process, in real time — the full soccer robot (perception,
+//! world modeling, actuation and the three layers of hybrid control) on the threaded host, over
+//! one of its platforms:
+//!
+//! - `--platform sim`: the simulator server over TCP (`strata server`). Sensors and orders go
+//!   through the server; so do team messages and the game state, unless `--net`.
+//! - `--platform nao`: a NAO v6 through LoLA. Team messages and the game state come from the
+//!   field's network (`--net` is implied).
+//!
+//! With `--net`, the GameController's control packets arrive on UDP (3838), return packets go
+//! back to it (3939), and team messages are UDP broadcasts (10000 + team): the protocols of a
+//! real SPL field, whatever provides the sensors. `docs/robot.md` has the commands.
+//!
+//! `--controller test` runs the simulator's trivial test controller instead of the soccer
+//! robot (simulator server only).
+
+use std::net::Ipv4Addr;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context as _, Result, bail};
+use clap::{Args, ValueEnum};
+use serde::Serialize;
+use strata::links::{self, Counted, LinkCounters, LinkStats, NetConfig, Prefetched};
+use strata::matches::LayerRate;
+use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
+use strata_robot::assembly::RobotModules;
+use strata_robot::platform::{
+    ActuatorOrders, ExternalLink, MotionFeedback, Platform, PlatformError, PlatformInfo,
+    ReceivedPacket, SensorFrame, SharedPlatform, TeamLink,
+};
+use strata_runtime::{
+    Clock, GraphBuilder, HostConfig, HostError, HostStats, MonotonicClock, Package, Tap, TapRecord,
+    ThreadedHost, Time,
+};
+use strata_soccer::behaviors::Decision;
+use strata_soccer::field::TeamField;
+use strata_soccer::game::GameDirective;
+use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
+use strata_spl::Field;
+use strata_spl::gamecontroller::GameControlData;
+
+use crate::sim_cmd;
+
+/// Which hardware the robot runs on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlatformKind {
+    /// The simulator server over TCP (`strata server`).
+    Sim,
+    /// A NAO v6 through LoLA.
+    Nao,
+}
+
+/// What drives the robot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ControllerKind {
+    /// The full architecture: four modules, three layers of hybrid control.
+    Soccer,
+    /// The simulator's trivial test controller (walk to the ball, kick, look around).
+    Test,
+}
+
+/// `strata robot`.
+#[derive(Debug, Args)]
+pub struct RobotArgs {
+    /// Team number, as in GameController packets (the simulator's default teams: 10 and 20).
+    #[arg(long)]
+    pub team: u8,
+    /// Player number (1 is the goalkeeper in the built-in formations).
+    #[arg(long)]
+    pub player: u8,
+    #[arg(long, value_enum, default_value = "sim")]
+    pub platform: PlatformKind,
+    #[arg(long, value_enum, default_value = "soccer")]
+    pub controller: ControllerKind,
+    /// A built-in team (full, no-coordination, no-active-vision, always-ball, fixed-scan,
+    /// entropy) or a team TOML file.
+    #[arg(long, default_value = "full")]
+    pub team_config: String,
+    /// The simulator server (platform sim) [default: 127.0.0.1:7500].
+    #[arg(long, value_name = "ADDR")]
+    pub server: Option<String>,
+    /// LoLA's socket (platform nao).
+    #[arg(long, value_name = "PATH", default_value = DEFAULT_SOCKET_PATH)]
+    pub socket: PathBuf,
+    /// LoLA platform configuration (TOML, docs/nao.md), platform nao.
+    #[arg(long, value_name = "FILE")]
+    pub lola_config: Option<PathBuf>,
+    /// Field preset (spl, paper2010) or field TOML file; must be the simulator's.
+    #[arg(long, default_value = "spl")]
+    pub field: String,
+    /// Length of a half, s (paces team messages within the budget).
+    #[arg(long, default_value_t = 600.0)]
+    pub half_duration: f64,
+    /// The field direction this team attacks, +1 or -1 [default: from the first GameController
+    /// packet — the team listed first attacks +x in the first half — or +1 without one].
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sign)]
+    pub attack_sign: Option<f64>,
+    /// Seconds to wait for a first GameController packet at start (to learn the attack
+    /// direction); 0 to start at once.
+    #[arg(long, value_name = "SECS", default_value_t = 2.0)]
+    pub gc_wait: f64,
+
+    /// Game state and team messages over UDP, as on a real field (implied on a NAO).
+    #[arg(long)]
+    pub net: bool,
+    /// The robot's field interface as ADDRESS/PREFIX (e.g. 10.0.18.15/16): team messages go to
+    /// its directed broadcast address instead of 255.255.255.255.
+    #[arg(long, value_name = "ADDR/PREFIX", conflicts_with = "broadcast")]
+    pub interface: Option<String>,
+    /// Where team messages are broadcast (127.255.255.255: several robots on one machine).
+    #[arg(long, value_name = "ADDR")]
+    pub broadcast: Option<Ipv4Addr>,
+    /// UDP port of GameController control packets [default: 3838].
+    #[arg(long, value_name = "PORT")]
+    pub gc_port: Option<u16>,
+    /// UDP port the GameController receives return packets on [default: 3939].
+    #[arg(long, value_name = "PORT")]
+    pub gc_return_port: Option<u16>,
+    /// UDP port of the team's messages [default: 10000 + team].
+    #[arg(long, value_name = "PORT")]
+    pub team_port: Option<u16>,
+
+    /// Stop after this many seconds (default: until Ctrl-C or the platform goes away).
+    #[arg(long, value_name = "SECS")]
+    pub duration: Option<f64>,
+    /// Seconds between status lines.
+    #[arg(long, value_name = "SECS", default_value_t = 2.0)]
+    pub status_interval: f64,
+    /// Seeds the modules' random numbers [default: 100 x team + player].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Print JSON lines (start, game-state changes, status, final report) instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_sign(text: &str) -> Result<f64, String> {
+    match text.trim() {
+        "1" | "+1" | "+" => Ok(1.0),
+        "-1" | "-" => Ok(-1.0),
+        other => Err(format!("expected +1 or -1, got `{other}`")),
+    }
+}
+
+/// Runs one robot until Ctrl-C, `--duration` or the end of its platform.
+pub fn run(args: RobotArgs) -> Result<()> {
+    validate(&args)?;
+    if args.controller == ControllerKind::Test {
+        return run_test_controller(&args);
+    }
+    // Reads links outside the host (before it starts, and links the robot does not use). It
+    // starts before the host's own clock, so it reads later than that clock at any moment: the
+    // simulator client maps its server's stamps with the smallest offset seen between a
+    // reader's clock and the server's, and an earlier clock would corrupt that offset.
+    let early_clock = MonotonicClock::start();
+    let config = TeamConfig::resolve(&args.team_config)
+        .with_context(|| format!("team configuration `{}`", args.team_config))?;
+    let field = resolve_field(&args.field)?;
+    let out = Output { json: args.json, name: format!("robot {}/{}", args.team, args.player) };
+
+    // The body.
+    let platform = open_platform(&args)?;
+    let info = platform.info.clone();
+
+    // The radio and the referee.
+    let net = args.net || args.platform == PlatformKind::Nao;
+    let mut unused_sim_links: Vec<Box<dyn FnMut() + Send>> = Vec::new();
+    let (team_link, gc_link, team_counters, gc_counters, endpoints) = if net {
+        let net_config = net_config(&args)?;
+        let (team, gc) = net_config.bind().with_context(|| {
+            format!(
+                "binding UDP ports {} (GameController) and {} (team)",
+                net_config.gc_port, net_config.team_port
+            )
+        })?;
+        let endpoints = Endpoints {
+            game_controller: format!(
+                "UDP :{} (return packets to the sender's :{})",
+                net_config.gc_port, net_config.gc_return_port
+            ),
+            team: format!(
+                "UDP :{} -> {}:{}",
+                net_config.team_port, net_config.broadcast, net_config.team_port
+            ),
+        };
+        let (team_counters, gc_counters) = (team.counters(), gc.counters());
+        if let Some(links) = platform.sim_links {
+            // The server still forwards its referee's packets and teammates' messages; drain
+            // them so they do not pile up in the client.
+            let SimLinks { mut team_link, mut game_controller } = links;
+            let clock = early_clock;
+            unused_sim_links.push(Box::new(move || {
+                let _ = team_link.receive(clock.now());
+                let _ = game_controller.receive(clock.now());
+            }));
+        }
+        let team: Box<dyn TeamLink> = Box::new(team);
+        let gc: Box<dyn ExternalLink> = Box::new(gc);
+        (team, gc, team_counters, gc_counters, endpoints)
+    } else {
+        let Some(SimLinks { team_link, game_controller }) = platform.sim_links else {
+            bail!("without --net the simulator server must carry team messages and game state");
+        };
+        let (team_counters, gc_counters) = (Arc::<LinkCounters>::default(), Arc::default());
+        let team: Box<dyn TeamLink> = Box::new(Counted::new(team_link, Arc::clone(&team_counters)));
+        let gc: Box<dyn ExternalLink> =
+            Box::new(Counted::new(game_controller, Arc::clone(&gc_counters)));
+        let endpoints = Endpoints {
+            game_controller: "simulator server".to_owned(),
+            team: "simulator server".to_owned(),
+        };
+        (team, gc, team_counters, gc_counters, endpoints)
+    };
+
+    // Which way the team attacks, from the first control packet if one comes.
+    let (gc_link, attack_sign, attack_source) =
+        learn_attack_sign(gc_link, args.team, args.attack_sign, args.gc_wait, &early_clock);
+    let team_field = Arc::new(TeamField::new(field, attack_sign));
+
+    // The robot: all four modules, all three layers.
+    let mut graph = GraphBuilder::new();
+    let spec = SoccerRobotSpec {
+        // Module names: `t10/3/planning`...
+        name: format!("t{}/{}", args.team, args.player),
+        team_number: args.team,
+        player: args.player,
+        field: team_field,
+        platform: Arc::clone(&platform.shared),
+        team_link: Some(team_link),
+        game_controller: Some(gc_link),
+        half_duration: args.half_duration,
+    };
+    let modules = add_soccer_robot(&mut graph, spec, &config)
+        .map_err(|e| anyhow::anyhow!("building robot {}/{}: {e}", args.team, args.player))?;
+    let graph = graph.build().context("wiring the robot's modules")?;
+    let watch = Arc::new(Watch::new(&modules.planning));
+    let seed = args.seed.unwrap_or(100 * u64::from(args.team) + u64::from(args.player));
+    let mut host = ThreadedHost::new(graph, HostConfig::with_seed(seed));
+    host.set_tap(Arc::clone(&watch) as Arc<dyn Tap>);
+
+    out.start(&StartInfo {
+        team: args.team,
+        player: args.player,
+        platform: args.platform,
+        platform_name: info.name.clone(),
+        source: platform.source.clone(),
+        sensor_period_ms: info.sensor_period.as_secs_f64() * 1e3,
+        can_walk: info.can_walk,
+        controller: args.controller,
+        team_config: config.name.clone(),
+        coordination: config.coordination,
+        game_controller: endpoints.game_controller,
+        team_messages: endpoints.team,
+        attack_sign,
+        attack_source,
+    });
+
+    let running = host.start().context("starting the robot's module threads")?;
+    running.stop_on_interrupt().context("installing the Ctrl-C handler")?;
+    let stop = running.stop_handle();
+    let started = Instant::now();
+    // The host's `wait` returns when asked to stop or when a module fails; a monitor thread
+    // reports progress meanwhile and asks to stop at the end of `--duration` or when the
+    // platform is gone.
+    let done = Arc::new(AtomicBool::new(false));
+    let end = Arc::new(Mutex::new(None::<String>));
+    let monitor = {
+        let (done, end, watch, out) =
+            (Arc::clone(&done), Arc::clone(&end), Arc::clone(&watch), out.clone());
+        let counters = Arc::clone(&platform.counters);
+        let (team_counters, gc_counters) = (Arc::clone(&team_counters), Arc::clone(&gc_counters));
+        let duration = args.duration.map(|d| Duration::from_secs_f64(d.max(0.0)));
+        let status_every = Duration::from_secs_f64(args.status_interval.max(0.1));
+        std::thread::Builder::new()
+            .name("robot-monitor".to_owned())
+            .spawn(move || {
+                let mut last_status = Instant::now();
+                while !done.load(Ordering::Relaxed) {
+                    std::thread::sleep(Duration::from_millis(20));
+                    let elapsed = started.elapsed();
+                    for event in watch.take_events() {
+                        out.game_event(elapsed.as_secs_f64(), &event);
+                    }
+                    for drain in &mut unused_sim_links {
+                        drain();
+                    }
+                    if last_status.elapsed() >= status_every {
+                        last_status = Instant::now();
+                        out.status(&Status::gather(
+                            elapsed.as_secs_f64(),
+                            &counters,
+                            &watch,
+                            &team_counters,
+                            &gc_counters,
+                        ));
+                    }
+                    let reason = if duration.is_some_and(|d| elapsed >= d) {
+                        Some("duration reached".to_owned())
+                    } else {
+                        counters.disconnected().map(|r| format!("platform disconnected: {r}"))
+                    };
+                    if let Some(reason) = reason {
+                        end.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert(reason);
+                        stop.stop();
+                        return;
+                    }
+                }
+            })
+            .context("starting the monitor thread")?
+    };
+    let result = running.wait();
+    done.store(true, Ordering::Relaxed);
+    let _ = monitor.join();
+    for event in watch.take_events() {
+        out.game_event(started.elapsed().as_secs_f64(), &event);
+    }
+    if let Some(nao) = &platform.nao {
+        sit_down(nao, &out);
+    }
+
+    let planned_end = end.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    let (stats, ended, failure) = match result {
+        Ok(stats) => (stats, planned_end.unwrap_or_else(|| "interrupted".to_owned()), None),
+        Err(error) => {
+            let Some(stats) = error.stats().cloned() else {
+                return Err(error).context("the robot's host failed");
+            };
+            // A platform that went away (the simulator server stopped) ends the run; any other
+            // failure of a module is an error of this robot.
+            match (&error, platform.counters.disconnected()) {
+                (HostError::ModuleFailed { .. }, Some(reason)) => {
+                    (stats, format!("platform disconnected: {reason}"), None)
+                }
+                _ => (stats, format!("failed: {error}"), Some(error)),
+            }
+        }
+    };
+    let report = Report::new(
+        &args,
+        started.elapsed().as_secs_f64(),
+        ended,
+        &platform.counters,
+        &watch,
+        team_counters.snapshot(),
+        gc_counters.snapshot(),
+        &modules,
+        stats,
+    );
+    out.report(&report);
+    match failure {
+        Some(error) => Err(error).context("a module of the robot failed"),
+        None => Ok(()),
+    }
+}
+
+fn validate(args: &RobotArgs) -> Result<()> {
+    if args.player == 0 {
+        bail!("--player must be 1 or more");
+    }
+    if !(args.half_duration.is_finite() && args.half_duration > 0.0) {
+        bail!("--half-duration must be > 0, got {}", args.half_duration);
+    }
+    if args.duration.is_some_and(|d| !(d.is_finite() && d >= 0.0)) {
+        bail!("--duration must be a number of seconds >= 0");
+    }
+    if !(args.gc_wait.is_finite() && args.gc_wait >= 0.0) {
+        bail!("--gc-wait must be >= 0, got {}", args.gc_wait);
+    }
+    let net_options = [
+        ("--interface", args.interface.is_some()),
+        ("--broadcast", args.broadcast.is_some()),
+        ("--gc-port", args.gc_port.is_some()),
+        ("--gc-return-port", args.gc_return_port.is_some()),
+        ("--team-port", args.team_port.is_some()),
+    ];
+    match args.platform {
+        PlatformKind::Sim => {
+            if let Some((option, _)) = net_options.iter().find(|(_, given)| *given)
+                && !args.net
+            {
+                bail!("{option} configures the UDP links: add --net");
+            }
+        }
+        PlatformKind::Nao => {
+            if args.server.is_some() {
+                bail!("--server is for --platform sim; a NAO reads its sensors through LoLA");
+            }
+            if args.controller == ControllerKind::Test {
+                bail!("--controller test runs against the simulator server only");
+            }
+        }
+    }
+    if args.platform == PlatformKind::Sim && args.lola_config.is_some() {
+        bail!("--lola-config is for --platform nao");
+    }
+    if args.controller == ControllerKind::Test && args.net {
+        bail!(
+            "--controller test reads the game state from the simulator server; run it without --net"
+        );
+    }
+    Ok(())
+}
+
+fn net_config(args: &RobotArgs) -> Result<NetConfig> {
+    let mut config = NetConfig::field(args.team);
+    if let Some(interface) = &args.interface {
+        config.broadcast = links::directed_broadcast(interface).map_err(anyhow::Error::msg)?;
+    }
+    if let Some(broadcast) = args.broadcast {
+        config.broadcast = broadcast;
+    }
+    if let Some(port) = args.gc_port {
+        config.gc_port = port;
+    }
+    if let Some(port) = args.gc_return_port {
+        config.gc_return_port = port;
+    }
+    if let Some(port) = args.team_port {
+        config.team_port = port;
+    }
+    Ok(config)
+}
+
+fn resolve_field(name: &str) -> Result<Field> {
+    let field = if strata_spl::field::PRESETS.contains(&name) {
+        Field::preset(name)
+    } else {
+        Field::load(name)
+    };
+    field.with_context(|| format!("field `{name}`"))
+}
+
+/// The simulator's test controller, through the simulator server.
+fn run_test_controller(args: &RobotArgs) -> Result<()> {
+    if args.json {
+        bail!("--json is not available with --controller test");
+    }
+    sim_cmd::run_robot_test_controller(sim_cmd::RobotArgs {
+        server: args.server.clone().unwrap_or_else(|| sim_cmd::DEFAULT_ADDR.to_owned()),
+        team: args.team,
+        player: args.player,
+        duration: args.duration,
+        status_interval: args.status_interval,
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// The platform, observed.
+
+/// What the platform delivered.
+#[derive(Debug, Default)]
+struct PlatformCounters {
+    sensor_frames: AtomicU64,
+    camera_frames: AtomicU64,
+    detections: AtomicU64,
+    errors: AtomicU64,
+    disconnected: Mutex<Option<String>>,
+}
+
+impl PlatformCounters {
+    fn disconnected(&self) -> Option<String> {
+        self.disconnected.lock().unwrap_or_else(PoisonError::into_inner).clone()
+    }
+
+    fn note<T>(&self, result: &Result<T, PlatformError>) {
+        match result {
+            Ok(_) => {}
+            Err(PlatformError::Disconnected(reason)) => {
+                self.errors.fetch_add(1, Ordering::Relaxed);
+                self.disconnected
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .get_or_insert_with(|| reason.clone());
+            }
+            Err(_) => {
+                self.errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+/// A platform whose traffic is counted for the robot's report.
+struct Observed<P> {
+    inner: P,
+    counters: Arc<PlatformCounters>,
+}
+
+impl<P: Platform> Platform for Observed<P> {
+    fn info(&self) -> PlatformInfo {
+        self.inner.info()
+    }
+
+    fn read_sensors(&mut self, now: Time) -> Result<Option<SensorFrame>, PlatformError> {
+        let result = self.inner.read_sensors(now);
+        self.counters.note(&result);
+        if let Ok(Some(frame)) = &result {
+            self.counters.sensor_frames.fetch_add(1, Ordering::Relaxed);
+            if let Some(camera) = &frame.camera {
+                self.counters.camera_frames.fetch_add(1, Ordering::Relaxed);
+                self.counters
+                    .detections
+                    .fetch_add(camera.detections.len() as u64, Ordering::Relaxed);
+            }
+        }
+        result
+    }
+
+    fn read_motion(&mut self, now: Time) -> Result<MotionFeedback, PlatformError> {
+        let result = self.inner.read_motion(now);
+        self.counters.note(&result);
+        result
+    }
+
+    fn write(&mut self, now: Time, orders: &ActuatorOrders) -> Result<(), PlatformError> {
+        let result = self.inner.write(now, orders);
+        // An order the body cannot execute (a NAO asked to walk) is the reactive layer's
+        // business, not a platform failure.
+        if !matches!(result, Err(PlatformError::Unsupported(_))) {
+            self.counters.note(&result);
+        }
+        result
+    }
+}
+
+struct SimLinks {
+    team_link: strata_sim::net::TcpTeamLink,
+    game_controller: strata_sim::net::TcpGameControllerLink,
+}
+
+struct OpenPlatform {
+    shared: SharedPlatform,
+    info: PlatformInfo,
+    counters: Arc<PlatformCounters>,
+    /// Where the sensors come from, for the start line.
+    source: String,
+    sim_links: Option<SimLinks>,
+    nao: Option<Arc<Mutex<Observed<LolaPlatform>>>>,
+}
+
+fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
+    let counters = Arc::<PlatformCounters>::default();
+    match args.platform {
+        PlatformKind::Sim => {
+            let server = args.server.clone().unwrap_or_else(|| sim_cmd::DEFAULT_ADDR.to_owned());
+            let robot = strata_sim::net::connect(
+                server.as_str(),
+                args.team,
+                args.player,
+                Duration::from_secs(5),
+            )
+            .with_context(|| format!("connecting to the simulator server at {server}"))?;
+            let info = robot.welcome.info.clone();
+            let shared: SharedPlatform = Arc::new(Mutex::new(Observed {
+                inner: robot.platform,
+                counters: Arc::clone(&counters),
+            }));
+            Ok(OpenPlatform {
+                shared,
+                info,
+                counters,
+                source: format!("simulator server {server}"),
+                sim_links: Some(SimLinks {
+                    team_link: robot.team_link,
+                    game_controller: robot.game_controller,
+                }),
+                nao: None,
+            })
+        }
+        PlatformKind::Nao => {
+            let config = match &args.lola_config {
+                Some(path) => {
+                    let text = std::fs::read_to_string(path)
+                        .with_context(|| format!("reading {}", path.display()))?;
+                    toml::from_str::<LolaConfig>(&text)
+                        .with_context(|| format!("LoLA configuration {}", path.display()))?
+                }
+                None => LolaConfig::default(),
+            };
+            let lola = LolaPlatform::connect(&args.socket, config)
+                .with_context(|| format!("connecting to LoLA at {}", args.socket.display()))?;
+            let info = lola.info();
+            let nao =
+                Arc::new(Mutex::new(Observed { inner: lola, counters: Arc::clone(&counters) }));
+            let shared: SharedPlatform = nao.clone();
+            Ok(OpenPlatform {
+                shared,
+                info,
+                counters,
+                source: format!("LoLA {}", args.socket.display()),
+                sim_links: None,
+                nao: Some(nao),
+            })
+        }
+    }
+}
+
+/// Ends a NAO's run sitting, motors soft: a robot left standing without commands falls.
+fn sit_down(nao: &Arc<Mutex<Observed<LolaPlatform>>>, out: &Output) {
+    let lock = || nao.lock().unwrap_or_else(PoisonError::into_inner);
+    // Bound first: a guard in the `match` scrutinee would live through the arms and the
+    // `busy` polls below would deadlock on it.
+    let sitting = lock().inner.sit_down();
+    match sitting {
+        Ok(expected) => {
+            let deadline = Instant::now() + expected + Duration::from_secs(5);
+            while lock().inner.busy() && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            // Seated, the motors go soft; a few LoLA cycles carry that out before we exit.
+            lock().inner.relax();
+            std::thread::sleep(Duration::from_millis(60));
+        }
+        Err(error) => out.note(&format!("could not sit down: {error}")),
+    }
+}
+
+/// Reads the GameController link for up to `wait` seconds for a control packet of this team;
+/// every packet read is handed to the robot afterwards.
+fn learn_attack_sign(
+    mut link: Box<dyn ExternalLink>,
+    team: u8,
+    given: Option<f64>,
+    wait: f64,
+    clock: &MonotonicClock,
+) -> (Box<dyn ExternalLink>, f64, String) {
+    if let Some(sign) = given {
+        return (link, sign, "--attack-sign".to_owned());
+    }
+    let deadline = Instant::now() + Duration::from_secs_f64(wait);
+    let mut read: Vec<ReceivedPacket> = Vec::new();
+    let mut found = None;
+    loop {
+        if let Ok(packets) = link.receive(clock.now()) {
+            found = packets.iter().filter_map(|p| GameControlData::decode(&p.bytes).ok()).find_map(
+                |data| links::attack_sign(&data, team).map(|sign| (sign, data.first_half)),
+            );
+            read.extend(packets);
+        }
+        if found.is_some() || Instant::now() >= deadline {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let link: Box<dyn ExternalLink> =
+        if read.is_empty() { link } else { Box::new(Prefetched::new(read, link)) };
+    match found {
+        Some((sign, first_half)) => (
+            link,
+            sign,
+            format!("GameController ({} half)", if first_half { "first" } else { "second" }),
+        ),
+        None => (link, 1.0, "default: no GameController packet for this team yet".to_owned()),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Watching the planning layer's decisions.
+
+/// A change of the game as the robot sees it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+struct GameEvent {
+    state: String,
+    penalized: bool,
+    first_half: bool,
+    kicking: String,
+    score: [u8; 2],
+}
+
+impl GameEvent {
+    fn of(directive: &GameDirective) -> GameEvent {
+        GameEvent {
+            state: format!("{:?}", directive.state),
+            penalized: directive.penalized,
+            first_half: directive.first_half,
+            kicking: format!("{:?}", directive.kicking),
+            score: directive.score,
+        }
+    }
+}
+
+/// Sees every package of the robot and keeps what the reports need from the planning layer.
+/// Runs on the planning thread: it only copies under a short lock.
+struct Watch {
+    planning: String,
+    state: Mutex<WatchState>,
+}
+
+#[derive(Default)]
+struct WatchState {
+    latest: Option<Decision>,
+    events: Vec<GameEvent>,
+    last_event: Option<GameEvent>,
+    /// Every distinct game state seen, in order.
+    history: Vec<String>,
+}
+
+impl Watch {
+    fn new(planning: &str) -> Watch {
+        Watch { planning: planning.to_owned(), state: Mutex::default() }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, WatchState> {
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn take_events(&self) -> Vec<GameEvent> {
+        std::mem::take(&mut self.lock().events)
+    }
+
+    fn latest(&self) -> Option<Decision> {
+        self.lock().latest.clone()
+    }
+}
+
+impl Tap for Watch {
+    fn package(&self, record: &TapRecord<'_>) {
+        if record.output != "decision" || record.module_name != self.planning {
+            return;
+        }
+        let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() else {
+            return;
+        };
+        let decision = &package.value;
+        let mut state = self.lock();
+        // Before the first control packet the directive is a default, not the game's.
+        if decision.directive.connected {
+            let event = GameEvent::of(&decision.directive);
+            if state.last_event.as_ref() != Some(&event) {
+                if state.history.last() != Some(&event.state) {
+                    state.history.push(event.state.clone());
+                }
+                state.last_event = Some(event.clone());
+                state.events.push(event);
+            }
+        }
+        state.latest = Some(decision.clone());
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output.
+
+struct Endpoints {
+    game_controller: String,
+    team: String,
+}
+
+#[derive(Debug, Serialize)]
+struct StartInfo {
+    team: u8,
+    player: u8,
+    platform: PlatformKind,
+    platform_name: String,
+    source: String,
+    sensor_period_ms: f64,
+    can_walk: bool,
+    controller: ControllerKind,
+    team_config: String,
+    coordination: bool,
+    game_controller: String,
+    team_messages: String,
+    attack_sign: f64,
+    attack_source: String,
+}
+
+#[derive(Debug, Serialize)]
+struct Status {
+    t: f64,
+    sensor_frames: u64,
+    camera_frames: u64,
+    game_state: Option<String>,
+    penalized: bool,
+    mission: Option<String>,
+    role: Option<String>,
+    teammates: usize,
+    messages_sent: u64,
+    messages_received: u64,
+    gc_packets: u64,
+}
+
+impl Status {
+    fn gather(
+        t: f64,
+        platform: &PlatformCounters,
+        watch: &Watch,
+        team: &LinkCounters,
+        gc: &LinkCounters,
+    ) -> Status {
+        let decision = watch.latest();
+        let connected = decision.as_ref().filter(|d| d.directive.connected);
+        let planning = decision.as_ref().map(|d| d.stats.clone()).unwrap_or_default();
+        Status {
+            t,
+            sensor_frames: platform.sensor_frames.load(Ordering::Relaxed),
+            camera_frames: platform.camera_frames.load(Ordering::Relaxed),
+            game_state: connected.map(|d| format!("{:?}", d.directive.state)),
+            penalized: connected.is_some_and(|d| d.directive.penalized),
+            mission: decision.as_ref().map(|d| d.assignment.mission.name().to_owned()),
+            role: decision.as_ref().map(|d| d.assignment.role.name().to_owned()),
+            teammates: decision.as_ref().map_or(0, |d| d.teammates.len()),
+            messages_sent: team.snapshot().sent,
+            messages_received: planning.received,
+            gc_packets: gc.snapshot().received,
+        }
+    }
+}
+
+/// Everything one run of a robot produced.
+#[derive(Debug, Serialize)]
+struct Report {
+    team: u8,
+    player: u8,
+    platform: PlatformKind,
+    wall_s: f64,
+    ended: String,
+    sensor_frames: u64,
+    camera_frames: u64,
+    detections: u64,
+    platform_errors: u64,
+    /// Every game state the robot followed, in order.
+    game_states: Vec<String>,
+    game: Option<GameEvent>,
+    mission: Option<String>,
+    role: Option<String>,
+    planning: strata_robot::control::planning::PlanningStats,
+    team_link: LinkStats,
+    game_controller_link: LinkStats,
+    /// The three layers of hybrid control (the paper's Table 6).
+    layers: Vec<LayerRate>,
+    /// Every module.
+    host: HostStats,
+}
+
+impl Report {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        args: &RobotArgs,
+        wall_s: f64,
+        ended: String,
+        platform: &PlatformCounters,
+        watch: &Watch,
+        team_link: LinkStats,
+        game_controller_link: LinkStats,
+        modules: &RobotModules,
+        host: HostStats,
+    ) -> Report {
+        let state = watch.lock();
+        let decision = state.latest.clone();
+        Report {
+            team: args.team,
+            player: args.player,
+            platform: args.platform,
+            wall_s,
+            ended,
+            sensor_frames: platform.sensor_frames.load(Ordering::Relaxed),
+            camera_frames: platform.camera_frames.load(Ordering::Relaxed),
+            detections: platform.detections.load(Ordering::Relaxed),
+            platform_errors: platform.errors.load(Ordering::Relaxed),
+            game_states: state.history.clone(),
+            game: state.last_event.clone(),
+            mission: decision.as_ref().map(|d| d.assignment.mission.name().to_owned()),
+            role: decision.as_ref().map(|d| d.assignment.role.name().to_owned()),
+            planning: decision.map(|d| d.stats).unwrap_or_default(),
+            team_link,
+            game_controller_link,
+            layers: modules
+                .layers()
+                .iter()
+                .filter_map(|(layer, name)| {
+                    host.module(name).map(|m| LayerRate {
+                        layer: (*layer).to_owned(),
+                        cycles: m.cycles,
+                        min_hz: m.rate.min_hz,
+                        mean_hz: m.rate.mean_hz,
+                        max_hz: m.rate.max_hz,
+                    })
+                })
+                .collect(),
+            host,
+        }
+    }
+}
+
+/// Text for people, or JSON lines (`{"type": ...}`) for programs.
+#[derive(Clone, Debug)]
+struct Output {
+    json: bool,
+    name: String,
+}
+
+impl Output {
+    fn json_line(&self, kind: &str, value: &impl Serialize) {
+        // Our own types always serialize; a failure would be a bug, reported rather than
+        // hidden.
+        match serde_json::to_value(value) {
+            Ok(serde_json::Value::Object(mut map)) => {
+                map.insert("type".to_owned(), serde_json::Value::String(kind.to_owned()));
+                println!("{}", serde_json::Value::Object(map));
+            }
+            Ok(other) => println!("{}", serde_json::json!({ "type": kind, "value": other })),
+            Err(error) => eprintln!("{}: cannot serialize {kind}: {error}", self.name),
+        }
+    }
+
+    fn start(&self, info: &StartInfo) {
+        if self.json {
+            return self.json_line("start", info);
+        }
+        println!(
+            "{}: {} ({}, sensors every {:.0} ms{}), {} controller, team `{}`{}",
+            self.name,
+            info.platform_name,
+            info.source,
+            info.sensor_period_ms,
+            if info.can_walk { "" } else { ", cannot walk" },
+            match info.controller {
+                ControllerKind::Soccer => "soccer",
+                ControllerKind::Test => "test",
+            },
+            info.team_config,
+            if info.coordination { "" } else { " (no team messages)" },
+        );
+        println!(
+            "{}: GameController: {}; team messages: {}; attacks {}x ({})   (Ctrl-C stops)",
+            self.name,
+            info.game_controller,
+            info.team_messages,
+            if info.attack_sign > 0.0 { "+" } else { "-" },
+            info.attack_source
+        );
+    }
+
+    fn game_event(&self, t: f64, event: &GameEvent) {
+        if self.json {
+            #[derive(Serialize)]
+            struct Line<'a> {
+                t: f64,
+                #[serde(flatten)]
+                event: &'a GameEvent,
+            }
+            return self.json_line("game_state", &Line { t, event });
+        }
+        println!(
+            "{}: t={t:7.1} s  game {}{}  ({} half, kick-off/set play: {}, score {}:{})",
+            self.name,
+            event.state,
+            if event.penalized { " (penalized)" } else { "" },
+            if event.first_half { "1st" } else { "2nd" },
+            event.kicking.to_lowercase(),
+            event.score[0],
+            event.score[1],
+        );
+    }
+
+    fn status(&self, status: &Status) {
+        if self.json {
+            return self.json_line("status", status);
+        }
+        println!(
+            "{}: t={:7.1} s  frames {:6}  images {:5}  game {}{}  {} / {}  teammates {}  messages sent {} heard {}  gc packets {}",
+            self.name,
+            status.t,
+            status.sensor_frames,
+            status.camera_frames,
+            status.game_state.as_deref().unwrap_or("(no GameController yet)"),
+            if status.penalized { " (penalized)" } else { "" },
+            status.mission.as_deref().unwrap_or("-"),
+            status.role.as_deref().unwrap_or("-"),
+            status.teammates,
+            status.messages_sent,
+            status.messages_received,
+            status.gc_packets,
+        );
+    }
+
+    fn note(&self, text: &str) {
+        if self.json {
+            return self.json_line("note", &serde_json::json!({ "text": text }));
+        }
+        println!("{}: {text}", self.name);
+    }
+
+    fn report(&self, report: &Report) {
+        if self.json {
+            return self.json_line("report", report);
+        }
+        println!(
+            "{}: stopped after {:.1} s ({}): {} sensor frames, {} images, {} detections, {} platform errors",
+            self.name,
+            report.wall_s,
+            report.ended,
+            report.sensor_frames,
+            report.camera_frames,
+            report.detections,
+            report.platform_errors
+        );
+        println!(
+            "{}: game states followed: {}",
+            self.name,
+            if report.game_states.is_empty() {
+                "none (no GameController packet)".to_owned()
+            } else {
+                report.game_states.join(" -> ")
+            }
+        );
+        let p = &report.planning;
+        println!(
+            "{}: team messages: sent {} periodic + {} instant, heard {}, rejected {}, withheld {} (budget); link: {} sent (largest {} B), {} received, {} dropped, {} errors",
+            self.name,
+            p.sent_periodic,
+            p.sent_instant,
+            p.received,
+            p.rejected,
+            p.withheld,
+            report.team_link.sent,
+            report.team_link.largest_sent,
+            report.team_link.received,
+            report.team_link.rejected,
+            report.team_link.errors,
+        );
+        println!(
+            "{}: GameController: {} packets received, {} dropped, {} return packets sent",
+            self.name,
+            report.game_controller_link.received,
+            report.game_controller_link.rejected,
+            report.game_controller_link.sent,
+        );
+        println!(
+            "\n{:<14} {:>8} {:>9} {:>9} {:>9}",
+            "layer", "cycles", "min Hz", "mean Hz", "max Hz"
+        );
+        for layer in &report.layers {
+            println!(
+                "{:<14} {:>8} {:>9.2} {:>9.2} {:>9.2}",
+                layer.layer, layer.cycles, layer.min_hz, layer.mean_hz, layer.max_hz
+            );
+        }
+        println!("\n{}", report.host.table());
+    }
+}

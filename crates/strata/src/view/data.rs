@@ -1,0 +1,875 @@
+//! What the viewer shows, as compact time series built from logged (or live) packages: ground
+//! truth, each robot's estimates, behavior paths and scores.
+//!
+//! Packages come in as JSON, from a log or from a live match's tap alike, so both take one code
+//! path. Only the fields the viewer draws are kept; the large streams (world state, reactive
+//! report) are sampled at [`SAMPLE_PERIOD`] per robot before they are parsed, which bounds both
+//! the memory and the parsing cost of a whole match.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use strata_runtime::Time;
+use strata_spl::field::{Field, Side};
+
+/// The spacing of the samples kept of the per-cycle streams of each robot.
+pub const SAMPLE_PERIOD: f64 = 0.05;
+
+/// What a topic carries, for the viewer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Truth,
+    World,
+    Report,
+    Deliberative,
+    Planning,
+}
+
+/// The topic's robot (index into [`ViewData::robots`]) and kind; `None` for topics the viewer
+/// does not use.
+fn classify(topic: &str) -> Option<(Option<&str>, Kind)> {
+    if topic == "simulator/ground_truth" {
+        return Some((None, Kind::Truth));
+    }
+    let (robot, rest) = split_robot(topic)?;
+    let kind = match rest {
+        "world/world_state" => Kind::World,
+        "reactive/report" => Kind::Report,
+        "deliberative/scores" => Kind::Deliberative,
+        "planning/decision" => Kind::Planning,
+        _ => return None,
+    };
+    Some((Some(robot), kind))
+}
+
+/// `home/3/world/world_state` -> (`home/3`, `world/world_state`).
+fn split_robot(topic: &str) -> Option<(&str, &str)> {
+    let team_end = topic.find('/')?;
+    let team = &topic[..team_end];
+    if team != "home" && team != "away" {
+        return None;
+    }
+    let player_end = team_end + 1 + topic[team_end + 1..].find('/')?;
+    topic[team_end + 1..player_end].parse::<u8>().ok()?;
+    Some((&topic[..player_end], &topic[player_end + 1..]))
+}
+
+// ---- The parts of logged values the viewer reads (everything else is skipped). ----
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Xy {
+    pub x: f64,
+    pub y: f64,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    pub x: f64,
+    pub y: f64,
+    pub theta: f64,
+}
+
+#[derive(Deserialize)]
+struct TruthIn {
+    robots: Vec<RobotTruthIn>,
+    ball: BallIn,
+    game: GameIn,
+}
+
+#[derive(Deserialize)]
+struct RobotIdIn {
+    team: usize,
+    player: u8,
+}
+
+#[derive(Deserialize)]
+struct HeadIn {
+    yaw: f64,
+}
+
+#[derive(Deserialize)]
+struct RobotTruthIn {
+    id: RobotIdIn,
+    present: bool,
+    pose: Pose,
+    head: HeadIn,
+    #[serde(default)]
+    fallen: bool,
+    #[serde(default)]
+    penalty: Value,
+}
+
+#[derive(Deserialize)]
+struct BallIn {
+    position: Xy,
+}
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct GameView {
+    #[serde(default)]
+    pub state: String,
+    #[serde(default)]
+    pub set_play: String,
+    #[serde(default)]
+    pub first_half: bool,
+    #[serde(default)]
+    pub kicking_team: Option<usize>,
+    #[serde(default)]
+    pub secs_remaining: f64,
+    #[serde(default)]
+    pub score: [u8; 2],
+    #[serde(default)]
+    pub attack_sign: [f64; 2],
+    #[serde(default)]
+    pub game_over: bool,
+}
+
+type GameIn = GameView;
+
+#[derive(Deserialize)]
+struct WorldIn {
+    pose: PoseEstimateIn,
+    objects: Vec<ObjectIn>,
+    #[serde(default)]
+    team: Vec<TeamObjectIn>,
+}
+
+#[derive(Deserialize)]
+struct PoseEstimateIn {
+    pose: Pose,
+    confidence: f64,
+    lost: bool,
+}
+
+#[derive(Deserialize)]
+struct ObjectIn {
+    name: String,
+    #[serde(default)]
+    group: String,
+    known: bool,
+    confidence: f64,
+    field_position: Xy,
+}
+
+#[derive(Deserialize)]
+struct TeamObjectIn {
+    name: String,
+    position: Xy,
+}
+
+#[derive(Deserialize)]
+struct ReportIn {
+    head: MuxIn,
+    body: MuxIn,
+    whole_body: MuxIn,
+}
+
+#[derive(Deserialize)]
+struct MuxIn {
+    #[serde(default)]
+    goals: Vec<GoalIn>,
+    selected_goal: Option<String>,
+    primitive: Option<String>,
+    inhibited_by: Option<Value>,
+}
+
+#[derive(Deserialize)]
+struct GoalIn {
+    goal: String,
+    #[serde(default)]
+    objects: Vec<String>,
+    deliberative: f64,
+    reactive: f64,
+    final_score: f64,
+}
+
+#[derive(Deserialize)]
+struct DeliberativeIn {
+    #[serde(default)]
+    behavior_path: String,
+}
+
+#[derive(Deserialize)]
+struct DecisionIn {
+    assignment: AssignmentIn,
+}
+
+#[derive(Deserialize)]
+struct AssignmentIn {
+    mission: Value,
+    role: Value,
+}
+
+fn label(value: &Value) -> String {
+    match value {
+        Value::String(s) => s.clone(),
+        Value::Null => String::new(),
+        // An enum variant with fields: its name.
+        Value::Object(map) => map.keys().next().cloned().unwrap_or_default(),
+        other => other.to_string(),
+    }
+}
+
+// ---- Samples. ----
+
+#[derive(Clone, Debug)]
+struct TruthSample {
+    t: f64,
+    game: GameView,
+    ball: Xy,
+    /// By robot name.
+    robots: Vec<(String, RobotTruth)>,
+}
+
+#[derive(Clone, Debug)]
+struct RobotTruth {
+    pose: Pose,
+    head_yaw: f64,
+    present: bool,
+    fallen: bool,
+    penalty: String,
+}
+
+/// Positions are in the robot's team frame (own goal at -x), as the robot estimates them.
+#[derive(Clone, Debug)]
+struct WorldSample {
+    t: f64,
+    pose: Pose,
+    confidence: f64,
+    lost: bool,
+    ball: Option<(Xy, f64, bool)>,
+    team_ball: Option<Xy>,
+}
+
+#[derive(Clone, Debug)]
+struct ReportSample {
+    t: f64,
+    /// Shared with the previous sample when unchanged (paths change seldom).
+    path: Arc<str>,
+    head_goal: Option<Arc<str>>,
+    /// Where the selected head goal's objects are estimated (team frame).
+    gaze: Vec<Xy>,
+    /// Head goals: (goal index into the robot's labels, S_d, S_r, final).
+    scores: Vec<(u16, f32, f32, f32)>,
+}
+
+#[derive(Clone, Debug)]
+struct LayerSample {
+    t: f64,
+    text: String,
+}
+
+#[derive(Clone, Debug)]
+struct PlanningSample {
+    t: f64,
+    mission: String,
+    role: String,
+}
+
+#[derive(Debug, Default)]
+struct RobotSeries {
+    name: String,
+    team: usize,
+    player: u8,
+    world: Vec<WorldSample>,
+    reports: Vec<ReportSample>,
+    deliberative: Vec<LayerSample>,
+    planning: Vec<PlanningSample>,
+    goal_labels: Vec<String>,
+    /// Newest estimated positions of the objects (team frame), to place the gaze target.
+    objects: BTreeMap<String, Xy>,
+    last_world: Option<f64>,
+    last_report: Option<f64>,
+}
+
+/// The field, as the page draws it (metres, field frame).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FieldView {
+    pub name: String,
+    pub length: f64,
+    pub width: f64,
+    pub border: f64,
+    pub line_width: f64,
+    /// Segments: [x0, y0, x1, y1].
+    pub lines: Vec<[f64; 4]>,
+    pub centre_circle: [f64; 3],
+    /// Penalty marks and other point landmarks: [x, y].
+    pub marks: Vec<[f64; 2]>,
+    /// Goal posts: [x, y] of the centres.
+    pub posts: Vec<[f64; 2]>,
+    pub post_diameter: f64,
+    /// The goals' insides: [x0, y0, x1, y1].
+    pub goals: Vec<[f64; 4]>,
+    pub beacons: Vec<BeaconView>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BeaconView {
+    pub name: String,
+    pub x: f64,
+    pub y: f64,
+    pub colours: Vec<String>,
+}
+
+impl FieldView {
+    pub fn of(field: &Field) -> FieldView {
+        let d = field.dimensions();
+        let circle = field.centre_circle();
+        let goals: Vec<_> = [Side::Own, Side::Opponent].map(|s| field.goal(s)).into();
+        FieldView {
+            name: d.name.clone(),
+            length: d.field_length,
+            width: d.field_width,
+            border: d.border_strip_width,
+            line_width: d.line_width,
+            lines: field.lines().iter().map(|l| [l.start.x, l.start.y, l.end.x, l.end.y]).collect(),
+            centre_circle: [circle.centre.x, circle.centre.y, circle.radius],
+            marks: field
+                .landmarks_of(strata_spl::LandmarkKind::PenaltyMark)
+                .map(|l| {
+                    let p = l.position();
+                    [p.x, p.y]
+                })
+                .collect(),
+            posts: goals
+                .iter()
+                .flat_map(|g| [[g.left_post.x, g.left_post.y], [g.right_post.x, g.right_post.y]])
+                .collect(),
+            post_diameter: d.goal_post_diameter,
+            goals: goals
+                .iter()
+                .map(|g| [g.inside.min.x, g.inside.min.y, g.inside.max.x, g.inside.max.y])
+                .collect(),
+            beacons: d
+                .beacons
+                .iter()
+                .map(|b| BeaconView {
+                    name: b.name.clone(),
+                    x: b.x,
+                    y: b.y,
+                    colours: b
+                        .colours
+                        .iter()
+                        .map(|c| serde_json::to_value(c).map(|v| label(&v)).unwrap_or_default())
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Static facts about what is shown.
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewInfo {
+    /// `log` or `live`.
+    pub source: String,
+    /// The log file, for `log`.
+    pub file: Option<String>,
+    pub field: FieldView,
+    pub teams: [String; 2],
+    pub robots: Vec<String>,
+    /// Camera field of view (rad) and range (m) of the robots.
+    pub camera_fov: f64,
+    pub camera_range: f64,
+    pub seed: Option<u64>,
+    /// First and last time with ground truth, s.
+    pub start: f64,
+    pub end: f64,
+    /// Still receiving data (a live match, or a log being read).
+    pub growing: bool,
+    /// Problems met while reading (unreadable packages are skipped, and counted here).
+    pub warnings: Vec<String>,
+}
+
+/// One robot at one instant.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RobotFrame {
+    pub name: String,
+    pub team: usize,
+    pub player: u8,
+    pub present: bool,
+    pub fallen: bool,
+    pub penalty: String,
+    /// True pose (field frame).
+    pub pose: Option<Pose>,
+    /// Head yaw relative to the body, rad.
+    pub head_yaw: f64,
+    /// Estimated pose (field frame), its confidence and whether the robot considers itself lost.
+    pub estimate: Option<Pose>,
+    pub pose_confidence: Option<f64>,
+    pub lost: bool,
+    /// The robot's own ball estimate (field frame), with its confidence and whether it is known.
+    pub ball: Option<BallEstimate>,
+    /// The team's fused ball (field frame).
+    pub team_ball: Option<Xy>,
+    /// What the head is looking at (field frame) and the head goal selected.
+    pub gaze: Vec<Xy>,
+    pub head_goal: Option<String>,
+    pub mission: Option<String>,
+    pub role: Option<String>,
+    /// Active behavior path per layer.
+    pub planning_path: Option<String>,
+    pub deliberative_path: Option<String>,
+    pub reactive_path: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct BallEstimate {
+    pub x: f64,
+    pub y: f64,
+    pub confidence: f64,
+    pub known: bool,
+}
+
+/// Everything at one instant.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Frame {
+    /// The time asked for, s.
+    pub t: f64,
+    /// The time of the ground truth shown.
+    pub truth_t: Option<f64>,
+    pub game: Option<GameView>,
+    /// True ball (field frame).
+    pub ball: Option<Xy>,
+    pub robots: Vec<RobotFrame>,
+}
+
+/// Scores of one goal over time.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GoalSeries {
+    pub goal: String,
+    pub t: Vec<f64>,
+    /// S_d, S_r and the final score; `null` where the goal was not offered.
+    pub deliberative: Vec<Option<f32>>,
+    pub reactive: Vec<Option<f32>>,
+    #[serde(rename = "final")]
+    pub final_score: Vec<Option<f32>>,
+}
+
+/// Fig. 5 of the paper for one robot: the head goals' scores and the ball confidence.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Series {
+    pub robot: String,
+    pub from: f64,
+    pub to: f64,
+    pub goals: Vec<GoalSeries>,
+    pub ball_confidence: Vec<[f64; 2]>,
+}
+
+/// The viewer's store.
+#[derive(Debug)]
+pub struct ViewData {
+    info: ViewInfo,
+    truth: Vec<TruthSample>,
+    robots: Vec<RobotSeries>,
+    /// Packages that could not be read, by topic.
+    unreadable: BTreeMap<String, u64>,
+}
+
+impl ViewData {
+    pub fn new(source: &str, file: Option<String>, field: &Field) -> ViewData {
+        ViewData {
+            info: ViewInfo {
+                source: source.to_owned(),
+                file,
+                field: FieldView::of(field),
+                teams: ["home".to_owned(), "away".to_owned()],
+                robots: Vec::new(),
+                camera_fov: 60f64.to_radians(),
+                camera_range: 6.0,
+                seed: None,
+                start: 0.0,
+                end: 0.0,
+                growing: true,
+                warnings: Vec::new(),
+            },
+            truth: Vec::new(),
+            robots: Vec::new(),
+            unreadable: BTreeMap::new(),
+        }
+    }
+
+    pub fn set_teams(&mut self, teams: [String; 2]) {
+        self.info.teams = teams;
+    }
+
+    pub fn set_camera(&mut self, fov: f64, range: f64) {
+        self.info.camera_fov = fov;
+        self.info.camera_range = range;
+    }
+
+    pub fn set_seed(&mut self, seed: Option<u64>) {
+        self.info.seed = seed;
+    }
+
+    pub fn warn(&mut self, warning: String) {
+        self.info.warnings.push(warning);
+    }
+
+    /// No more data will come.
+    pub fn set_complete(&mut self) {
+        self.info.growing = false;
+    }
+
+    pub fn info(&self) -> ViewInfo {
+        let mut info = self.info.clone();
+        info.robots = self.robots.iter().map(|r| r.name.clone()).collect();
+        for (topic, n) in &self.unreadable {
+            info.warnings.push(format!("{n} packages of `{topic}` could not be read"));
+        }
+        info
+    }
+
+    fn robot_index(&mut self, name: &str) -> usize {
+        if let Some(i) = self.robots.iter().position(|r| r.name == name) {
+            return i;
+        }
+        let team = usize::from(name.starts_with("away/"));
+        let player = name.rsplit('/').next().and_then(|p| p.parse().ok()).unwrap_or(0);
+        self.robots.push(RobotSeries {
+            name: name.to_owned(),
+            team,
+            player,
+            ..RobotSeries::default()
+        });
+        // Keep the robots ordered (home before away, by player): the page lists them so.
+        self.robots.sort_by_key(|r| (r.team, r.player));
+        self.robots.iter().position(|r| r.name == name).unwrap_or(0)
+    }
+
+    /// Whether a package of `topic` at time `t` would be kept: the live tap asks before it
+    /// pays for serializing the package.
+    pub fn wants(&self, topic: &str, t: Time) -> bool {
+        let Some((robot, kind)) = classify(topic) else { return false };
+        let t = t.as_secs_f64();
+        let last = |r: &RobotSeries| match kind {
+            Kind::World => r.last_world,
+            Kind::Report => r.last_report,
+            _ => None,
+        };
+        match robot {
+            None => true,
+            Some(name) => self
+                .robots
+                .iter()
+                .find(|r| r.name == name)
+                .and_then(last)
+                .is_none_or(|last| t >= last + SAMPLE_PERIOD - 1e-9),
+        }
+    }
+
+    /// Takes one package (its topic, log time and JSON value). Unreadable packages are counted,
+    /// never fatal: a viewer shows what it can.
+    pub fn ingest(&mut self, topic: &str, time: Time, json: &[u8]) {
+        if !self.wants(topic, time) {
+            return;
+        }
+        let Some((robot, kind)) = classify(topic) else { return };
+        let t = time.as_secs_f64();
+        let ok = match (robot, kind) {
+            (None, _) => self.ingest_truth(t, json),
+            (Some(robot), kind) => {
+                let index = self.robot_index(robot);
+                let series = &mut self.robots[index];
+                match kind {
+                    Kind::World => ingest_world(series, t, json),
+                    Kind::Report => ingest_report(series, t, json),
+                    Kind::Deliberative => match serde_json::from_slice::<DeliberativeIn>(json) {
+                        Ok(d) => {
+                            series.deliberative.push(LayerSample { t, text: d.behavior_path });
+                            true
+                        }
+                        Err(_) => false,
+                    },
+                    Kind::Planning => match serde_json::from_slice::<DecisionIn>(json) {
+                        Ok(d) => {
+                            series.planning.push(PlanningSample {
+                                t,
+                                mission: label(&d.assignment.mission),
+                                role: label(&d.assignment.role),
+                            });
+                            true
+                        }
+                        Err(_) => false,
+                    },
+                    Kind::Truth => false,
+                }
+            }
+        };
+        if !ok {
+            *self.unreadable.entry(topic.to_owned()).or_default() += 1;
+        }
+    }
+
+    fn ingest_truth(&mut self, t: f64, json: &[u8]) -> bool {
+        let Ok(truth) = serde_json::from_slice::<TruthIn>(json) else { return false };
+        let mut robots = Vec::with_capacity(truth.robots.len());
+        for r in truth.robots {
+            let name = format!("{}/{}", if r.id.team == 0 { "home" } else { "away" }, r.id.player);
+            self.robot_index(&name);
+            robots.push((
+                name,
+                RobotTruth {
+                    pose: r.pose,
+                    head_yaw: r.head.yaw,
+                    present: r.present,
+                    fallen: r.fallen,
+                    penalty: label(&r.penalty),
+                },
+            ));
+        }
+        if self.truth.is_empty() {
+            self.info.start = t;
+        }
+        self.info.end = self.info.end.max(t);
+        self.truth.push(TruthSample { t, game: truth.game, ball: truth.ball.position, robots });
+        true
+    }
+
+    fn truth_at(&self, t: f64) -> Option<&TruthSample> {
+        let i = self.truth.partition_point(|s| s.t <= t + 1e-9);
+        // Before the first sample: show the first one.
+        self.truth.get(i.saturating_sub(1))
+    }
+
+    /// The state at time `t` (seconds), or at the newest time when `t` is `None`.
+    pub fn frame(&self, t: Option<f64>) -> Frame {
+        let t = t.unwrap_or(self.info.end);
+        let truth = self.truth_at(t);
+        let robots = self
+            .robots
+            .iter()
+            .map(|series| {
+                let true_state = truth.and_then(|s| {
+                    s.robots.iter().find(|(n, _)| *n == series.name).map(|(_, r)| r.clone())
+                });
+                let sign = truth.map_or(1.0, |s| {
+                    if series.team == 0 { s.game.attack_sign[0] } else { s.game.attack_sign[1] }
+                });
+                let to_field = |p: Xy| to_field(p, sign);
+                let world = latest(&series.world, t, |s| s.t);
+                let report = latest(&series.reports, t, |s| s.t);
+                let planning = latest(&series.planning, t, |s| s.t);
+                let deliberative = latest(&series.deliberative, t, |s| s.t);
+                RobotFrame {
+                    name: series.name.clone(),
+                    team: series.team,
+                    player: series.player,
+                    present: true_state.as_ref().is_none_or(|r| r.present),
+                    fallen: true_state.as_ref().is_some_and(|r| r.fallen),
+                    penalty: true_state.as_ref().map(|r| r.penalty.clone()).unwrap_or_default(),
+                    pose: true_state.as_ref().map(|r| r.pose),
+                    head_yaw: true_state.as_ref().map_or(0.0, |r| r.head_yaw),
+                    estimate: world.map(|w| pose_to_field(w.pose, sign)),
+                    pose_confidence: world.map(|w| w.confidence),
+                    lost: world.is_some_and(|w| w.lost),
+                    ball: world.and_then(|w| w.ball).map(|(p, confidence, known)| {
+                        let p = to_field(p);
+                        BallEstimate { x: p.x, y: p.y, confidence, known }
+                    }),
+                    team_ball: world.and_then(|w| w.team_ball).map(to_field),
+                    gaze: report
+                        .map(|r| r.gaze.iter().map(|p| to_field(*p)).collect())
+                        .unwrap_or_default(),
+                    head_goal: report.and_then(|r| r.head_goal.as_deref().map(str::to_owned)),
+                    mission: planning.map(|p| p.mission.clone()),
+                    role: planning.map(|p| p.role.clone()),
+                    planning_path: planning.map(|p| format!("{}/{}", p.mission, p.role)),
+                    deliberative_path: deliberative.map(|d| d.text.clone()),
+                    reactive_path: report.map(|r| r.path.to_string()),
+                }
+            })
+            .collect();
+        Frame {
+            t,
+            truth_t: truth.map(|s| s.t),
+            game: truth.map(|s| s.game.clone()),
+            ball: truth.map(|s| s.ball),
+            robots,
+        }
+    }
+
+    /// The scores of the head goals and the ball confidence of `robot` between `from` and
+    /// `to` (seconds; the whole run by default), at most `max_points` samples per series.
+    pub fn series(
+        &self,
+        robot: &str,
+        from: Option<f64>,
+        to: Option<f64>,
+        max_points: usize,
+    ) -> Option<Series> {
+        let series = self.robots.iter().find(|r| r.name == robot)?;
+        let from = from.unwrap_or(self.info.start);
+        let to = to.unwrap_or(self.info.end);
+        let window = |samples_t: &[f64]| {
+            let a = samples_t.partition_point(|t| *t < from);
+            let b = samples_t.partition_point(|t| *t <= to);
+            (a, b.max(a))
+        };
+        let report_t: Vec<f64> = series.reports.iter().map(|r| r.t).collect();
+        let (a, b) = window(&report_t);
+        let stride = (b - a).div_ceil(max_points.max(1)).max(1);
+        let picked: Vec<&ReportSample> = series.reports[a..b].iter().step_by(stride).collect();
+        let goals = series
+            .goal_labels
+            .iter()
+            .enumerate()
+            .filter_map(|(g, goal)| {
+                let g = g as u16;
+                if !picked.iter().any(|r| r.scores.iter().any(|s| s.0 == g)) {
+                    return None;
+                }
+                let find = |r: &ReportSample| r.scores.iter().find(|s| s.0 == g).copied();
+                Some(GoalSeries {
+                    goal: goal.clone(),
+                    t: picked.iter().map(|r| r.t).collect(),
+                    deliberative: picked.iter().map(|r| find(r).map(|s| s.1)).collect(),
+                    reactive: picked.iter().map(|r| find(r).map(|s| s.2)).collect(),
+                    final_score: picked.iter().map(|r| find(r).map(|s| s.3)).collect(),
+                })
+            })
+            .collect();
+        let world_t: Vec<f64> = series.world.iter().map(|w| w.t).collect();
+        let (a, b) = window(&world_t);
+        let stride = (b - a).div_ceil(max_points.max(1)).max(1);
+        let ball_confidence = series.world[a..b]
+            .iter()
+            .step_by(stride)
+            .map(|w| [w.t, w.ball.map_or(0.0, |b| b.1)])
+            .collect();
+        Some(Series { robot: robot.to_owned(), from, to, goals, ball_confidence })
+    }
+}
+
+/// The newest sample at or before `t`.
+fn latest<S>(samples: &[S], t: f64, time: impl Fn(&S) -> f64) -> Option<&S> {
+    let i = samples.partition_point(|s| time(s) <= t + 1e-9);
+    i.checked_sub(1).and_then(|i| samples.get(i))
+}
+
+/// A point of a robot's team frame (own goal at -x) in the field frame: the frames agree for
+/// the team attacking +x, and are turned by half a turn for the other.
+fn to_field(p: Xy, attack_sign: f64) -> Xy {
+    if attack_sign < 0.0 { Xy { x: -p.x, y: -p.y } } else { p }
+}
+
+fn pose_to_field(p: Pose, attack_sign: f64) -> Pose {
+    if attack_sign < 0.0 {
+        let theta = p.theta + std::f64::consts::PI;
+        Pose { x: -p.x, y: -p.y, theta: theta.sin().atan2(theta.cos()) }
+    } else {
+        p
+    }
+}
+
+fn ingest_world(series: &mut RobotSeries, t: f64, json: &[u8]) -> bool {
+    let Ok(world) = serde_json::from_slice::<WorldIn>(json) else { return false };
+    let ball = world
+        .objects
+        .iter()
+        .find(|o| o.group == "ball" || o.name == "ball")
+        .map(|o| (o.field_position, o.confidence, o.known));
+    let team_ball = world.team.iter().find(|o| o.name == "ball").map(|o| o.position);
+    series.objects = world.objects.iter().map(|o| (o.name.clone(), o.field_position)).collect();
+    series.last_world = Some(t);
+    series.world.push(WorldSample {
+        t,
+        pose: world.pose.pose,
+        confidence: world.pose.confidence,
+        lost: world.pose.lost,
+        ball,
+        team_ball,
+    });
+    true
+}
+
+fn ingest_report(series: &mut RobotSeries, t: f64, json: &[u8]) -> bool {
+    let Ok(report) = serde_json::from_slice::<ReportIn>(json) else { return false };
+    let head = &report.head;
+    let gaze = head
+        .selected_goal
+        .as_ref()
+        .and_then(|selected| head.goals.iter().find(|g| &g.goal == selected))
+        .map(|g| g.objects.iter().filter_map(|o| series.objects.get(o).copied()).collect())
+        .unwrap_or_default();
+    let mut scores = Vec::with_capacity(head.goals.len());
+    for goal in &head.goals {
+        let index = match series.goal_labels.iter().position(|l| *l == goal.goal) {
+            Some(i) => i,
+            None => {
+                series.goal_labels.push(goal.goal.clone());
+                series.goal_labels.len() - 1
+            }
+        };
+        scores.push((
+            index as u16,
+            goal.deliberative as f32,
+            goal.reactive as f32,
+            goal.final_score as f32,
+        ));
+    }
+    let part = |name: &str, m: &MuxIn| match (&m.selected_goal, &m.primitive, &m.inhibited_by) {
+        (Some(goal), Some(primitive), _) => format!("{name}: {goal} > {primitive}"),
+        // As `ReactiveReport::active_path` names the groups.
+        (_, _, Some(by)) if !by.is_null() => {
+            format!("{name}: inhibited by {}", label(by).replace("head_and_body", "head+body"))
+        }
+        _ => format!("{name}: idle"),
+    };
+    series.last_report = Some(t);
+    let path = format!(
+        "{} | {} | {}",
+        part("head+body", &report.whole_body),
+        part("head", &report.head),
+        part("body", &report.body)
+    );
+    let previous = series.reports.last();
+    let path = match previous {
+        Some(p) if *p.path == *path => Arc::clone(&p.path),
+        _ => Arc::from(path),
+    };
+    let head_goal = match (&head.selected_goal, previous.and_then(|p| p.head_goal.as_ref())) {
+        (Some(goal), Some(last)) if **last == **goal => Some(Arc::clone(last)),
+        (goal, _) => goal.as_deref().map(Arc::from),
+    };
+    series.reports.push(ReportSample { t, path, head_goal, gaze, scores });
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn topics_are_classified() {
+        assert_eq!(classify("simulator/ground_truth"), Some((None, Kind::Truth)));
+        assert_eq!(classify("home/3/world/world_state"), Some((Some("home/3"), Kind::World)));
+        assert_eq!(classify("away/12/reactive/report"), Some((Some("away/12"), Kind::Report)));
+        assert_eq!(classify("home/3/reactive/commands"), None);
+        assert_eq!(classify("visitors/3/world/world_state"), None);
+        assert_eq!(classify("home/x/world/world_state"), None);
+        assert_eq!(classify("home"), None);
+    }
+
+    #[test]
+    fn team_frames_turn_for_the_team_attacking_minus_x() {
+        let p = pose_to_field(Pose { x: -3.0, y: 2.0, theta: 0.5 }, -1.0);
+        assert!((p.x - 3.0).abs() < 1e-12 && (p.y + 2.0).abs() < 1e-12);
+        assert!((p.theta - (0.5 - std::f64::consts::PI)).abs() < 1e-12);
+        assert_eq!(to_field(Xy { x: 1.0, y: 2.0 }, 1.0), Xy { x: 1.0, y: 2.0 });
+    }
+
+    #[test]
+    fn bad_packages_are_counted_not_fatal() {
+        let field = Field::preset("spl").unwrap_or_else(|e| panic!("{e}"));
+        let mut data = ViewData::new("log", None, &field);
+        data.ingest("simulator/ground_truth", Time::ZERO, b"{not json");
+        data.ingest("home/1/world/world_state", Time::ZERO, b"[]");
+        let info = data.info();
+        assert_eq!(info.warnings.len(), 2, "{:?}", info.warnings);
+        let frame = data.frame(Some(1.0));
+        assert!(frame.ball.is_none());
+    }
+}

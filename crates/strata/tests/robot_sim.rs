@@ -1,0 +1,130 @@
+//! The simulator over TCP, end to end (the simulator issue's "done when"): `strata server`
+//! runs; two `strata robot` processes running the full soccer robot connect to it, receive
+//! sensor frames and the game state from its referee, and exchange team messages through it;
+//! a third runs the test controller. Everything stops cleanly on Ctrl-C.
+//!
+//! Nothing asserts how long anything took: every step waits for its condition.
+
+mod common;
+
+use common::{Process, start_server, strata};
+
+fn soccer_robot(addr: &str, team: u8, player: u8) -> Process {
+    Process::spawn(
+        &format!("robot {team}/{player}"),
+        strata().args(["robot", "--server", addr, "--json", "--status-interval", "1"]).args([
+            "--team".to_owned(),
+            team.to_string(),
+            "--player".to_owned(),
+            player.to_string(),
+            // A safety net if the test itself is killed; it ends them with Ctrl-C.
+            "--duration".to_owned(),
+            "900".to_owned(),
+        ]),
+    )
+}
+
+fn count(status: &serde_json::Value, key: &str) -> u64 {
+    status[key].as_u64().unwrap_or(0)
+}
+
+#[test]
+fn soccer_robots_run_against_the_simulator_server() {
+    let (mut server, addr) = start_server(&[]);
+    let mut robots = [soccer_robot(&addr, 10, 1), soccer_robot(&addr, 10, 2)];
+    let mut tester = Process::spawn(
+        "test controller 20/1",
+        strata().args([
+            "robot",
+            "--controller",
+            "test",
+            "--server",
+            &addr,
+            "--team",
+            "20",
+            "--player",
+            "1",
+            "--status-interval",
+            "1",
+            "--duration",
+            "900",
+        ]),
+    );
+
+    for robot in &mut robots {
+        let start = robot.wait_for("the start line", |p| p.json_of("start").into_iter().next());
+        assert_eq!(start["controller"], "soccer");
+        assert_eq!(start["game_controller"], "simulator server");
+        // Sensor frames, camera images and the referee's game state arrive; a teammate's
+        // message comes through the server.
+        robot.wait_for("sensors, game state and a teammate", |p| {
+            p.json_of("status")
+                .into_iter()
+                .find(|s| {
+                    count(s, "sensor_frames") > 0
+                        && count(s, "camera_frames") > 0
+                        && s["game_state"].is_string()
+                        && count(s, "messages_received") > 0
+                })
+                .map(|_| ())
+        });
+    }
+    tester.wait_for("the test controller's frames", |p| {
+        p.lines()
+            .iter()
+            .filter_map(|l| l.split("frames=").nth(1))
+            .filter_map(|rest| rest.split_whitespace().next()?.parse::<u64>().ok())
+            .any(|frames| frames > 0)
+            .then_some(())
+    });
+    server.wait_for("the server to count three robots", |p| {
+        p.lines().iter().any(|l| l.contains("robots= 3")).then_some(())
+    });
+
+    for robot in &mut robots {
+        let status = robot.interrupt();
+        assert!(status.success(), "{} exited with {status}: {}", robot.name, robot.stderr());
+        let report = robot.json_of("report").pop().unwrap_or_else(|| {
+            panic!("{}: no report\n{}\n{}", robot.name, robot.lines().join("\n"), robot.stderr())
+        });
+        assert_eq!(report["ended"], "interrupted");
+        assert!(count(&report, "sensor_frames") > 0);
+        assert!(report["game_states"].as_array().is_some_and(|s| !s.is_empty()), "{report}");
+        assert!(count(&report["game_controller_link"], "received") > 0, "{report}");
+        assert!(count(&report["game_controller_link"], "sent") > 0, "return packets: {report}");
+        assert!(count(&report["planning"], "received") > 0, "{report}");
+        let layers: Vec<&str> = report["layers"]
+            .as_array()
+            .map(|l| l.iter().filter_map(|l| l["layer"].as_str()).collect())
+            .unwrap_or_default();
+        assert_eq!(layers, ["planning", "deliberative", "reactive"]);
+        for layer in report["layers"].as_array().into_iter().flatten() {
+            assert!(count(layer, "cycles") > 0, "{layer}");
+        }
+        // Perception, world modeling and actuation ran too: all six modules.
+        let modules = report["host"]["modules"].as_array().map(Vec::len);
+        assert_eq!(modules, Some(6), "{report}");
+    }
+    assert!(tester.interrupt().success(), "{}", tester.stderr());
+    let status = server.interrupt();
+    assert_eq!(status.code(), Some(0), "{}", server.stderr());
+    assert!(server.lines().iter().any(|l| l == "strata server stopped"));
+}
+
+/// A robot whose server goes away ends its run with a report instead of failing.
+#[test]
+fn a_robot_ends_cleanly_when_the_server_stops() {
+    let (mut server, addr) = start_server(&[]);
+    let mut robot = soccer_robot(&addr, 20, 3);
+    robot.wait_for("sensor frames", |p| {
+        p.json_of("status").iter().any(|s| count(s, "sensor_frames") > 0).then_some(())
+    });
+    assert_eq!(server.interrupt().code(), Some(0));
+    let status = robot.wait_exit();
+    assert!(status.success(), "{} exited with {status}: {}", robot.name, robot.stderr());
+    let report = robot.wait_for("the report", |p| p.json_of("report").pop());
+    assert!(
+        report["ended"].as_str().is_some_and(|e| e.starts_with("platform disconnected")),
+        "{report}"
+    );
+}
