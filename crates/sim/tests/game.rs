@@ -1,6 +1,8 @@
 //! A whole 20-minute game of 14 robots, each driven by the test controller through its
 //! in-process platform and GameController link, on the lockstep host — twice, to check that the
-//! same seed gives the same game bit for bit.
+//! same seed gives the same game bit for bit: every ground truth the simulator publishes (10 Hz:
+//! poses, velocities, head angles, body states of all robots, the ball, the game) and the final
+//! one, with every event.
 
 use std::time::Duration;
 
@@ -10,11 +12,61 @@ use strata_sim::{
     add_simulator, add_test_controller,
 };
 
-fn play(seed: u64) -> (GroundTruth, u64) {
+/// FNV-1a over the serialized ground truth the simulator module publishes, in order.
+/// `serde_json` writes every `f64` so that it parses back to the same bits (`float_roundtrip`),
+/// so equal digests mean equal trajectories bit for bit (up to a hash collision).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Trajectory {
+    digest: u64,
+    samples: usize,
+}
+
+impl Default for Trajectory {
+    fn default() -> Self {
+        Trajectory { digest: 0xcbf2_9ce4_8422_2325, samples: 0 }
+    }
+}
+
+impl Trajectory {
+    fn add(&mut self, truth: &GroundTruth) {
+        let bytes = serde_json::to_vec(truth).expect("serializable");
+        for byte in bytes {
+            self.digest = (self.digest ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        self.samples += 1;
+    }
+}
+
+struct Digest {
+    input: strata_runtime::Input<GroundTruth>,
+    trajectory: std::sync::Arc<std::sync::Mutex<Trajectory>>,
+}
+
+impl strata_runtime::Module for Digest {
+    fn cycle(
+        &mut self,
+        ctx: &mut strata_runtime::Context<'_>,
+    ) -> Result<(), strata_runtime::ModuleError> {
+        let packages = ctx.drain(self.input);
+        let mut trajectory = self.trajectory.lock().map_err(|_| "poisoned")?;
+        for package in packages {
+            trajectory.add(&package.value);
+        }
+        Ok(())
+    }
+}
+
+fn play(seed: u64) -> (GroundTruth, u64, Trajectory) {
     let config = SimConfig { seed, ..SimConfig::default() };
     let sim = SimHandle::new(Simulation::new(config).expect("the default config is valid"));
     let mut graph = GraphBuilder::new();
-    add_simulator(&mut graph, sim.clone());
+    let ports = add_simulator(&mut graph, sim.clone());
+    let trajectory = std::sync::Arc::new(std::sync::Mutex::new(Trajectory::default()));
+    let digest = graph.add("digest", |p| {
+        let input = p.input("truth", strata_runtime::Policy::queue(1000));
+        (Digest { input, trajectory: trajectory.clone() }, input)
+    });
+    graph.connect(ports.ground_truth, digest);
     let (ids, info): (Vec<RobotId>, _) = {
         let world = sim.lock();
         (world.robot_ids().collect(), world.platform_info())
@@ -44,12 +96,13 @@ fn play(seed: u64) -> (GroundTruth, u64) {
     }
     let cycles = host.stats().modules.iter().map(|m| m.cycles).sum();
     let truth = sim.lock().ground_truth();
-    (truth, cycles)
+    let trajectory = *trajectory.lock().expect("not poisoned");
+    (truth, cycles, trajectory)
 }
 
 #[test]
 fn a_twenty_minute_game_of_fourteen_robots_is_deterministic() {
-    let (first, cycles) = play(11);
+    let (first, cycles, trajectory) = play(11);
     assert!(first.game.game_over, "the game ended (at {} s)", first.time.as_secs_f64());
     assert_eq!(first.game.state, GameState::Finished);
     let played = first.time.as_secs_f64();
@@ -68,7 +121,11 @@ fn a_twenty_minute_game_of_fourteen_robots_is_deterministic() {
     assert!(kicks > 10, "robots find and kick the ball: {kicks}");
     assert!(falls > 0 && stand_ups > 0, "robots fall and get up: {falls} {stand_ups}");
 
-    let (second, _) = play(11);
+    let samples = trajectory.samples as f64;
+    assert!(samples >= played * 10.0 - 1.0, "ground truth at 10 Hz: {samples}");
+
+    let (second, _, second_trajectory) = play(11);
+    assert_eq!(trajectory, second_trajectory, "the same seed gave two different trajectories");
     let a = serde_json::to_string(&first).expect("serializable");
     let b = serde_json::to_string(&second).expect("serializable");
     assert!(a == b, "the same seed gave two different games");

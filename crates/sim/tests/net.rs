@@ -1,6 +1,6 @@
 //! The simulator over TCP: handshake, sensor frames and game state reaching robot processes,
-//! orders and team messages reaching the world, malformed frames, disconnection and
-//! reconnection. Waits poll with generous deadlines; nothing asserts how long anything took.
+//! orders and team messages reaching the world, team broadcasts forwarded with loss, malformed
+//! frames, disconnection and reconnection. Waits poll with generous deadlines; nothing asserts how long anything took.
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -19,8 +19,13 @@ use strata_spl::gamecontroller::GameControlData;
 const PATIENCE: Duration = Duration::from_secs(20);
 
 fn server() -> RunningServer {
+    server_with(|_| {})
+}
+
+fn server_with(adjust: impl FnOnce(&mut SimConfig)) -> RunningServer {
     let mut config = SimConfig::default().without_noise();
     config.referee.auto = false;
+    adjust(&mut config);
     let sim = SimHandle::new(Simulation::new(config).expect("valid config"));
     sim.lock().set_game_state(GameState::Playing);
     let server = Server::bind("127.0.0.1:0", sim, ServerOptions::default()).expect("binds");
@@ -202,4 +207,56 @@ fn a_robot_that_disconnects_mid_game_is_removed_and_may_reconnect() {
     let reason = until("the connection to close", || again.platform.closed());
     assert!(reason.contains("ServerShutdown"), "{reason}");
     assert!(again.platform.read_motion(now()).is_err());
+}
+
+#[test]
+fn the_server_forwards_team_messages_to_teammates_only_and_loses_the_configured_fraction() {
+    let server = server_with(|c| {
+        c.broadcast.loss = 0.5;
+        // Plenty: the budget is not what this test is about.
+        c.referee.message_budget = 10_000;
+    });
+    let addr = server.local_addr();
+    let mut sender = join(addr, 10, 1);
+    let mut teammate = join(addr, 10, 2);
+    let mut opponent = join(addr, 20, 1);
+    for robot in [&mut sender, &mut teammate, &mut opponent] {
+        a_frame(robot);
+    }
+    const SENT: u64 = 400;
+    for i in 0..SENT {
+        let payload = format!("message {i}");
+        sender.team_link.send(now(), payload.as_bytes()).expect("within the limit");
+    }
+    // One present teammate: every message is either forwarded to it or lost on the way.
+    let stats = until("every message to be forwarded or lost", || {
+        let stats = server.sim().lock().comms_stats().clone();
+        (stats.sent == SENT && stats.delivered + stats.lost == SENT).then_some(stats)
+    });
+    assert!(
+        (140..=260).contains(&stats.lost),
+        "{} of {SENT} lost at 50 % loss (binomial sd 10)",
+        stats.lost
+    );
+    let mut received = Vec::new();
+    until("the forwarded messages", || {
+        received.extend(teammate.team_link.receive(now()).expect("connected"));
+        (received.len() as u64 == stats.delivered).then_some(())
+    });
+    // Untouched, each at most once (jitter may reorder a burst).
+    let mut numbers: Vec<u64> = received
+        .iter()
+        .map(|m| {
+            let text = std::str::from_utf8(&m.bytes).expect("the bytes sent");
+            text.trim_start_matches("message ").parse().expect("the bytes sent")
+        })
+        .collect();
+    numbers.sort_unstable();
+    numbers.dedup();
+    assert_eq!(numbers.len() as u64, stats.delivered);
+    assert!(numbers.iter().all(|&n| n < SENT));
+    // Nothing to the opponent or back to the sender, even after the teammate got everything.
+    assert!(opponent.team_link.receive(now()).expect("connected").is_empty());
+    assert!(sender.team_link.receive(now()).expect("connected").is_empty());
+    server.stop().expect("stops cleanly");
 }

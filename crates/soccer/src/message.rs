@@ -35,6 +35,8 @@ pub const MAX_SIZE: usize = 128;
 const HEADER: usize = 19;
 const OBJECT: usize = 9;
 pub const MAX_OBJECTS: usize = (MAX_SIZE - HEADER) / OBJECT;
+/// The wire heading nearest to pi: round(pi x 1e4).
+const HALF_TURN: u16 = 31416;
 
 /// Shared objects by wire code.
 pub const SHARED_OBJECTS: [&str; 2] = ["ball", "obstacle"];
@@ -220,13 +222,19 @@ pub fn decode(bytes: &[u8]) -> Result<SoccerMessage, MessageError> {
             age: f64::from(bytes[at + 8]) / 10.0,
         });
     }
-    let theta = f64::from(i16_at(bytes, 15)) / 1e4;
+    let theta_wire = i16_at(bytes, 15);
+    let theta = f64::from(theta_wire) / 1e4;
     if theta.abs() > std::f64::consts::PI + 1e-3 {
         return Err(MessageError::InvalidValue {
             field: "pose theta",
-            value: i16_at(bytes, 15) as u16 as u32,
+            value: theta_wire as u16 as u32,
         });
     }
+    // ±31416 is the grid point nearest to ±pi (where `encode` puts a heading of pi), but lies
+    // just beyond it: `Pose::new` would wrap 3.1416 to -3.14159, which encodes as -31416, which
+    // wraps back to +3.14159, so a relayed heading would flip between the two forever. Reading
+    // both as pi makes decode and encode agree (found by the `team_message` fuzz target).
+    let theta = if theta_wire.unsigned_abs() == HALF_TURN { std::f64::consts::PI } else { theta };
     Ok(TeamMessage {
         sender,
         mission,
@@ -379,7 +387,40 @@ mod tests {
         }
     }
 
+    /// Regression (found by the `team_message` fuzz target): a heading of pi is sent as 31416,
+    /// just beyond pi; decoding wrapped it to -3.14159, re-encoding sent -31416, and a relayed
+    /// message flipped between +31416 and -31416 without ever settling.
+    #[test]
+    fn a_heading_of_pi_survives_relaying() {
+        let mut message = sample();
+        message.pose = Pose::new(0.0, 0.0, std::f64::consts::PI);
+        let bytes = encode(&message).expect("encodes");
+        assert_eq!(i16_at(&bytes, 15), 31416);
+        for wire in [31416i16, -31416] {
+            let mut b = bytes.clone();
+            b[15..17].copy_from_slice(&wire.to_le_bytes());
+            let decoded = decode(&b).expect("decodes");
+            assert_eq!(decoded.pose.theta, std::f64::consts::PI);
+            assert_eq!(decode(&encode(&decoded).expect("encodes")).expect("decodes"), decoded);
+        }
+    }
+
     proptest! {
+        /// Every accepted heading settles after one re-encoding: headings beyond ±pi are wrapped
+        /// off the 1e-4 grid by the decoder, so the first round may move them (by less than half
+        /// a step), the second must not.
+        #[test]
+        fn decoded_headings_are_a_fixed_point_after_one_relay(wire in -31425i16..=31425) {
+            let mut bytes = encode(&sample()).expect("encodes");
+            bytes[15..17].copy_from_slice(&wire.to_le_bytes());
+            let first = decode(&bytes).expect("decodes");
+            let second = decode(&encode(&first).expect("encodes")).expect("decodes");
+            let third = decode(&encode(&second).expect("encodes")).expect("decodes");
+            prop_assert_eq!(&third, &second);
+            let moved = (second.pose.theta - first.pose.theta).rem_euclid(std::f64::consts::TAU);
+            prop_assert!(moved.min(std::f64::consts::TAU - moved) <= 0.5e-4 + 1e-9);
+        }
+
         #[test]
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..160)) {
             let _ = decode(&bytes);

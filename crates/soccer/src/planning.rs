@@ -107,6 +107,20 @@ impl PlanningPolicy for SoccerPlanning {
             own.objects.iter().chain(teammates.iter().flat_map(|t| t.message.objects.iter())),
         );
         self.team_ball.set(ball);
+        // The robot going to the ball leads the mission: the others follow the mission it
+        // announces, so that the team agrees even when their ball estimates straddle the
+        // defend line (each deciding alone, they would split between Attack and Defend and
+        // leave the ball to nobody, or to two). Two claimants: the lower number leads, as ARS
+        // breaks ties.
+        let leader = teammates
+            .iter()
+            .filter(|t| matches!(t.message.role, Role::Striker | Role::ActiveDefender))
+            .filter(|t| matches!(t.message.mission, Mission::Attack | Mission::Defend))
+            .min_by_key(|t| t.message.sender);
+        if let Some(leader) = leader {
+            self.defending.set(leader.message.mission == Mission::Defend);
+            return leader.message.mission;
+        }
         let Some(ball) = ball else { return Mission::Attack };
         // Hysteresis: once defending, the ball must come clearly forward again.
         let line = if self.defending.get() {

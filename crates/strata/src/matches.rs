@@ -273,7 +273,10 @@ impl Match {
 
     /// Plays the match to its end (or the limit), calling `progress` with the fraction done.
     pub fn play(mut self, progress: &mut dyn FnMut(f64, &str)) -> Result<MatchReport> {
-        let total = self.config.limit.unwrap_or(2.0 * self.config.half_duration + 120.0);
+        // Without a limit the game ends when the referee says so; this only guards against a
+        // game that never ends (every kick-off adds Ready and Set, 50 s by default, and the
+        // clock stops while they run).
+        let total = self.config.limit.unwrap_or(2.0 * self.config.half_duration + 1800.0);
         let wall = Instant::now();
         let mut sampler = RoleSampler::default();
         let stats = if self.config.realtime {

@@ -105,6 +105,10 @@ pub struct PlanningModule<P: PlanningPolicy, C, F: Referee> {
     last_sent: Option<PlanningDecision<P::Mission, P::Role, F::Directive>>,
     /// Shared-object names this robot puts in its messages, most important first.
     shared_objects: Vec<String>,
+    /// When each shared object was last seen, remembered after world modeling forgets it:
+    /// teammates judge a striker by how long ago it saw the ball (MAMC), and a striker that
+    /// is searching for a ball lost a few seconds ago is still accomplishing its mission.
+    last_seen: Vec<Option<Time>>,
     link_errors: u64,
 }
 
@@ -145,6 +149,7 @@ where
             world: None,
             stability: Stability::Stable,
             last_sent: None,
+            last_seen: vec![None; shared_objects.len()],
             shared_objects,
             link_errors: 0,
         }
@@ -177,16 +182,21 @@ where
                 objects: self
                     .shared_objects
                     .iter()
-                    .filter_map(|name| world.object(name))
-                    // Shared with its age and confidence even when uncertain: teammates judge
-                    // from how long ago it was seen (MAMC), not from its absence.
-                    .filter(|o| o.last_seen.is_some() && o.category != ObjectCategory::Landmark)
-                    .map(|o| SharedObject {
-                        name: o.name.to_string(),
-                        position: o.field_position,
-                        sigma: o.field_covariance.trace().max(0.0).sqrt(),
-                        confidence: o.confidence,
-                        age: o.last_seen.map_or(f64::INFINITY, |t| (world.stamp - t).as_secs_f64()),
+                    .zip(&self.last_seen)
+                    .filter_map(|(name, remembered)| {
+                        let o = world.object(name)?;
+                        // Shared with its age and confidence even when uncertain or forgotten:
+                        // teammates judge from how long ago it was seen (MAMC), not from its
+                        // absence; a forgotten object has no confidence, so nobody uses its
+                        // position.
+                        let seen = o.last_seen.or(*remembered)?;
+                        (o.category != ObjectCategory::Landmark).then(|| SharedObject {
+                            name: o.name.to_string(),
+                            position: o.field_position,
+                            sigma: o.field_covariance.trace().max(0.0).sqrt(),
+                            confidence: o.confidence,
+                            age: (world.stamp - seen).as_secs_f64().max(0.0),
+                        })
                     })
                     .collect(),
             },
@@ -248,6 +258,11 @@ where
     fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
         let now = ctx.now();
         if let Some(world) = ctx.latest(self.ports.world) {
+            for (name, seen) in self.shared_objects.iter().zip(&mut self.last_seen) {
+                if let Some(t) = world.value.object(name).and_then(|o| o.last_seen) {
+                    *seen = Some(t);
+                }
+            }
             self.world = Some(world.value);
         }
         if let Some(stability) = ctx.latest(self.ports.stability) {
