@@ -198,8 +198,12 @@ deliberative_period_ms = 600.0
     let s = &outcome.summary;
     assert!(s["forced_falls"].as_u64() == Some(2), "{s}");
     assert!(s["detected"].as_u64().unwrap_or(0) >= 2, "every forced fall is detected: {s}");
+    // Onset to command includes the simulated fall developing until the sensors show it; the
+    // architecture's own share (percepts to command) is a reactive cycle or two.
     let median = s["detection_latency"]["median"].as_f64().expect("a median latency");
-    assert!(median > 0.0 && median < 0.3, "latency {median} s");
+    assert!(median > 0.0 && median < 1.0, "latency {median} s");
+    let sensing = s["sensing_to_command"]["median"].as_f64().expect("a sensing latency");
+    assert!(sensing >= 0.0 && sensing < median, "percepts to command {sensing} s");
     assert_contains_all(
         "the JSON summary",
         &s.to_string(),
@@ -213,6 +217,7 @@ deliberative_period_ms = 600.0
             "\"false_positives_per_hour\"",
             "\"false_positives_per_walking_hour\"",
             "\"deliberative_latency\"",
+            "\"sensing_to_command\"",
         ],
     );
     let report = std::fs::read_to_string(dir.join("out/report.md")).expect("report.md");
@@ -227,6 +232,7 @@ deliberative_period_ms = 600.0
             "per hour of walking",
             "51",
             "baseline: deliberative layer",
+            "percepts taken to Fall command",
         ],
     );
     assert_files(

@@ -194,6 +194,10 @@ pub struct Sample {
     pub scores: Vec<ObjectScores>,
     pub keeper: (f64, f64),
     pub ball: (f64, f64),
+    /// True head (yaw, pitch), rad: shows where the camera looked when the ball was lost.
+    pub head: (f64, f64),
+    /// True heading of the keeper, rad (team frame).
+    pub keeper_heading: f64,
     /// The deliberative layer was in the cover behavior.
     pub covering: bool,
     /// The deliberative layer's active behavior path and the reactive layer's (run 0 only).
@@ -424,6 +428,8 @@ fn run_one(scenario: &Scenario, job: &Job, tick: &dyn Fn(u64)) -> Result<RunResu
             },
             keeper: (keeper_pose.x, keeper_pose.y),
             ball: (ball.x, ball.y),
+            head: (truth.head.yaw, truth.head.pitch),
+            keeper_heading: keeper_pose.theta,
             covering: latest.behavior.ends_with("/cover"),
             behavior: if keep_trace { latest.behavior.clone() } else { String::new() },
             reactive_path: if keep_trace { latest.head.clone() } else { String::new() },
@@ -682,8 +688,11 @@ fn write_outputs(
                 num(s.coverage),
                 num(s.keeper.0),
                 num(s.keeper.1),
+                num(s.keeper_heading),
                 num(s.ball.0),
                 num(s.ball.1),
+                num(s.head.0),
+                num(s.head.1),
             ];
             row.push(s.behavior.clone());
             row.push(s.reactive_path.clone());
@@ -712,8 +721,11 @@ fn write_outputs(
             "coverage",
             "keeper_x",
             "keeper_y",
+            "keeper_theta",
             "ball_x",
             "ball_y",
+            "head_yaw",
+            "head_pitch",
             "behavior_path",
             "reactive_path",
             "head_scores (object:S_d/S_r/final)",

@@ -144,6 +144,33 @@ pub fn run_all(options: &Options) -> Result<Vec<Outcome>> {
         .collect()
 }
 
+/// The machine's 1-minute load average (Linux only): real-time figures depend on what else the
+/// machine runs, so their reports state it.
+pub fn load_average() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/loadavg").ok()?;
+    text.split_whitespace().next()?.parse().ok()
+}
+
+/// "1.2 to 3.4 (1-minute load average, N logical cores)", or "unknown".
+pub fn describe_load(loads: &[f64]) -> String {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let finite: Vec<f64> = loads.iter().copied().filter(|l| l.is_finite()).collect();
+    if finite.is_empty() {
+        return format!("unknown ({cores} logical cores)");
+    }
+    let lo = finite.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = finite.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let busy = if hi > cores as f64 {
+        "; above the core count: other processes competed for the cores, so real-time figures \
+         measure the machine as well as the architecture"
+    } else {
+        ""
+    };
+    format!(
+        "{lo:.1} to {hi:.1} (1-minute load average at the end of each run, {cores} logical cores){busy}"
+    )
+}
+
 fn to_json(value: &impl Serialize) -> Result<serde_json::Value> {
     serde_json::to_value(value).context("serializing the summary")
 }

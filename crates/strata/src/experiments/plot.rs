@@ -189,7 +189,11 @@ impl Figure for Bars {
             .chain(self.reference.iter().flat_map(|(_, v)| v.iter().flatten().copied()))
             .chain(self.targets.iter().flat_map(|(_, v)| v.iter().flatten().copied()));
         let (_, hi) = range_of(values);
-        let y1 = (hi * 1.15).max(1e-6);
+        // Room above the tallest bar for the legend in the upper right, so it hides no bar.
+        let entries = self.series.len()
+            + usize::from(self.reference.is_some())
+            + usize::from(self.targets.is_some());
+        let y1 = (hi * (1.1 + 0.06 * entries as f64)).max(1e-6);
         let mut chart = ChartBuilder::on(root)
             .caption(&self.title, (FAMILY, 20))
             .margin(12)

@@ -190,6 +190,8 @@ struct RunResult {
     /// Per robot (scenario order), per layer.
     robots: Vec<Vec<(String, LayerFigures)>>,
     wall_s: f64,
+    /// The machine's 1-minute load average when the run ended.
+    machine_load: Option<f64>,
 }
 
 fn team_with_load(scenario: &Scenario, load: f64) -> TeamConfig {
@@ -485,6 +487,8 @@ pub struct Summary {
     pub layers: Vec<LayerSummary>,
     pub claims: Vec<Claim>,
     pub reactive_rate_kept: bool,
+    /// The machine's 1-minute load average at the end of each run (empty where unknown).
+    pub machine_load_1min: Vec<f64>,
 }
 
 pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
@@ -517,6 +521,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
                 seed,
                 robots,
                 wall_s: started.elapsed().as_secs_f64(),
+                machine_load: super::load_average(),
             });
         }
     }
@@ -599,6 +604,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         reactive_rate_kept: claims.iter().all(|c| c.reactive_rate_kept),
         layers,
         claims,
+        machine_load_1min: results.iter().filter_map(|r| r.machine_load).collect(),
     };
     write_outputs(scenario, ctx, &results, &summary, runs)?;
     Ok(summary)
@@ -633,6 +639,7 @@ fn write_outputs(
                     num(f.period_max_ms),
                     num(f.jitter_p99_ms),
                     num(r.wall_s),
+                    r.machine_load.map_or(String::new(), num),
                 ]);
             }
         }
@@ -658,6 +665,7 @@ fn write_outputs(
             "period_max_ms",
             "jitter_p99_ms",
             "wall_s",
+            "machine_load_1min",
         ],
         &rows,
     )?;
@@ -752,6 +760,10 @@ fn write_outputs(
         ),
         format!("Field `{}`, noise `{}`, team `{}`; the ball is moved to a random place every {} s and when it leaves the field", scenario.field, scenario.noise, scenario.team, scenario.ball_reset_period),
         format!("Machine: {} logical cores; the paper's robot: a 500 MHz AMD Geode", std::thread::available_parallelism().map_or(1, |n| n.get())),
+        format!(
+            "Machine load: {}",
+            super::describe_load(&s.machine_load_1min)
+        ),
         "Min and max frequencies are over 1 s windows; jitter is the cycle period's 99th percentile minus its median".to_owned(),
     ]);
     md.heading("Table 6, beside the paper's");
