@@ -283,7 +283,10 @@ impl ActuationState {
                     remaining: eta,
                 });
             }
-            if feedback.head_settled || error < 0.01 {
+            // The feedback describes the previous target until the platform has received the
+            // order issued this cycle: a queued motion must wait for its own settling.
+            let ordered_this_cycle = self.orders.head.is_some();
+            if !ordered_this_cycle && (feedback.head_settled || error < 0.01) {
                 match self.head_queue.pop_front() {
                     Some(next) => self.start_head(next),
                     None => self.head_current = None,
@@ -381,6 +384,13 @@ impl Module for ActuationModule {
                         self.messages,
                         ActuationMessage::CommandRejected { resource, reason: what },
                     );
+                    // A refused special sequence never starts: its resources must not stay
+                    // held waiting for it to end.
+                    if orders.body.is_some() {
+                        for released in self.state.body_order_refused() {
+                            ctx.send(self.messages, released);
+                        }
+                    }
                 }
                 other => return Err(Box::new(other)),
             }
@@ -567,6 +577,24 @@ mod tests {
     }
 
     #[test]
+    fn a_queued_head_motion_waits_for_its_predecessor_even_when_the_head_was_settled() {
+        let mut a = ActuationState::new(ActuationConfig::default());
+        let target = |yaw| HeadMotion { target: HeadAngles { yaw, pitch: 0.0 }, max_speed: 1.0 };
+        for yaw in [0.5, -0.5] {
+            a.command(&MotionCommands::PerResource {
+                head: Some(HeadCommand::Queue(target(yaw))),
+                body: None,
+            });
+        }
+        // The feedback still says "settled" about the resting head: it must not count as the
+        // end of the motion just ordered.
+        let fb = feedback(0.0, BodyMotionState::Standing);
+        let (orders, _) = a.update(&fb);
+        assert_eq!(orders.and_then(|o| o.head).map(|h| h.target.yaw), Some(0.5));
+        assert_eq!(a.head_queue_len(), 1);
+    }
+
+    #[test]
     fn head_queue_follows_a_path_and_announces_its_end() {
         let mut a = ActuationState::new(ActuationConfig { finishing_lead: 0.1 });
         let target = |yaw| HeadMotion { target: HeadAngles { yaw, pitch: 0.0 }, max_speed: 1.0 };
@@ -593,5 +621,126 @@ mod tests {
             m,
             ActuationMessage::CommandFinishing { resource: Resource::Head, .. }
         )));
+    }
+
+    /// A platform that refuses every special sequence (a NAO without a kick motion).
+    struct RefusesKicks {
+        wrote: u32,
+    }
+
+    impl crate::platform::Platform for RefusesKicks {
+        fn info(&self) -> crate::platform::PlatformInfo {
+            crate::platform::PlatformInfo {
+                name: "refuses kicks".into(),
+                sensor_period: std::time::Duration::from_millis(12),
+                camera_fov: 1.06,
+                camera_range: 5.0,
+                head_yaw_limits: (-2.0, 2.0),
+                head_pitch_limits: (-0.6, 0.5),
+                max_head_speed: 3.0,
+                max_velocity: Velocity::new(0.25, 0.15, 1.2),
+                motions: Vec::new(),
+                can_walk: true,
+            }
+        }
+
+        fn read_sensors(
+            &mut self,
+            _: Time,
+        ) -> Result<Option<crate::platform::SensorFrame>, crate::platform::PlatformError> {
+            Ok(None)
+        }
+
+        fn read_motion(
+            &mut self,
+            now: Time,
+        ) -> Result<MotionFeedback, crate::platform::PlatformError> {
+            Ok(feedback(now.as_secs_f64(), BodyMotionState::Standing))
+        }
+
+        fn write(
+            &mut self,
+            _: Time,
+            orders: &ActuatorOrders,
+        ) -> Result<(), crate::platform::PlatformError> {
+            self.wrote += 1;
+            match orders.body {
+                Some(BodyOrder::Special { .. }) => {
+                    Err(crate::platform::PlatformError::Unsupported("no kick".into()))
+                }
+                _ => Ok(()),
+            }
+        }
+    }
+
+    #[test]
+    fn the_module_releases_the_resources_of_a_sequence_the_platform_refused() {
+        use strata_runtime::{GraphBuilder, HostConfig, LockstepHost, Policy, Trigger};
+
+        let platform: crate::platform::SharedPlatform =
+            std::sync::Arc::new(std::sync::Mutex::new(RefusesKicks { wrote: 0 }));
+        let mut graph = GraphBuilder::new();
+        let (commands, messages) = graph.add("actuation", |p| {
+            let commands = p.input::<MotionCommands>("commands", Policy::queue(16));
+            let odometry = p.output::<Odometry>("odometry");
+            let messages = p.output::<ActuationMessage>("messages");
+            let feedback = p.output::<MotionFeedback>("feedback");
+            p.trigger(Trigger::on_any([commands.into()]));
+            let module = ActuationModule::new(
+                std::sync::Arc::clone(&platform),
+                ActuationConfig::default(),
+                commands,
+                odometry,
+                messages,
+                feedback,
+            );
+            (module, (commands, messages))
+        });
+        let received = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let sink = graph.add("sink", |p| {
+            let input = p.input::<ActuationMessage>("messages", Policy::queue(64));
+            (Collect { input, received: std::sync::Arc::clone(&received) }, input)
+        });
+        graph.connect(messages, sink);
+        graph.external(commands);
+        let mut host =
+            LockstepHost::new(graph.build().expect("valid graph"), HostConfig::with_seed(1));
+        let at = Time::from_secs_f64(0.1);
+        let kick = MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
+        };
+        host.inject(commands, kick, at, at).expect("external input");
+        host.run_for(std::time::Duration::from_millis(500)).expect("runs");
+
+        let received = received.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        assert!(
+            received.iter().any(|m| matches!(
+                m,
+                ActuationMessage::CommandRejected { resource: Resource::Body, .. }
+            )),
+            "{received:?}"
+        );
+        assert!(
+            received.iter().any(|m| matches!(
+                m,
+                ActuationMessage::ResourceReleased { resource: Resource::Body }
+            )),
+            "the refused kick must not keep the body busy: {received:?}"
+        );
+    }
+
+    struct Collect {
+        input: strata_runtime::Input<ActuationMessage>,
+        received: std::sync::Arc<std::sync::Mutex<Vec<ActuationMessage>>>,
+    }
+
+    impl Module for Collect {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            let mut received =
+                self.received.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            received.extend(ctx.drain(self.input).into_iter().map(|p| p.value));
+            Ok(())
+        }
     }
 }

@@ -20,7 +20,9 @@ use serde::{Deserialize, Serialize};
 use strata_robot::control::active_vision::{
     ActiveVision, ActiveVisionConfig, ActiveVisionReport, Criterion, GazeCandidate, ValueFunction,
 };
-use strata_robot::control::bt::{Status, Tree, action, condition, reactive_selector, sequence};
+use strata_robot::control::bt::{
+    Status, Tree, action, condition, reactive_selector, reactive_sequence,
+};
 use strata_robot::control::deliberative::{
     DeliberativeInput, DeliberativeOutput, DeliberativePolicy,
 };
@@ -591,14 +593,14 @@ fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
                 .tree(Tree::new(reactive_selector(
                     "goal covering",
                     [
-                        sequence(
+                        reactive_sequence(
                             "localizing",
                             [
                                 condition("lost", |ctx: &Ctx| ctx.lost()),
                                 action("look for landmarks", |ctx: &mut Ctx, _| localizing(ctx)),
                             ],
                         ),
-                        sequence(
+                        reactive_sequence(
                             "searching for object",
                             [
                                 condition("ball unknown", |ctx: &Ctx| {
@@ -650,21 +652,21 @@ fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
             S::Striker => s.tree(Tree::new(reactive_selector(
                 "go to ball",
                 [
-                    sequence(
+                    reactive_sequence(
                         "localizing",
                         [
                             condition("lost", |ctx: &Ctx| ctx.lost() && !ctx.ball_known()),
                             action("look for landmarks", |ctx: &mut Ctx, _| localizing(ctx)),
                         ],
                     ),
-                    sequence(
+                    reactive_sequence(
                         "searching for object",
                         [
                             condition("ball unknown", |ctx: &Ctx| !ctx.ball_known()),
                             action("search ball", |ctx: &mut Ctx, _| searching_for_object(ctx)),
                         ],
                     ),
-                    sequence(
+                    reactive_sequence(
                         "avoiding obstacle",
                         [
                             condition("obstacle in the way", obstacle_in_the_way),

@@ -22,7 +22,7 @@ use strata_robot::control::active_vision::{
     ActiveVision, ActiveVisionConfig, Criterion, GazeCandidate, ValueFunction,
 };
 use strata_robot::control::bt::{
-    Status, Tree, action, condition, reactive_selector, sequence, timeout,
+    Status, Tree, action, condition, reactive_selector, reactive_sequence, sequence, timeout,
 };
 use strata_robot::control::deliberative::{
     DeliberativeInput, DeliberativeOutput, DeliberativePolicy,
@@ -480,7 +480,9 @@ fn build_machine(config: &BehaviorConfig) -> Result<StateMachine<S, Ctx>, BuildE
                 .tree(Tree::new(reactive_selector(
                     "respond",
                     [
-                        sequence(
+                        // Re-checked every tick: a robot pushed or re-localized away from the
+                        // alarm goes back instead of watching from the wrong place.
+                        reactive_sequence(
                             "on site",
                             [
                                 condition("at the alarm", on_site),
