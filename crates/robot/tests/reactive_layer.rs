@@ -77,26 +77,26 @@ impl ActivationPolicy<HeadGoal, World> for HeadPolicy {
         &self,
         goal: &GoalScore<HeadGoal>,
         input: &ReactiveInput<'_, World>,
-    ) -> Vec<GoalScore<HeadGoal>> {
+    ) -> Option<Vec<GoalScore<HeadGoal>>> {
         match &goal.goal {
             HeadGoal::ObserveBoth(a, b) => {
                 let world = input.world.expect("world");
                 let (Some((_, ba)), Some((_, bb))) = (world.object(a), world.object(b)) else {
-                    return vec![];
+                    return Some(vec![]);
                 };
                 if (ba - bb).abs() < FOV * 0.8 {
-                    vec![goal.clone()]
+                    None
                 } else {
                     // Not in one gaze: two goals, each with the deliberative score.
-                    vec![
+                    Some(vec![
                         GoalScore::new(HeadGoal::Observe(a.clone()), goal.deliberative)
                             .about(a.clone()),
                         GoalScore::new(HeadGoal::Observe(b.clone()), goal.deliberative)
                             .about(b.clone()),
-                    ]
+                    ])
                 }
             }
-            HeadGoal::Observe(_) => vec![goal.clone()],
+            HeadGoal::Observe(_) => None,
         }
     }
 
@@ -114,13 +114,13 @@ impl ActivationPolicy<HeadGoal, World> for HeadPolicy {
         &self,
         goal: &HeadGoal,
         input: &ReactiveInput<'_, World>,
-    ) -> Vec<&'static str> {
+    ) -> &'static [&'static str] {
         let world = input.world.expect("world");
         let known = match goal {
             HeadGoal::Observe(o) => world.object(o).is_some_and(|(c, _)| c > 0.3),
             HeadGoal::ObserveBoth(..) => true,
         };
-        if known { vec!["track", "search"] } else { vec!["search"] }
+        if known { &["track", "search"] } else { &["search"] }
     }
 }
 
@@ -147,14 +147,14 @@ impl ActivationPolicy<BodyGoal, World> for BodyPolicy {
         &self,
         goal: &BodyGoal,
         input: &ReactiveInput<'_, World>,
-    ) -> Vec<&'static str> {
+    ) -> &'static [&'static str] {
         match goal {
-            BodyGoal::Approach => vec!["walk"],
+            BodyGoal::Approach => &["walk"],
             // Kick vs go-to from percepts; the kick id would be a deliberative parameter.
             BodyGoal::GoToAndKick if input.world.is_some_and(|w| w.target_close) => {
-                vec!["kick", "walk"]
+                &["kick", "walk"]
             }
-            BodyGoal::GoToAndKick => vec!["walk"],
+            BodyGoal::GoToAndKick => &["walk"],
         }
     }
 }
@@ -194,11 +194,11 @@ impl ActivationPolicy<WholeGoal, World> for WholePolicy {
         &self,
         goal: &WholeGoal,
         input: &ReactiveInput<'_, World>,
-    ) -> Vec<&'static str> {
+    ) -> &'static [&'static str] {
         match goal {
-            WholeGoal::Fall if matches!(input.stability, Stability::Unstable(_)) => vec!["fall"],
-            WholeGoal::Fall => vec![],
-            WholeGoal::Celebrate => vec!["celebrate"],
+            WholeGoal::Fall if matches!(input.stability, Stability::Unstable(_)) => &["fall"],
+            WholeGoal::Fall => &[],
+            WholeGoal::Celebrate => &["celebrate"],
         }
     }
 }

@@ -112,8 +112,8 @@ impl<G: strata_robot::control::scores::Goal> ActivationPolicy<G, WorldState> for
     fn reactive_score(&self, _: &GoalScore<G>, _: &ReactiveInput<'_, WorldState>) -> f64 {
         0.5
     }
-    fn primitives_for(&self, _: &G, _: &ReactiveInput<'_, WorldState>) -> Vec<&'static str> {
-        vec!["null"]
+    fn primitives_for(&self, _: &G, _: &ReactiveInput<'_, WorldState>) -> &'static [&'static str] {
+        &["null"]
     }
 }
 struct NullPrimitive;

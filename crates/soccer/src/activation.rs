@@ -25,20 +25,22 @@ pub struct HeadActivation {
 }
 
 impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
-    fn split(&self, goal: &GoalScore<HeadGoal>, input: &Input<'_>) -> Vec<GoalScore<HeadGoal>> {
-        let HeadGoal::ObserveTogether { objects } = &goal.goal else {
-            return vec![goal.clone()];
-        };
-        let Some(world) = input.world else { return vec![goal.clone()] };
+    fn split(
+        &self,
+        goal: &GoalScore<HeadGoal>,
+        input: &Input<'_>,
+    ) -> Option<Vec<GoalScore<HeadGoal>>> {
+        let HeadGoal::ObserveTogether { objects } = &goal.goal else { return None };
+        let world = input.world?;
         let found = head_goal_objects(world, &goal.goal);
         let ids: Vec<_> = found.iter().map(|o| o.id).collect();
         let together = ids.len() == objects.len()
             && GazeCandidate::covering(world, &ids, self.fov * 0.8, "together").is_some();
         if together {
-            return vec![goal.clone()];
+            return None;
         }
         // Not in one gaze from here: one goal per object, each with the deliberative score.
-        objects
+        let split = objects
             .iter()
             .map(|name| {
                 let single = if name == crate::world_config::BALL {
@@ -52,7 +54,8 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
                     objects: vec![name.clone()],
                 }
             })
-            .collect()
+            .collect();
+        Some(split)
     }
 
     fn reactive_score(&self, goal: &GoalScore<HeadGoal>, input: &Input<'_>) -> f64 {
@@ -72,20 +75,20 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         objects.iter().map(|o| 1.0 - o.confidence).fold(0.0, f64::max)
     }
 
-    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> Vec<&'static str> {
-        let Some(world) = input.world else { return vec![names::SEARCH_OBJECT_ELLIPSE] };
+    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> &'static [&'static str] {
+        let Some(world) = input.world else { return &[names::SEARCH_OBJECT_ELLIPSE] };
         match goal {
             HeadGoal::ObserveTogether { .. } => {
-                vec![names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE]
+                &[names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE]
             }
-            HeadGoal::Scan => vec![names::SEARCH_OBJECT_ELLIPSE],
+            HeadGoal::Scan => &[names::SEARCH_OBJECT_ELLIPSE],
             HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. }
                 if !world.pose.lost =>
             {
-                vec![names::LOOK_AT_TARGET]
+                &[names::LOOK_AT_TARGET]
             }
             HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
-                vec![names::SEARCH_OBJECT_ELLIPSE]
+                &[names::SEARCH_OBJECT_ELLIPSE]
             }
             _ => {
                 // Tracking needs a position worth pointing at: a known object, or a landmark
@@ -94,9 +97,9 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
                     .iter()
                     .any(|o| o.known || (o.map_position.is_some() && !world.pose.lost));
                 if trackable {
-                    vec![names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
+                    &[names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
                 } else {
-                    vec![names::SEARCH_OBJECT_ELLIPSE]
+                    &[names::SEARCH_OBJECT_ELLIPSE]
                 }
             }
         }
@@ -121,33 +124,33 @@ impl ActivationPolicy<BodyGoal, WorldState> for BodyActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> Vec<&'static str> {
+    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> &'static [&'static str] {
         if goal == &BodyGoal::Stand {
-            return vec![names::STAND];
+            return &[names::STAND];
         }
-        let Some(world) = input.world else { return vec![names::STAND] };
+        let Some(world) = input.world else { return &[names::STAND] };
         let blocked = obstacle_ahead(world, self.model.collision_distance, 0.6).is_some();
         match goal {
             BodyGoal::GoToBallAndKick { kick, target } => {
                 if kickable(&self.model, world, *kick, *target) {
                     // Kick or go-to-ball is decided from percepts; the kick id is the
                     // deliberative layer's parameter.
-                    vec![names::KICK_BALL, names::GO_TO_BALL]
+                    &[names::KICK_BALL, names::GO_TO_BALL]
                 } else if blocked && ball(world).is_none_or(|b| b.robot.range() > 0.5) {
-                    vec![names::AVOID_COLLISION, names::GO_TO_BALL]
+                    &[names::AVOID_COLLISION, names::GO_TO_BALL]
                 } else if ball(world).is_some() {
-                    vec![names::GO_TO_BALL]
+                    &[names::GO_TO_BALL]
                 } else {
-                    vec![]
+                    &[]
                 }
             }
             BodyGoal::GoToPosition { .. } if blocked => {
-                vec![names::AVOID_COLLISION, names::GO_TO_POSITION]
+                &[names::AVOID_COLLISION, names::GO_TO_POSITION]
             }
             BodyGoal::GoToPosition { .. } | BodyGoal::ObserveTarget { .. } => {
-                vec![names::GO_TO_POSITION]
+                &[names::GO_TO_POSITION]
             }
-            BodyGoal::Stand => vec![names::STAND],
+            BodyGoal::Stand => &[names::STAND],
         }
     }
 }
@@ -183,7 +186,7 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &WholeBodyGoal, input: &Input<'_>) -> Vec<&'static str> {
+    fn primitives_for(&self, goal: &WholeBodyGoal, input: &Input<'_>) -> &'static [&'static str] {
         match goal {
             // A whole-body sequence of our own (a stand-up sweeping the torso up from the
             // ground, a dive) tilts the robot on purpose: that is not a fall to protect from.
@@ -191,25 +194,25 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
                 if matches!(input.stability, Stability::Unstable(_))
                     && !input.actuation.busy.contains(&strata_robot::command::Resource::Head) =>
             {
-                vec![names::FALL]
+                &[names::FALL]
             }
             WholeBodyGoal::StandUp { .. } if matches!(input.stability, Stability::Fallen(_)) => {
-                vec![names::STAND_UP]
+                &[names::STAND_UP]
             }
             WholeBodyGoal::Dive { .. } if input.stability.is_stable() => {
                 let dive = input.world.and_then(ball_crossing).is_some_and(|(y, t)| {
                     t < self.dive_horizon && y.abs() < self.dive_reach && t > 0.05
                 });
-                if dive { vec![names::DIVE] } else { vec![] }
+                if dive { &[names::DIVE] } else { &[] }
             }
             WholeBodyGoal::GoToBallAndDribble { .. } if input.stability.is_stable() => {
                 if input.world.and_then(ball).is_some_and(|b| b.known) {
-                    vec![names::DRIBBLING]
+                    &[names::DRIBBLING]
                 } else {
-                    vec![]
+                    &[]
                 }
             }
-            _ => vec![],
+            _ => &[],
         }
     }
 }

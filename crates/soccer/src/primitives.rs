@@ -7,11 +7,11 @@ use std::sync::Arc;
 use serde::{Deserialize, Serialize};
 use strata_robot::command::{BodyCommand, BodyMotion, HeadCommand, HeadMotion, WholeBodyCommand};
 use strata_robot::control::active_vision::GazeCandidate;
-use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput, Stability};
+pub use strata_robot::control::primitives::{HeadSender, Stand, StandUp, WalkSender};
+use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput};
 use strata_robot::geometry::{Point, Pose, Robot, Velocity, normalize_angle};
-use strata_robot::platform::{FallDirection, HeadAngles, SpecialMotion};
+use strata_robot::platform::{HeadAngles, SpecialMotion};
 use strata_robot::world::WorldState;
-use strata_runtime::Time;
 
 use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
@@ -28,8 +28,7 @@ pub mod names {
     pub const DRIBBLING: &str = "dribbling";
     pub const AVOID_COLLISION: &str = "avoid collision";
     pub const KICK_BALL: &str = "kick ball";
-    pub const STAND: &str = "stand";
-    pub const STAND_UP: &str = "stand-up";
+    pub use strata_robot::control::primitives::names::{STAND, STAND_UP};
     pub const FALL: &str = "fall";
     pub const DIVE: &str = "dive";
 }
@@ -101,36 +100,6 @@ pub fn walk_velocity(model: &MotionModel, target: Point<Robot>, heading: f64) ->
     }
 }
 
-/// Sends a walk only when it differs from the last one or is about to expire: fewer commands,
-/// same behavior.
-#[derive(Debug, Default, Clone)]
-struct WalkSender {
-    last: Option<(Velocity, Time)>,
-}
-
-impl WalkSender {
-    fn send(&mut self, model: &MotionModel, now: Time, velocity: Velocity) -> Option<BodyCommand> {
-        let fresh = self.last.is_some_and(|(v, t)| {
-            (v.vx - velocity.vx).abs() < 0.02
-                && (v.vy - velocity.vy).abs() < 0.02
-                && (v.omega - velocity.omega).abs() < 0.05
-                && (now - t).as_secs_f64() < model.walk_command_duration * 0.5
-        });
-        if fresh {
-            return None;
-        }
-        self.last = Some((velocity, now));
-        Some(BodyCommand::NonQueue(BodyMotion::Walk {
-            velocity,
-            duration: model.walk_command_duration,
-        }))
-    }
-
-    fn reset(&mut self) {
-        self.last = None;
-    }
-}
-
 /// Head angles that put a robot-frame point in the middle of the image.
 fn gaze_at(model: &MotionModel, point: Point<Robot>) -> HeadAngles {
     let range = point.range().max(0.05);
@@ -141,24 +110,6 @@ fn gaze_at(model: &MotionModel, point: Point<Robot>) -> HeadAngles {
 
 fn head_command(model: &MotionModel, target: HeadAngles) -> HeadCommand {
     HeadCommand::NonQueue(HeadMotion { target, max_speed: model.head_speed })
-}
-
-/// Sends a head target only when it moved.
-#[derive(Debug, Default, Clone)]
-struct HeadSender {
-    last: Option<HeadAngles>,
-}
-
-impl HeadSender {
-    fn send(&mut self, model: &MotionModel, target: HeadAngles) -> Option<HeadCommand> {
-        if self.last.is_some_and(|l| {
-            (l.yaw - target.yaw).abs() < 0.03 && (l.pitch - target.pitch).abs() < 0.03
-        }) {
-            return None;
-        }
-        self.last = Some(target);
-        Some(head_command(model, target))
-    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -249,18 +200,18 @@ impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for ObjectTracking {
     }
 
     fn activate(&mut self, _: &HeadGoal, _: &Input<'_, '_>) {
-        self.sender = HeadSender::default();
+        self.sender.reset();
     }
 
     fn step(&mut self, goal: &HeadGoal, input: &Input<'_, '_>) -> Option<HeadCommand> {
         let world = input.world?;
-        let object = head_goal_objects(world, goal).into_iter().next()?;
+        let object = *head_goal_objects(world, goal).first()?;
         let lookahead = 0.15;
         let target = match object.velocity {
             Some(v) => object.position + v * lookahead,
             None => object.position,
         };
-        self.sender.send(&self.model, gaze_at(&self.model, target))
+        self.sender.send(gaze_at(&self.model, target), self.model.head_speed)
     }
 }
 
@@ -314,13 +265,13 @@ impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for LookAtTarget {
     }
 
     fn activate(&mut self, _: &HeadGoal, _: &Input<'_, '_>) {
-        self.sender = HeadSender::default();
+        self.sender.reset();
     }
 
     fn step(&mut self, goal: &HeadGoal, input: &Input<'_, '_>) -> Option<HeadCommand> {
         let world = input.world?;
         let target = look_target(&self.field, world, goal, 1.06)?;
-        self.sender.send(&self.model, gaze_at(&self.model, target))
+        self.sender.send(gaze_at(&self.model, target), self.model.head_speed)
     }
 }
 
@@ -371,10 +322,10 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToPosition {
         if arrived {
             return self
                 .sender
-                .send(&self.model, input.now, velocity)
+                .send(input.now, velocity, self.model.walk_command_duration)
                 .map(|_| BodyCommand::NonQueue(BodyMotion::Stand));
         }
-        self.sender.send(&self.model, input.now, velocity)
+        self.sender.send(input.now, velocity, self.model.walk_command_duration)
     }
 }
 
@@ -449,7 +400,7 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToBall {
             v.vx = v.vx.min(0.6 * self.model.max_forward);
             v
         };
-        self.sender.send(&self.model, input.now, velocity)
+        self.sender.send(input.now, velocity, self.model.walk_command_duration)
     }
 }
 
@@ -497,28 +448,7 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for AvoidCollision {
         let obstacle = obstacle_ahead(input.world?, self.model.collision_distance, 0.7)?;
         let away = if obstacle.y > 0.0 { -1.0 } else { 1.0 };
         let velocity = Velocity::new(-0.05, away * self.model.max_sideways, 0.0);
-        self.sender.send(&self.model, input.now, velocity)
-    }
-}
-
-/// Stand still.
-#[derive(Debug, Default)]
-pub struct Stand {
-    sent: bool,
-}
-
-impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for Stand {
-    fn name(&self) -> &'static str {
-        names::STAND
-    }
-
-    fn activate(&mut self, _: &BodyGoal, _: &Input<'_, '_>) {
-        self.sent = false;
-    }
-
-    fn step(&mut self, _: &BodyGoal, _: &Input<'_, '_>) -> Option<BodyCommand> {
-        (!std::mem::replace(&mut self.sent, true))
-            .then_some(BodyCommand::NonQueue(BodyMotion::Stand))
+        self.sender.send(input.now, velocity, self.model.walk_command_duration)
     }
 }
 
@@ -546,7 +476,7 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribblin
 
     fn activate(&mut self, _: &WholeBodyGoal, _: &Input<'_, '_>) {
         self.walk.reset();
-        self.head = HeadSender::default();
+        self.head.reset();
     }
 
     fn step(&mut self, goal: &WholeBodyGoal, input: &Input<'_, '_>) -> Option<WholeBodyCommand> {
@@ -559,31 +489,9 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribblin
         let aim = ball.robot + through * 0.1;
         let velocity = walk_velocity(&self.model, aim, through.angle());
         let head = head_command(&self.model, gaze_at(&self.model, ball.robot));
-        let body = self.walk.send(&self.model, input.now, velocity)?;
-        let _ = self.head.send(&self.model, gaze_at(&self.model, ball.robot));
+        let body = self.walk.send(input.now, velocity, self.model.walk_command_duration)?;
+        let _ = self.head.send(gaze_at(&self.model, ball.robot), self.model.head_speed);
         Some(WholeBodyCommand::Coordinated { head, body })
-    }
-}
-
-/// Stand-up: the sequence for the side the robot lies on.
-#[derive(Debug, Default)]
-pub struct StandUp;
-
-impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for StandUp {
-    fn name(&self) -> &'static str {
-        names::STAND_UP
-    }
-
-    fn step(&mut self, _: &WholeBodyGoal, input: &Input<'_, '_>) -> Option<WholeBodyCommand> {
-        let sequence = match input.stability {
-            Stability::Fallen(FallDirection::Back) => 1,
-            Stability::Fallen(_) => 0,
-            _ => return None,
-        };
-        if input.actuation.is_busy(strata_robot::command::ResourceGroup::HeadAndBody) {
-            return None;
-        }
-        Some(WholeBodyCommand::Special { motion: SpecialMotion::StandUp(sequence) })
     }
 }
 

@@ -102,30 +102,46 @@ pub fn side_of(side: GoalSide) -> Side {
     }
 }
 
-/// The world-model objects a head goal is about.
-pub fn head_goal_objects<'a>(world: &'a WorldState, goal: &'a HeadGoal) -> Vec<&'a ObjectEstimate> {
-    match goal {
-        HeadGoal::ObserveBall => world.object(BALL).into_iter().collect(),
-        HeadGoal::ObserveGoal { side } => {
-            let posts = goal_posts(world, *side);
-            posts
-                .into_iter()
-                .max_by(|a, b| a.confidence.total_cmp(&b.confidence))
-                .into_iter()
-                .collect()
-        }
-        HeadGoal::ObserveLandmark { name } => {
-            world.object(name).or_else(|| best_instance(world, name)).into_iter().collect()
-        }
-        HeadGoal::ObserveTogether { objects } => objects
-            .iter()
-            .filter_map(|n| world.object(n).or_else(|| best_instance(world, n)))
-            .collect(),
-        HeadGoal::ObserveRival { player } => {
-            obstacles(world).nth(usize::from(*player)).into_iter().collect()
-        }
-        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } | HeadGoal::Scan => {
-            Vec::new()
+/// The world-model objects a head goal is about. Usually one: it is asked for several times
+/// per reactive cycle, so the single object is not put in a `Vec`.
+#[derive(Debug)]
+pub enum GoalObjects<'a> {
+    One(Option<&'a ObjectEstimate>),
+    Several(Vec<&'a ObjectEstimate>),
+}
+
+impl<'a> std::ops::Deref for GoalObjects<'a> {
+    type Target = [&'a ObjectEstimate];
+
+    fn deref(&self) -> &[&'a ObjectEstimate] {
+        match self {
+            GoalObjects::One(one) => one.as_slice(),
+            GoalObjects::Several(several) => several,
         }
     }
+}
+
+pub fn head_goal_objects<'a>(world: &'a WorldState, goal: &'a HeadGoal) -> GoalObjects<'a> {
+    let one = match goal {
+        HeadGoal::ObserveBall => world.object(BALL),
+        HeadGoal::ObserveGoal { side } => goal_posts(world, *side)
+            .into_iter()
+            .max_by(|a, b| a.confidence.total_cmp(&b.confidence)),
+        HeadGoal::ObserveLandmark { name } => {
+            world.object(name).or_else(|| best_instance(world, name))
+        }
+        HeadGoal::ObserveTogether { objects } => {
+            return GoalObjects::Several(
+                objects
+                    .iter()
+                    .filter_map(|n| world.object(n).or_else(|| best_instance(world, n)))
+                    .collect(),
+            );
+        }
+        HeadGoal::ObserveRival { player } => obstacles(world).nth(usize::from(*player)),
+        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } | HeadGoal::Scan => {
+            None
+        }
+    };
+    GoalObjects::One(one)
 }

@@ -31,13 +31,13 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> Vec<&'static str> {
-        let Some(world) = input.world else { return vec![names::SCAN] };
+    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> &'static [&'static str] {
+        let Some(world) = input.world else { return &[names::SCAN] };
         let localized = !world.pose.lost;
         match goal {
-            HeadGoal::Scan => vec![names::SCAN],
-            HeadGoal::LookAt { .. } if localized => vec![names::LOOK_AT_TARGET],
-            HeadGoal::LookAt { .. } => vec![names::SCAN],
+            HeadGoal::Scan => &[names::SCAN],
+            HeadGoal::LookAt { .. } if localized => &[names::LOOK_AT_TARGET],
+            HeadGoal::LookAt { .. } => &[names::SCAN],
             _ => {
                 let objects = head_goal_objects(world, goal);
                 // Tracking needs a position worth pointing at: a known object, or a landmark
@@ -45,12 +45,12 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
                 let trackable =
                     objects.iter().any(|o| o.known || (o.map_position.is_some() && localized));
                 if trackable {
-                    vec![names::OBJECT_TRACKING, names::SCAN]
+                    &[names::OBJECT_TRACKING, names::SCAN]
                 } else if matches!(goal, HeadGoal::InspectPoint { .. }) && localized {
                     // Not seen yet (or forgotten): look where the plan puts it.
-                    vec![names::LOOK_AT_TARGET, names::SCAN]
+                    &[names::LOOK_AT_TARGET, names::SCAN]
                 } else {
-                    vec![names::SCAN]
+                    &[names::SCAN]
                 }
             }
         }
@@ -71,10 +71,10 @@ impl ActivationPolicy<BodyGoal, WorldState> for BodyActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> Vec<&'static str> {
+    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> &'static [&'static str] {
         match goal {
-            BodyGoal::GoToWaypoint { .. } if input.world.is_some() => vec![names::GO_TO_WAYPOINT],
-            _ => vec![names::STAND],
+            BodyGoal::GoToWaypoint { .. } if input.world.is_some() => &[names::GO_TO_WAYPOINT],
+            _ => &[names::STAND],
         }
     }
 }
@@ -96,19 +96,19 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &WholeBodyGoal, input: &Input<'_>) -> Vec<&'static str> {
+    fn primitives_for(&self, goal: &WholeBodyGoal, input: &Input<'_>) -> &'static [&'static str] {
         match goal {
             // A stand-up tilts the robot on purpose: that is not a fall to protect from.
             WholeBodyGoal::Fall { .. }
                 if matches!(input.stability, Stability::Unstable(_))
                     && !input.actuation.busy.contains(&Resource::Head) =>
             {
-                vec![names::FALL]
+                &[names::FALL]
             }
             WholeBodyGoal::StandUp { .. } if matches!(input.stability, Stability::Fallen(_)) => {
-                vec![names::STAND_UP]
+                &[names::STAND_UP]
             }
-            _ => vec![],
+            _ => &[],
         }
     }
 }

@@ -6,13 +6,13 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 use strata_robot::command::{
-    BodyCommand, BodyMotion, HeadCommand, HeadMotion, Resource, ResourceGroup, WholeBodyCommand,
+    BodyCommand, BodyMotion, HeadCommand, HeadMotion, Resource, WholeBodyCommand,
 };
-use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput, Stability};
+pub use strata_robot::control::primitives::{HeadSender, Stand, StandUp, WalkSender};
+use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput};
 use strata_robot::geometry::{Point, Robot, Velocity, normalize_angle};
-use strata_robot::platform::{FallDirection, HeadAngles, SpecialMotion};
+use strata_robot::platform::{HeadAngles, SpecialMotion};
 use strata_robot::world::{ObjectEstimate, WorldState};
-use strata_runtime::Time;
 
 use crate::building::FloorPlan;
 use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
@@ -25,9 +25,8 @@ pub mod names {
     pub const OBJECT_TRACKING: &str = "object tracking";
     pub const LOOK_AT_TARGET: &str = "look at target";
     pub const GO_TO_WAYPOINT: &str = "go to waypoint";
-    pub const STAND: &str = "stand";
     pub const FALL: &str = "fall";
-    pub const STAND_UP: &str = "stand-up";
+    pub use strata_robot::control::primitives::names::{STAND, STAND_UP};
 }
 
 /// The robot's motion abilities as the primitives assume them.
@@ -93,47 +92,10 @@ pub fn walk_velocity(
     }
 }
 
-/// Sends a walk only when it differs from the last one or is about to expire: fewer commands,
-/// same behavior.
-#[derive(Debug, Default, Clone)]
-struct WalkSender {
-    last: Option<(Velocity, Time)>,
-}
-
-impl WalkSender {
-    fn send(&mut self, model: &MotionModel, now: Time, velocity: Velocity) -> Option<BodyCommand> {
-        let fresh = self.last.is_some_and(|(v, t)| {
-            (v.vx - velocity.vx).abs() < 0.02
-                && (v.vy - velocity.vy).abs() < 0.02
-                && (v.omega - velocity.omega).abs() < 0.05
-                && (now - t).as_secs_f64() < model.walk_command_duration * 0.5
-        });
-        if fresh {
-            return None;
-        }
-        self.last = Some((velocity, now));
-        Some(BodyCommand::NonQueue(BodyMotion::Walk {
-            velocity,
-            duration: model.walk_command_duration,
-        }))
-    }
-}
-
-/// Sends a head target only when it moved.
-#[derive(Debug, Default, Clone)]
-struct HeadSender {
-    last: Option<HeadAngles>,
-}
-
-impl HeadSender {
-    fn send(&mut self, model: &MotionModel, yaw: f64) -> Option<HeadCommand> {
-        let target = HeadAngles { yaw: yaw.clamp(-2.0, 2.0), pitch: 0.0 };
-        if self.last.is_some_and(|l| (l.yaw - target.yaw).abs() < 0.03) {
-            return None;
-        }
-        self.last = Some(target);
-        Some(HeadCommand::NonQueue(HeadMotion { target, max_speed: model.head_speed }))
-    }
+/// A level gaze in direction `yaw` (the patrol's landmarks and points of interest are at eye
+/// height).
+fn head_yaw(yaw: f64) -> HeadAngles {
+    HeadAngles { yaw: yaw.clamp(-2.0, 2.0), pitch: 0.0 }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -200,12 +162,12 @@ impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for ObjectTracking {
     }
 
     fn activate(&mut self, _: &HeadGoal, _: &Input<'_>) {
-        self.sender = HeadSender::default();
+        self.sender.reset();
     }
 
     fn step(&mut self, goal: &HeadGoal, input: &Input<'_>) -> Option<HeadCommand> {
         let object = head_goal_objects(input.world?, goal).into_iter().next()?;
-        self.sender.send(&self.model, object.position.bearing())
+        self.sender.send(head_yaw(object.position.bearing()), self.model.head_speed)
     }
 }
 
@@ -230,7 +192,7 @@ impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for LookAtTarget {
     }
 
     fn activate(&mut self, _: &HeadGoal, _: &Input<'_>) {
-        self.sender = HeadSender::default();
+        self.sender.reset();
     }
 
     fn step(&mut self, goal: &HeadGoal, input: &Input<'_>) -> Option<HeadCommand> {
@@ -242,7 +204,8 @@ impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for LookAtTarget {
             }
             _ => return None,
         };
-        self.sender.send(&self.model, world.pose.pose.to_robot(target).bearing())
+        self.sender
+            .send(head_yaw(world.pose.pose.to_robot(target).bearing()), self.model.head_speed)
     }
 }
 
@@ -269,7 +232,7 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToWaypoint {
     }
 
     fn activate(&mut self, _: &BodyGoal, _: &Input<'_>) {
-        self.sender = WalkSender::default();
+        self.sender.reset();
         self.stopped = false;
     }
 
@@ -286,33 +249,12 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToWaypoint {
                 return None;
             }
             self.stopped = true;
-            self.sender = WalkSender::default();
+            self.sender.reset();
             return Some(BodyCommand::NonQueue(BodyMotion::Stand));
         }
         self.stopped = false;
         let velocity = walk_velocity(&self.model, relative, heading, *stop);
-        self.sender.send(&self.model, input.now, velocity)
-    }
-}
-
-/// Stand still.
-#[derive(Debug, Default)]
-pub struct Stand {
-    sent: bool,
-}
-
-impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for Stand {
-    fn name(&self) -> &'static str {
-        names::STAND
-    }
-
-    fn activate(&mut self, _: &BodyGoal, _: &Input<'_>) {
-        self.sent = false;
-    }
-
-    fn step(&mut self, _: &BodyGoal, _: &Input<'_>) -> Option<BodyCommand> {
-        (!std::mem::replace(&mut self.sent, true))
-            .then_some(BodyCommand::NonQueue(BodyMotion::Stand))
+        self.sender.send(input.now, velocity, self.model.walk_command_duration)
     }
 }
 
@@ -334,27 +276,5 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Fall {
             WholeBodyGoal::StandUp { .. } => return None,
         };
         Some(WholeBodyCommand::Special { motion: SpecialMotion::Fall(sequence) })
-    }
-}
-
-/// Stand-up: the sequence for the side the robot lies on (0: face down, 1: on its back).
-#[derive(Debug, Default)]
-pub struct StandUp;
-
-impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for StandUp {
-    fn name(&self) -> &'static str {
-        names::STAND_UP
-    }
-
-    fn step(&mut self, _: &WholeBodyGoal, input: &Input<'_>) -> Option<WholeBodyCommand> {
-        let sequence = match input.stability {
-            Stability::Fallen(FallDirection::Back) => 1,
-            Stability::Fallen(_) => 0,
-            _ => return None,
-        };
-        if input.actuation.is_busy(ResourceGroup::HeadAndBody) {
-            return None;
-        }
-        Some(WholeBodyCommand::Special { motion: SpecialMotion::StandUp(sequence) })
     }
 }

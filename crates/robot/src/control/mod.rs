@@ -8,5 +8,6 @@ pub mod hsm;
 pub mod modules;
 pub mod planning;
 pub mod planning_module;
+pub mod primitives;
 pub mod reactive;
 pub mod scores;

@@ -207,20 +207,24 @@ pub trait PrimitiveBehavior<G, Cmd, W>: Send {
 /// The application's part of a multiplexer's activation function.
 pub trait ActivationPolicy<G, W>: Send {
     /// Stage 1: a goal that cannot be executed now as one (several objects that do not fit in
-    /// one gaze) is divided into goals that can. By default goals are kept as they are.
-    fn split(&self, goal: &GoalScore<G>, _input: &ReactiveInput<'_, W>) -> Vec<GoalScore<G>>
-    where
-        G: Goal,
-    {
-        vec![goal.clone()]
+    /// one gaze) is divided into goals that can (`Some`, possibly empty: the goal cannot be
+    /// pursued at all). `None`, the default, keeps the goal as offered — the common case, which
+    /// the reactive cycle runs without copying the goal.
+    fn split(
+        &self,
+        _goal: &GoalScore<G>,
+        _input: &ReactiveInput<'_, W>,
+    ) -> Option<Vec<GoalScore<G>>> {
+        None
     }
 
     /// Stage 2: the reactive score S_r in [0, 1], refreshed on every percept.
     fn reactive_score(&self, goal: &GoalScore<G>, input: &ReactiveInput<'_, W>) -> f64;
 
     /// The primitive behaviors (by name) that can pursue `goal` given the percepts, preferred
-    /// first. Empty: the goal cannot be pursued now (e.g. a fall goal while stable).
-    fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> Vec<&'static str>;
+    /// first. Empty: the goal cannot be pursued now (e.g. a fall goal while stable). A static
+    /// list: the choice among a fixed catalogue, made every cycle without allocating.
+    fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> &'static [&'static str];
 }
 
 /// One goal as the activation function scored it this cycle.
@@ -389,13 +393,16 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         let mut best: Option<(Selection<G>, f64)> = None;
         let offered = self.reflexes.goals.iter().chain(self.scores.goals.iter());
         for (offered_index, offered_goal) in offered.enumerate() {
-            for goal in self.policy.split(offered_goal, input) {
-                let reactive = self.policy.reactive_score(&goal, input).clamp(0.0, 1.0);
+            let split = self.policy.split(offered_goal, input);
+            let goals = split.as_deref().unwrap_or(std::slice::from_ref(offered_goal));
+            for goal in goals {
+                let reactive = self.policy.reactive_score(goal, input).clamp(0.0, 1.0);
                 let final_score = self.config.combination.combine(goal.deliberative, reactive);
                 let primitive = self
                     .policy
                     .primitives_for(&goal.goal, input)
-                    .into_iter()
+                    .iter()
+                    .copied()
                     .filter(|name| !self.deactivated.contains(*name))
                     .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
                 let (label, objects) = match self.labels.get(offered_index) {
@@ -423,7 +430,10 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                 };
                 let ranked = final_score + bonus;
                 if best.as_ref().is_none_or(|(_, b)| ranked > *b) {
-                    best = Some((Selection { goal, final_score, primitive, label }, ranked));
+                    best = Some((
+                        Selection { goal: goal.clone(), final_score, primitive, label },
+                        ranked,
+                    ));
                 }
             }
         }

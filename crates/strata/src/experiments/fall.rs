@@ -1131,15 +1131,13 @@ fn write_outputs(
     if let Some(png) = &fig6 {
         md.image("A fall and the recovery", png);
     }
-    md.heading("Raw data");
-    md.bullets(&[
-        "`falls.csv`: every fall (onset, cause, direction, latency, baseline latency, times to stand and to be back in position)",
-        "`runs.csv`: every run (duration, falls, false positives, time upright and walking, layer rates)",
-        "`summary.json`: the summary `--json` prints",
-    ]);
-    ctx.scenario_appendix(&mut md);
-    let report = ctx.path("report.md");
-    md.write(&report)
+    ctx.finish_report(
+        md,
+        &[
+            "`falls.csv`: every fall (onset, cause, direction, latency, baseline latency, times to stand and to be back in position)",
+            "`runs.csv`: every run (duration, falls, false positives, time upright and walking, layer rates)",
+        ],
+    )
 }
 
 #[cfg(test)]

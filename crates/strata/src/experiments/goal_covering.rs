@@ -1130,15 +1130,13 @@ fn write_outputs(
     }
     md.subheading("Fig. 4, ours");
     md.image("Ball trajectories and the keeper's path", &fig4);
-    md.heading("Raw data");
-    md.bullets(&[
-        "`runs.csv`: one row per run (method, rate, trajectory, seed) with every metric",
-        "`timeseries.csv`: every sample of run 0 of each (method, rate, trajectory), with the head multiplexer's S_d / S_r / final score per object",
-        "`summary.json`: the summary `--json` prints",
-    ]);
-    ctx.scenario_appendix(&mut md);
-    let report = ctx.path("report.md");
-    md.write(&report)
+    ctx.finish_report(
+        md,
+        &[
+            "`runs.csv`: one row per run (method, rate, trajectory, seed) with every metric",
+            "`timeseries.csv`: every sample of run 0 of each (method, rate, trajectory), with the head multiplexer's S_d / S_r / final score per object",
+        ],
+    )
 }
 
 /// The objects of Fig. 5: the ball and the two landmarks the head multiplexer ranked highest

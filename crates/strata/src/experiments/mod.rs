@@ -459,9 +459,18 @@ impl<'a> Ctx<'a> {
         ]);
     }
 
-    pub fn scenario_appendix(&self, md: &mut report::Markdown) {
+    /// Ends a report the same way for every experiment — where the raw data is (the files
+    /// `raw_data` describes, then the summary), the scenario that was run — and writes it as
+    /// `report.md`.
+    pub fn finish_report(&mut self, mut md: report::Markdown, raw_data: &[&str]) -> Result<()> {
+        md.heading("Raw data");
+        let mut bullets = raw_data.to_vec();
+        bullets.push("`summary.json`: the summary `--json` prints");
+        md.bullets(&bullets);
         md.heading("Scenario");
         md.code("toml", &self.scenario_text);
+        let report = self.path("report.md");
+        md.write(&report)
     }
 }
 

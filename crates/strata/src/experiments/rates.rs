@@ -873,14 +873,12 @@ fn write_outputs(
     md.heading("Figures");
     md.image("Reactive rate", &reactive_png);
     md.image("Deliberative rate", &deliberative_png);
-    md.heading("Raw data");
-    md.bullets(&[
-        "`runs.csv`: one row per run, load, robot and layer (rates, compute-time and period percentiles)",
-        "`summary.json`: the summary `--json` prints",
-    ]);
-    ctx.scenario_appendix(&mut md);
-    let report = ctx.path("report.md");
-    md.write(&report)
+    ctx.finish_report(
+        md,
+        &[
+            "`runs.csv`: one row per run, load, robot and layer (rates, compute-time and period percentiles)",
+        ],
+    )
 }
 
 #[cfg(test)]

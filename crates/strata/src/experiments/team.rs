@@ -671,14 +671,12 @@ fn write_outputs(
     md.image("Strikers per team", &hist_png);
     md.image("Double-striker time and role switches", &conflicts_png);
     md.image("Team messages against the budget", &budget_png);
-    md.heading("Raw data");
-    md.bullets(&[
-        "`matches.csv`: one row per team per match (score, falls, penalties, strikers histogram, conflicts, role switches, messages)",
-        "`summary.json`: the summary `--json` prints",
-    ]);
-    ctx.scenario_appendix(&mut md);
-    let report = ctx.path("report.md");
-    md.write(&report)
+    ctx.finish_report(
+        md,
+        &[
+            "`matches.csv`: one row per team per match (score, falls, penalties, strikers histogram, conflicts, role switches, messages)",
+        ],
+    )
 }
 
 #[cfg(test)]
