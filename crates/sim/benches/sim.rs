@@ -6,7 +6,9 @@
 //!
 //! Run: `cargo bench -p strata-sim --bench sim`
 //! (`STRATA_SIM_BENCH_SECONDS` shortens the runs, `STRATA_SIM_BENCH_ONLY=<label prefix>`
-//! selects variants.)
+//! selects variants — a whole label selects only that one —, `STRATA_SIM_BENCH_RUNS` sets
+//! the number of runs per variant, 5 by default, and `STRATA_SIM_BENCH_SEED` the world's seed
+//! instead of the default configuration's.)
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -17,6 +19,9 @@ use strata_sim::{GameState, NoiseConfig, NoiseLevel, SimConfig, Simulation};
 
 fn world(noise: NoiseLevel, camera: bool) -> Simulation {
     let mut config = SimConfig { noise: NoiseConfig::level(noise), ..SimConfig::default() };
+    if let Some(seed) = std::env::var("STRATA_SIM_BENCH_SEED").ok().and_then(|s| s.parse().ok()) {
+        config.seed = seed;
+    }
     if !camera {
         // Effectively never: isolates the cost of everything else.
         config.timing.camera_period = 1e6;
@@ -110,26 +115,33 @@ fn main() {
         .and_then(|s| s.parse::<f64>().ok())
         .unwrap_or(600.0);
     let only = std::env::var("STRATA_SIM_BENCH_ONLY").unwrap_or_default();
+    let runs = std::env::var("STRATA_SIM_BENCH_RUNS")
+        .ok()
+        .and_then(|s| s.parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or(5);
     println!(
-        "Simulator real-time factor: 14 robots, 83 Hz sensors, 30 Hz camera, {seconds} s simulated per run, 5 runs"
+        "Simulator real-time factor: 14 robots, 83 Hz sensors, 30 Hz camera, {seconds} s simulated per run, {runs} runs"
     );
     println!(
         "(baseline: real time = 1x; target >= 5000x on one core; median over runs of the thread's CPU time, and the best wall time)"
     );
-    for (label, noise, camera, readers) in [
+    let variants = [
         ("alone, default noise", NoiseLevel::Default, true, false),
         ("alone, no noise", NoiseLevel::None, true, false),
         ("alone, high noise", NoiseLevel::High, true, false),
         ("alone, default noise, no camera", NoiseLevel::Default, false, false),
         ("with 14 readers, default noise", NoiseLevel::Default, true, true),
-    ] {
-        if !label.starts_with(only.as_str()) {
+    ];
+    let exact = variants.iter().any(|v| v.0 == only);
+    for (label, noise, camera, readers) in variants {
+        if !label.starts_with(only.as_str()) || (exact && label != only) {
             continue;
         }
         let mut cpu = Vec::new();
         let mut wall = Vec::new();
         let mut detections = 0;
-        for _ in 0..5 {
+        for _ in 0..runs {
             let (cost, d) = run(noise, camera, readers, seconds);
             detections = d;
             cpu.push(seconds / cost.cpu.as_secs_f64());

@@ -17,7 +17,7 @@ use strata_runtime::Time;
 use crate::config::{DiveSide, RobotConfig};
 use crate::noise::NoiseParams;
 use crate::random::Stream;
-use crate::util::{Rotating, approach, compose, length, sin_cos, smoothstep, wrap_near};
+use crate::util::{Rotating, approach, length, sin_cos, smoothstep, wrap_near};
 
 /// Why a robot fell.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -137,8 +137,13 @@ pub(crate) struct Body {
     pub accel_scale: f64,
     /// Acceleration spike of an impact, shown by the next inertial sample.
     pub impact: f64,
-    /// Odometry accumulated since the platform last read it.
+    /// Odometry accumulated since the platform last read it ([`Body::take_odometry`]).
     pub odometry: Odometry,
+    /// Sine and cosine of `odometry.dtheta`.
+    odometry_turn: Rotating,
+    /// Walking time left before the walking hazard makes the robot fall, s (drawn when the
+    /// robot walks; NaN until then).
+    hazard_left: f64,
     /// The current fall was started by [`Body::start_fall`] (and so already recorded).
     fall_announced: bool,
     /// Distance walked and angle turned since the current step began (odometry error).
@@ -172,6 +177,8 @@ impl Body {
             accel_scale: 1.0,
             impact: 0.0,
             odometry: Odometry::ZERO,
+            odometry_turn: Rotating::new(0.0),
+            hazard_left: f64::NAN,
             fall_announced: false,
             step_walked: [0.0; 2],
         }
@@ -184,6 +191,7 @@ impl Body {
     }
 
     /// [sin roll, cos roll, sin pitch, cos pitch] of the torso.
+    #[inline(always)]
     pub fn tilt_trig(&mut self) -> [f64; 4] {
         if self.tilt_trig.0 != (self.roll, self.pitch) {
             let (sr, cr) = sin_cos(self.roll);
@@ -196,6 +204,28 @@ impl Body {
     /// Sine and cosine of the heading.
     pub fn heading(&self) -> (f64, f64) {
         (self.heading.sin, self.heading.cos)
+    }
+
+    /// The odometry accumulated since the last call.
+    pub fn take_odometry(&mut self) -> Odometry {
+        self.odometry_turn = Rotating::new(0.0);
+        std::mem::replace(&mut self.odometry, Odometry::ZERO)
+    }
+
+    /// Adds `next`, a motion in the frame where the accumulated odometry ends (`Odometry::then`,
+    /// with the accumulated turn's sine and cosine kept instead of computed).
+    fn add_odometry(&mut self, next: Odometry) {
+        let first = self.odometry;
+        let (s, c) = (self.odometry_turn.sin, self.odometry_turn.cos);
+        let dtheta = wrap_near(first.dtheta + next.dtheta);
+        self.odometry = Odometry {
+            dx: first.dx + c * next.dx - s * next.dy,
+            dy: first.dy + s * next.dx + c * next.dy,
+            dtheta,
+        };
+        if next.dtheta != 0.0 {
+            self.odometry_turn.advance(dtheta, next.dtheta);
+        }
     }
 
     pub fn set_position(&mut self, x: f64, y: f64) {
@@ -507,7 +537,7 @@ impl Body {
                 dy: walked.dy * (1.0 + n.scale_y),
                 dtheta: walked.dtheta * (1.0 + n.scale_theta),
             };
-            self.odometry = compose(self.odometry, measured);
+            self.add_odometry(measured);
             self.step_walked[0] += length(walked.dx, walked.dy);
             self.step_walked[1] += walked.dtheta.abs();
         }
@@ -521,11 +551,19 @@ impl Body {
             }
         }
 
-        // Walking is a fall hazard in itself.
-        if walking && rng.chance(noise.falls.hazard_per_minute / 60.0 * dt) {
-            let direction = random_direction(rng);
-            if self.start_fall(direction) {
-                events.fall_started = Some((direction, FallCause::Hazard));
+        // Walking is a fall hazard in itself: falls come at a constant rate per walking time,
+        // so the walking time until the next one is drawn at once (exponential).
+        if walking {
+            if self.hazard_left.is_nan() {
+                self.hazard_left = rng.exponential(noise.falls.hazard_per_minute / 60.0);
+            }
+            self.hazard_left -= dt;
+            if self.hazard_left <= 0.0 {
+                self.hazard_left = f64::NAN;
+                let direction = random_direction(rng);
+                if self.start_fall(direction) {
+                    events.fall_started = Some((direction, FallCause::Hazard));
+                }
             }
         }
 
@@ -544,7 +582,7 @@ impl Body {
         let theta = n.sigma_theta * (turn + distance).sqrt();
         if xy > 0.0 || theta > 0.0 {
             let error = Odometry { dx: rng.gauss(xy), dy: rng.gauss(xy), dtheta: rng.gauss(theta) };
-            self.odometry = compose(self.odometry, error);
+            self.add_odometry(error);
         }
     }
 
@@ -926,6 +964,26 @@ mod tests {
         assert!((body.odometry.dx - body.pose.x).abs() < 1e-9, "exact odometry without noise");
         let (s, c) = sin_cos(body.pose.theta);
         assert!((body.heading().0 - s).abs() < 1e-14 && (body.heading().1 - c).abs() < 1e-14);
+    }
+
+    #[test]
+    fn odometry_accumulates_like_composed_increments() {
+        let mut body = Body::new(Pose::default());
+        let mut exact = Odometry::ZERO;
+        for i in 0..400 {
+            let t = f64::from(i);
+            let next = Odometry { dx: 0.003 * t.cos(), dy: 0.001, dtheta: 0.012 * (t * 0.1).sin() };
+            body.add_odometry(next);
+            exact = exact.then(next);
+            if i == 150 {
+                let taken = body.take_odometry();
+                assert!((taken.dx - exact.dx).abs() < 1e-12 && (taken.dy - exact.dy).abs() < 1e-12);
+                exact = Odometry::ZERO;
+            }
+        }
+        let o = body.odometry;
+        assert!((o.dx - exact.dx).abs() < 1e-12 && (o.dy - exact.dy).abs() < 1e-12, "{o:?}");
+        assert!((o.dtheta - exact.dtheta).abs() < 1e-12, "{o:?} {exact:?}");
     }
 
     #[test]

@@ -15,7 +15,7 @@ use strata_spl::{Field, ObjectKind};
 use crate::config::CameraConfig;
 use crate::noise::CameraNoise;
 use crate::random::Stream;
-use crate::util::{atan2, length, sin_cos, wrap_half_turn};
+use crate::util::{bearing, length, sin_cos, wrap_half_turn};
 
 /// What the camera reports about a fixed point feature.
 #[derive(Clone, Copy, Debug)]
@@ -28,16 +28,28 @@ struct PointFeature {
     tall: bool,
 }
 
-/// The static part of what cameras can see: the field's landmarks and lines, stored as columns
-/// so transforming them into a camera's frame is one vectorizable loop.
+/// The static part of what cameras can see: the field's landmarks and lines, and which of them
+/// a camera could see from each part of the carpet looking into each range of directions.
 #[derive(Clone, Debug)]
 pub(crate) struct Scene {
     /// Point features' positions, then the lines' start points, then their end points.
     xs: Vec<f64>,
     ys: Vec<f64>,
     points: Vec<PointFeature>,
-    /// Direction of each line in the field frame.
-    lines: Vec<f64>,
+    lines: Vec<LineFeature>,
+    grid: Grid,
+    /// tan(fov / 2) of the camera the grid was built for.
+    tan_half: f64,
+}
+
+/// What the camera needs of a field line besides its ends.
+#[derive(Clone, Copy, Debug)]
+struct LineFeature {
+    /// Direction in the field frame.
+    direction: f64,
+    /// Squared length and its inverse.
+    len2: f64,
+    inv_len2: f64,
 }
 
 fn class(kind: ObjectKind) -> ObjectClass {
@@ -45,7 +57,9 @@ fn class(kind: ObjectKind) -> ObjectClass {
 }
 
 impl Scene {
-    pub fn new(field: &Field) -> Scene {
+    /// The scene of `field` for cameras of `camera`'s field of view and range, on a carpet of
+    /// half extents `carpet` (robots beyond it are served too, only more slowly).
+    pub fn new(field: &Field, camera: &CameraConfig, carpet: [f64; 2]) -> Scene {
         let colours = field.dimensions().goal_colours;
         let mut xs = Vec::new();
         let mut ys = Vec::new();
@@ -86,9 +100,184 @@ impl Scene {
         ys.extend(lines.iter().map(|l| l.start.y));
         xs.extend(lines.iter().map(|l| l.end.x));
         ys.extend(lines.iter().map(|l| l.end.y));
-        let lines =
-            lines.iter().map(|l| (l.end.y - l.start.y).atan2(l.end.x - l.start.x)).collect();
-        Scene { xs, ys, points, lines }
+        let lines = lines
+            .iter()
+            .map(|l| {
+                let (dx, dy) = (l.end.x - l.start.x, l.end.y - l.start.y);
+                let len2 = dx * dx + dy * dy;
+                let inv_len2 = if len2 > 0.0 { 1.0 / len2 } else { 0.0 };
+                LineFeature { direction: dy.atan2(dx), len2, inv_len2 }
+            })
+            .collect();
+        let grid = Grid::new(&xs, &ys, points.len(), camera, carpet);
+        Scene { xs, ys, points, lines, grid, tan_half: (camera.fov / 2.0).tan() }
+    }
+}
+
+/// Which features (point masks: bit `i` for point `i`; line masks: bit `j` for line `j`) a
+/// camera could see from each square cell of the carpet with its axis in each of [`SECTORS`]
+/// sectors of directions — a superset of what it sees from anywhere in the cell looking
+/// anywhere in the sector, so an image tests only these exactly (about a quarter of the
+/// field's features).
+#[derive(Clone, Debug)]
+struct Grid {
+    /// The field of view and range it was built for; other cameras test every feature.
+    fov: f64,
+    range: f64,
+    /// Lower corner, inverse cell size, cells along x and y.
+    x0: f64,
+    y0: f64,
+    inv_cell: f64,
+    nx: usize,
+    ny: usize,
+    /// Words of the point mask and of the line mask of a cell and sector.
+    point_words: usize,
+    line_words: usize,
+    /// The point mask then the line mask of each cell and sector, indexed by
+    /// ((cell y * nx + cell x) * SECTORS + sector) * (point_words + line_words).
+    masks: Vec<u64>,
+    /// Every point and every line.
+    all: Vec<u64>,
+}
+
+/// Sectors of camera directions per turn.
+const SECTORS: usize = 32;
+/// Side of a grid cell, m.
+const CELL: f64 = 0.5;
+/// Extra angle (rad) the sectors are widened by: covers the difference between the camera
+/// axis as an angle (which picks the sector) and as the sine and cosine the image uses.
+const SECTOR_MARGIN: f64 = 0.01;
+
+impl Grid {
+    fn new(xs: &[f64], ys: &[f64], points: usize, camera: &CameraConfig, carpet: [f64; 2]) -> Grid {
+        use std::f64::consts::{FRAC_PI_2, TAU};
+        let n = xs.len();
+        let lines = (n - points) / 2;
+        let (point_words, line_words) = (points.div_ceil(64).max(1), lines.div_ceil(64).max(1));
+        let words = point_words + line_words;
+        let mut all = vec![0u64; words];
+        for i in 0..points {
+            all[i / 64] |= 1 << (i % 64);
+        }
+        for j in 0..lines {
+            all[point_words + j / 64] |= 1 << (j % 64);
+        }
+        // The carpet and half a metre around it (robots pushed against its edge).
+        let margin = 0.5;
+        let (x0, y0) = (-carpet[0] - margin, -carpet[1] - margin);
+        let cells =
+            |extent: f64| (((2.0 * (extent + margin)) / CELL).ceil() as usize).clamp(1, 400);
+        let (nx, ny) = (cells(carpet[0]), cells(carpet[1]));
+        let width = TAU / SECTORS as f64;
+        let half = camera.fov / 2.0 + width / 2.0 + SECTOR_MARGIN;
+        let usable = camera.fov.is_finite()
+            && camera.range.is_finite()
+            && half < FRAC_PI_2 - 0.05
+            && carpet.iter().all(|e| e.is_finite() && *e >= 0.0);
+        if !usable {
+            return Grid {
+                fov: f64::NAN,
+                range: f64::NAN,
+                x0,
+                y0,
+                inv_cell: 1.0 / CELL,
+                nx: 0,
+                ny: 0,
+                point_words,
+                line_words,
+                masks: Vec::new(),
+                all,
+            };
+        }
+        // A viewer anywhere in a cell is within `r` of its centre; one looking anywhere in a
+        // sector sees inside the wedge of half-angle `half` around the sector's middle from
+        // the apex `k` behind the centre, whose wedge holds that whole disc, and no farther
+        // than `reach` from the centre.
+        let r = CELL * std::f64::consts::FRAC_1_SQRT_2 + 1e-6;
+        let k = r / half.sin();
+        let reach = camera.range + r + 1e-6;
+        let tan = half.tan();
+        let mut masks = vec![0u64; nx * ny * SECTORS * words];
+        for cy in 0..ny {
+            for cx in 0..nx {
+                let (ccx, ccy) = (x0 + (cx as f64 + 0.5) * CELL, y0 + (cy as f64 + 0.5) * CELL);
+                for sector in 0..SECTORS {
+                    let (sin, cos) = ((sector as f64 + 0.5) * width).sin_cos();
+                    let (ax, ay) = (ccx - k * cos, ccy - k * sin);
+                    let local = |i: usize| {
+                        let (dx, dy) = (xs[i] - ax, ys[i] - ay);
+                        (cos * dx + sin * dy, -sin * dx + cos * dy)
+                    };
+                    let mask = &mut masks[((cy * nx + cx) * SECTORS + sector) * words..][..words];
+                    for i in 0..points {
+                        let (x, y) = local(i);
+                        let near = length(xs[i] - ccx, ys[i] - ccy) <= reach;
+                        if near && x * tan >= y.abs() {
+                            mask[i / 64] |= 1 << (i % 64);
+                        }
+                    }
+                    for j in 0..lines {
+                        let (a, b) = (points + j, points + lines + j);
+                        let Some((t0, t1)) = clip_to_wedge(local(a), local(b), tan) else {
+                            continue;
+                        };
+                        // The piece's point nearest to the cell's centre.
+                        let (dx, dy) = (xs[b] - xs[a], ys[b] - ys[a]);
+                        let len2 = dx * dx + dy * dy;
+                        let t = if len2 > 0.0 {
+                            (((ccx - xs[a]) * dx + (ccy - ys[a]) * dy) / len2).clamp(t0, t1)
+                        } else {
+                            t0
+                        };
+                        if length(xs[a] + dx * t - ccx, ys[a] + dy * t - ccy) <= reach {
+                            mask[point_words + j / 64] |= 1 << (j % 64);
+                        }
+                    }
+                }
+            }
+        }
+        Grid {
+            fov: camera.fov,
+            range: camera.range,
+            x0,
+            y0,
+            inv_cell: 1.0 / CELL,
+            nx,
+            ny,
+            point_words,
+            line_words,
+            masks,
+            all,
+        }
+    }
+
+    /// Whether the grid was built for cameras of `config`.
+    fn fits(&self, config: &CameraConfig) -> bool {
+        config.fov == self.fov && config.range == self.range
+    }
+
+    /// The points and the lines a camera at (x, y) with its axis at angle `axis` could see (of
+    /// a configuration the grid [`fits`](Grid::fits)).
+    #[inline]
+    fn candidates(&self, x: f64, y: f64, axis: f64) -> (&[u64], &[u64]) {
+        let fx = (x - self.x0) * self.inv_cell;
+        let fy = (y - self.y0) * self.inv_cell;
+        let s = axis * (SECTORS as f64 / std::f64::consts::TAU);
+        let words = self.point_words + self.line_words;
+        // `!(a < b)` also sends NaN to the fallback.
+        let inside = fx >= 0.0 && fy >= 0.0 && fx < self.nx as f64 && fy < self.ny as f64;
+        let masks = if inside && s.abs() < 1e9 {
+            // In range: the conversions truncate, as a floor of these non-negative values.
+            let (cx, cy) = (fx as i64 as usize, fy as i64 as usize);
+            // Floor without the library call: truncation, one down for negative fractions.
+            let t = s as i64;
+            let sector = ((t - i64::from((t as f64) > s)) & (SECTORS as i64 - 1)) as usize;
+            let at = ((cy * self.nx + cx) * SECTORS + sector) * words;
+            &self.masks[at..at + words]
+        } else {
+            &self.all[..]
+        };
+        masks.split_at(self.point_words)
     }
 }
 
@@ -100,6 +289,32 @@ pub(crate) struct RobotMark {
     pub variant: u16,
 }
 
+/// The robots on the field as cameras see them, as columns, with their slots.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct RobotMarks {
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    variants: Vec<u16>,
+    slots: Vec<usize>,
+}
+
+impl RobotMarks {
+    pub fn clear(&mut self) {
+        self.xs.clear();
+        self.ys.clear();
+        self.variants.clear();
+        self.slots.clear();
+    }
+
+    /// Adds the robot of slot `slot` (slots in increasing order).
+    pub fn push(&mut self, slot: usize, mark: RobotMark) {
+        self.xs.push(mark.position.x);
+        self.ys.push(mark.position.y);
+        self.variants.push(mark.variant);
+        self.slots.push(slot);
+    }
+}
+
 /// The robot taking the image.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Viewer {
@@ -109,7 +324,7 @@ pub(crate) struct Viewer {
     pub head: HeadAngles,
     /// Head angular speed, rad/s (motion blur).
     pub head_rate: f64,
-    /// Its own index among the robot marks (it does not see or hide behind itself).
+    /// Its own slot (it does not see or hide behind itself).
     pub index: Option<usize>,
     /// Lying, falling or getting up: the camera sees the sky or the carpet.
     pub blind: bool,
@@ -136,37 +351,6 @@ impl Local {
 pub(crate) struct Scratch {
     occluders: Vec<Local>,
     seen: Vec<(Local, u16)>,
-    xs: Vec<f64>,
-    ys: Vec<f64>,
-    left: Vec<f64>,
-    right: Vec<f64>,
-    seen_points: Vec<u64>,
-    seen_lines: Vec<u64>,
-}
-
-/// Sets `mask` to the bits `i < n` for which `keep(i)`, 64 per word, without branches.
-#[inline]
-fn bitmask(mask: &mut Vec<u64>, n: usize, keep: impl Fn(usize) -> bool) {
-    mask.clear();
-    mask.resize(n.div_ceil(64), 0);
-    for i in 0..n {
-        mask[i / 64] |= u64::from(keep(i)) << (i % 64);
-    }
-}
-
-/// The indices of the set bits, ascending.
-#[inline]
-fn set_bits(mask: &[u64]) -> impl Iterator<Item = usize> + '_ {
-    mask.iter().enumerate().flat_map(|(word, &bits)| {
-        let mut bits = bits;
-        std::iter::from_fn(move || {
-            (bits != 0).then(|| {
-                let bit = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                word * 64 + bit
-            })
-        })
-    })
 }
 
 pub(crate) struct Camera<'a> {
@@ -178,8 +362,17 @@ pub(crate) struct Camera<'a> {
 }
 
 impl<'a> Camera<'a> {
-    pub fn new(config: &'a CameraConfig, noise: &'a CameraNoise, robot_radius: f64) -> Camera<'a> {
-        Camera { config, noise, robot_radius, tan_half: (config.fov / 2.0).tan() }
+    /// A camera of `config` for images of `scene` (which keeps tan(fov / 2) of the camera it
+    /// was built for).
+    pub fn new(
+        config: &'a CameraConfig,
+        noise: &'a CameraNoise,
+        robot_radius: f64,
+        scene: &Scene,
+    ) -> Camera<'a> {
+        let tan_half =
+            if scene.grid.fits(config) { scene.tan_half } else { (config.fov / 2.0).tan() };
+        Camera { config, noise, robot_radius, tan_half }
     }
 }
 
@@ -190,7 +383,7 @@ impl Camera<'_> {
         &self,
         scene: &Scene,
         viewer: &Viewer,
-        robots: &[Option<RobotMark>],
+        robots: &RobotMarks,
         ball: Option<Point<FieldFrame>>,
         rng: &mut Stream,
         scratch: &mut Scratch,
@@ -220,17 +413,17 @@ impl Camera<'_> {
         let beside = radius * (1.0 + tan_half * tan_half).sqrt();
         scratch.occluders.clear();
         scratch.seen.clear();
-        for (i, mark) in robots.iter().enumerate() {
-            let Some(mark) = mark else { continue };
-            if Some(i) == viewer.index {
-                continue;
-            }
-            let (x, y) = to_local(mark.position);
-            if x > -radius && y.abs() <= x * tan_half + beside && x * x + y * y < range2 {
+        let own = viewer.index.unwrap_or(usize::MAX);
+        let marks = robots.xs.iter().zip(&robots.ys).zip(robots.slots.iter().zip(&robots.variants));
+        for ((&mx, &my), (&slot, &variant)) in marks {
+            let (x, y) = to_local(Point::new(mx, my));
+            if (x > -radius) & (y.abs() <= x * tan_half + beside) & (x * x + y * y < range2)
+                && slot != own
+            {
                 let local = Local::new(x, y);
                 scratch.occluders.push(local);
                 if in_view(x, y) && local.distance >= near {
-                    scratch.seen.push((local, mark.variant));
+                    scratch.seen.push((local, variant));
                 }
             }
         }
@@ -243,113 +436,78 @@ impl Camera<'_> {
             })
         };
 
-        let noise = self.noise;
-        let blur = (1.0 - noise.motion_blur_per_rad_s * viewer.head_rate).max(0.0);
-        let probability = |distance: f64, factor: f64| {
-            let t = (distance / range).clamp(0.0, 1.0);
-            (noise.detection_near + (noise.detection_far - noise.detection_near) * t)
-                * factor
-                * blur
-        };
-        let report = |rng: &mut Stream,
-                      out: &mut Vec<Detection>,
-                      class: ObjectClass,
-                      variant: Option<u16>,
-                      local: &Local,
-                      orientation: Option<f64>,
-                      factor: f64| {
-            if !rng.chance(probability(local.distance, factor)) {
-                return;
-            }
-            let range_sigma = noise.range_sigma + noise.range_sigma_per_metre * local.distance;
-            let bearing_sigma =
-                noise.bearing_sigma + noise.bearing_sigma_per_metre * local.distance;
-            let range = (local.distance + rng.gauss(range_sigma)).max(0.0);
-            let bearing = atan2(local.y, local.x) + rng.gauss(bearing_sigma);
-            let orientation = orientation.map(|o| o + rng.gauss(noise.orientation_sigma));
-            out.push(Detection { class, variant, range, bearing, orientation });
-        };
-
+        let reporter = Reporter::new(self.noise, range, viewer.head_rate);
         if let Some(ball) = ball {
             let (x, y) = to_local(ball);
             if in_view(x, y) {
                 let local = Local::new(x, y);
-                if local.distance >= near && local.distance <= far && !hidden(&local) {
-                    report(rng, out, class(ObjectKind::Ball), None, &local, None, 1.0);
+                if local.distance >= near && local.distance <= far {
+                    let ball = class(ObjectKind::Ball);
+                    reporter.report(rng, out, ball, None, &local, Facing::None, 1.0, &hidden);
                 }
             }
         }
         for (local, variant) in &scratch.seen {
-            if !hidden(local) {
-                report(rng, out, class(ObjectKind::Robot), Some(*variant), local, None, 1.0);
-            }
+            let robot = class(ObjectKind::Robot);
+            reporter.report(rng, out, robot, Some(*variant), local, Facing::None, 1.0, &hidden);
         }
 
-        // Every fixed point and line end into the camera frame at once, with its side of the
-        // two edges of the view (inside both: `left >= 0` and `right >= 0`), in one
-        // vectorizable loop.
-        let n = scene.xs.len();
-        scratch.xs.resize(n, 0.0);
-        scratch.ys.resize(n, 0.0);
-        scratch.left.resize(n, 0.0);
-        scratch.right.resize(n, 0.0);
-        // Slices of one length: no bounds checks, so the loop vectorizes.
-        let (xs, ys) = (&mut scratch.xs[..n], &mut scratch.ys[..n]);
-        let (left, right) = (&mut scratch.left[..n], &mut scratch.right[..n]);
-        let (px, py) = (&scene.xs[..n], &scene.ys[..n]);
-        for i in 0..n {
-            let dx = px[i] - ox;
-            let dy = py[i] - oy;
-            let x = cos * dx + sin * dy;
-            let y = -sin * dx + cos * dy;
-            xs[i] = x;
-            ys[i] = y;
-            left[i] = x * tan_half - y;
-            right[i] = x * tan_half + y;
-        }
-        let landmark = noise.landmark_factor;
+        // The fixed points and lines this camera could see from where it stands, looking where
+        // it looks (the scene's grid), each tested exactly.
+        let landmark = self.noise.landmark_factor;
         let points = scene.points.len();
-        // Which points are in the view, as bits: deciding per point with a branch mispredicts
-        // about every other point, a bitmask built without branches does not.
-        bitmask(&mut scratch.seen_points, points, |i| {
-            (left[i] >= 0.0) & (right[i] >= 0.0) & (xs[i] * xs[i] + ys[i] * ys[i] <= range2)
-        });
-        for i in set_bits(&scratch.seen_points) {
-            let feature = &scene.points[i];
-            let (x, y) = (xs[i], ys[i]);
-            if x <= 0.0 {
-                continue;
+        let lines = scene.lines.len();
+        let (px, py) = (&scene.xs[..points + 2 * lines], &scene.ys[..points + 2 * lines]);
+        let (point_mask, line_mask) = if scene.grid.fits(config) {
+            scene.grid.candidates(ox, oy, axis)
+        } else {
+            scene.grid.all[..].split_at(scene.grid.point_words)
+        };
+        for (word, &bits) in point_mask.iter().enumerate() {
+            let mut bits = bits;
+            while bits != 0 {
+                let i = word * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let Some(feature) = scene.points.get(i) else { continue };
+                let (x, y) = to_local(Point::new(px[i], py[i]));
+                let inside = (x * tan_half - y >= 0.0) & (x * tan_half + y >= 0.0);
+                if !inside || x * x + y * y > range2 || x <= 0.0 {
+                    continue;
+                }
+                let local = Local::new(x, y);
+                if local.distance < near || (!feature.tall && local.distance > far) {
+                    continue;
+                }
+                let facing = feature.orientation.map_or(Facing::None, |o| Facing::Full(o - axis));
+                let (class, variant) = (feature.class, feature.variant);
+                reporter.report(rng, out, class, variant, &local, facing, landmark, &hidden);
             }
-            let local = Local::new(x, y);
-            if local.distance < near || (!feature.tall && local.distance > far) || hidden(&local) {
-                continue;
-            }
-            let orientation = feature.orientation.map(|o| wrap_relative(o - axis));
-            report(rng, out, feature.class, feature.variant, &local, orientation, landmark);
         }
         let line_class = class(ObjectKind::FieldLine);
-        let lines = scene.lines.len();
-        let (starts, ends) = (points, points + lines);
-        // A line with both ends beyond the same edge of the view has nothing in it.
-        bitmask(&mut scratch.seen_lines, lines, |i| {
-            let (a, b) = (starts + i, ends + i);
-            !(((left[a] < 0.0) & (left[b] < 0.0)) | ((right[a] < 0.0) & (right[b] < 0.0)))
-        });
-        for i in set_bits(&scratch.seen_lines) {
-            let (a, b) = (starts + i, ends + i);
-            let Some(closest) =
-                visible_piece((xs[a], ys[a]), (xs[b], ys[b]), tan_half, config.min_line_length)
-            else {
-                continue;
-            };
-            if closest.distance > range.min(far) || hidden(&closest) {
-                continue;
+        let max_distance = range.min(far);
+        for (word, &bits) in line_mask.iter().enumerate() {
+            let mut bits = bits;
+            while bits != 0 {
+                let j = word * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let Some(line) = scene.lines.get(j) else { continue };
+                let (a, b) = (points + j, points + lines + j);
+                let start = to_local(Point::new(px[a], py[a]));
+                let end = to_local(Point::new(px[b], py[b]));
+                let Some(closest) =
+                    visible_piece(start, end, tan_half, config.min_line_length, line)
+                else {
+                    continue;
+                };
+                if closest.distance > max_distance {
+                    continue;
+                }
+                let facing = Facing::Half(line.direction - axis);
+                reporter.report(rng, out, line_class, None, &closest, facing, landmark, &hidden);
             }
-            let orientation = Some(wrap_half_turn(scene.lines[i] - axis));
-            report(rng, out, line_class, None, &closest, orientation, landmark);
         }
 
-        if rng.chance(noise.false_positive_rate) {
+        if rng.chance(self.noise.false_positive_rate) {
             const GHOSTS: [ObjectKind; 6] = [
                 ObjectKind::Ball,
                 ObjectKind::Ball,
@@ -369,8 +527,81 @@ impl Camera<'_> {
     }
 }
 
+/// Decides whether a detection is made and adds its noise.
+struct Reporter<'a> {
+    noise: &'a CameraNoise,
+    /// Detection probability at zero distance and its change per unit of `distance / range`,
+    /// both with the motion blur.
+    near: f64,
+    slope: f64,
+    inv_range: f64,
+}
+
+impl<'a> Reporter<'a> {
+    fn new(noise: &'a CameraNoise, range: f64, head_rate: f64) -> Reporter<'a> {
+        let blur = (1.0 - noise.motion_blur_per_rad_s * head_rate).max(0.0);
+        Reporter {
+            noise,
+            near: noise.detection_near * blur,
+            slope: (noise.detection_far - noise.detection_near) * blur,
+            inv_range: 1.0 / range,
+        }
+    }
+
+    /// Reports `local` with probability falling with distance (times `factor`), with noise,
+    /// unless it is `hidden` (tested only for a detection the draw decided to make).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn report(
+        &self,
+        rng: &mut Stream,
+        out: &mut Vec<Detection>,
+        class: ObjectClass,
+        variant: Option<u16>,
+        local: &Local,
+        facing: Facing,
+        factor: f64,
+        hidden: &impl Fn(&Local) -> bool,
+    ) {
+        // Two words: 32 bits decide the detection, three normal samples give the noise (a
+        // zero deviation adds exactly zero, so the zero-noise mode stays exact).
+        // Distances are not negative.
+        let t = local.distance * self.inv_range;
+        let t = if t < 1.0 { t } else { 1.0 };
+        let first = rng.next_u64();
+        let detected = Stream::unit_from(first as u32) < (self.near + self.slope * t) * factor;
+        if !detected || hidden(local) {
+            return;
+        }
+        let second = rng.next_u64();
+        let noise = self.noise;
+        let range_sigma = noise.range_sigma + noise.range_sigma_per_metre * local.distance;
+        let bearing_sigma = noise.bearing_sigma + noise.bearing_sigma_per_metre * local.distance;
+        let range = local.distance + rng.normal_from((first >> 32) as u32) * range_sigma;
+        let range = if range > 0.0 { range } else { 0.0 };
+        let bearing = bearing(local.y, local.x) + rng.normal_from(second as u32) * bearing_sigma;
+        let orientation = match facing {
+            Facing::None => None,
+            Facing::Full(o) => Some(wrap_relative(o)),
+            Facing::Half(o) => Some(wrap_half_turn(o)),
+        }
+        .map(|o| o + rng.normal_from((second >> 32) as u32) * noise.orientation_sigma);
+        out.push(Detection { class, variant, range, bearing, orientation });
+    }
+}
+
+/// A detection's orientation relative to the camera axis, before wrapping.
+#[derive(Clone, Copy, Debug)]
+enum Facing {
+    None,
+    /// A crossing's: wrapped to (-pi, pi].
+    Full(f64),
+    /// An undirected line's: wrapped to (-pi/2, pi/2].
+    Half(f64),
+}
+
 fn wrap_relative(angle: f64) -> f64 {
-    strata_robot::normalize_angle(angle)
+    crate::util::wrap_angle(angle)
 }
 
 /// The ground distances the camera covers at head pitch `pitch`: [near, far].
@@ -390,36 +621,74 @@ pub(crate) fn ground_band(config: &CameraConfig, pitch: f64) -> (f64, f64) {
     (near, far)
 }
 
-/// Clips a segment (camera frame) to the horizontal field of view; returns the point of the
-/// visible piece nearest to the camera, if the piece is long enough.
-fn visible_piece(a: (f64, f64), b: (f64, f64), tan_half: f64, min_length: f64) -> Option<Local> {
+/// The parameter interval [t0, t1] of the piece of segment a-b inside the wedge
+/// `x * tan >= |y|` (a camera frame), if any.
+#[inline]
+fn clip_to_wedge(a: (f64, f64), b: (f64, f64), tan: f64) -> Option<(f64, f64)> {
+    // Inside the wedge: x * tan - y >= 0 (left edge) and x * tan + y >= 0 (right edge).
+    let (la, lb) = (a.0 * tan - a.1, b.0 * tan - b.1);
+    let (ra, rb) = (a.0 * tan + a.1, b.0 * tan + b.1);
+    if (la < 0.0 && lb < 0.0) || (ra < 0.0 && rb < 0.0) {
+        return None;
+    }
+    // Where each edge crosses the segment (finite: the signs differ), by plain comparisons
+    // (cheaper than `f64::max` and `min`, whose NaN rules need not apply).
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    // Inside the wedge: x * tan_half - y >= 0 and x * tan_half + y >= 0.
-    for sign in [-1.0, 1.0] {
-        let ha = a.0 * tan_half + sign * a.1;
-        let hb = b.0 * tan_half + sign * b.1;
-        if ha < 0.0 && hb < 0.0 {
-            return None;
-        }
+    for (ha, hb) in [(la, lb), (ra, rb)] {
         if ha < 0.0 {
-            t0 = t0.max(ha / (ha - hb));
+            let t = ha / (ha - hb);
+            if t > t0 {
+                t0 = t;
+            }
         } else if hb < 0.0 {
-            t1 = t1.min(ha / (ha - hb));
+            let t = ha / (ha - hb);
+            if t < t1 {
+                t1 = t;
+            }
         }
     }
-    if t1 <= t0 {
+    (t1 > t0).then_some((t0, t1))
+}
+
+/// Clips a segment (camera frame) to the horizontal field of view; returns the point of the
+/// visible piece nearest to the camera, if the piece is long enough. `line` gives the
+/// segment's squared length and its inverse (the same in any frame).
+fn visible_piece(
+    a: (f64, f64),
+    b: (f64, f64),
+    tan_half: f64,
+    min_length: f64,
+    line: &LineFeature,
+) -> Option<Local> {
+    let (t0, t1) = clip_to_wedge(a, b, tan_half)?;
+    if line.len2 * (t1 - t0) * (t1 - t0) < min_length * min_length {
         return None;
     }
     let (dx, dy) = (b.0 - a.0, b.1 - a.1);
-    let len2 = dx * dx + dy * dy;
-    if len2 * (t1 - t0) * (t1 - t0) < min_length * min_length {
-        return None;
-    }
-    let t = if len2 > 0.0 { (-(a.0 * dx + a.1 * dy) / len2).clamp(t0, t1) } else { t0 };
+    let t = -(a.0 * dx + a.1 * dy) * line.inv_len2;
+    let t = if t < t0 {
+        t0
+    } else if t > t1 {
+        t1
+    } else {
+        t
+    };
     let x = a.0 + dx * t;
     let y = a.1 + dy * t;
     // Both wedge edges meet at the camera: a piece through it has no direction to report.
     (x > 1e-6).then(|| Local::new(x, y))
+}
+
+/// The line data of the segment a-b, for [`visible_piece`].
+#[cfg(test)]
+fn line_of(a: (f64, f64), b: (f64, f64)) -> LineFeature {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let len2 = dx * dx + dy * dy;
+    LineFeature {
+        direction: dy.atan2(dx),
+        len2,
+        inv_len2: if len2 > 0.0 { 1.0 / len2 } else { 0.0 },
+    }
 }
 
 #[cfg(test)]
@@ -429,13 +698,73 @@ mod tests {
     #[test]
     fn a_line_across_the_view_is_seen_at_its_nearest_point() {
         let tan_half = 0.5f64;
-        let piece =
-            visible_piece((2.0, -5.0), (2.0, 5.0), tan_half, 0.1).expect("crosses the view");
+        let piece = visible_piece(
+            (2.0, -5.0),
+            (2.0, 5.0),
+            tan_half,
+            0.1,
+            &line_of((2.0, -5.0), (2.0, 5.0)),
+        )
+        .expect("crosses the view");
         assert!((piece.x - 2.0).abs() < 1e-12 && piece.y.abs() < 1e-12);
         // Beside the wedge on both ends.
-        assert!(visible_piece((1.0, 2.0), (3.0, 4.0), tan_half, 0.1).is_none());
+        let line = line_of((1.0, 2.0), (3.0, 4.0));
+        assert!(visible_piece((1.0, 2.0), (3.0, 4.0), tan_half, 0.1, &line).is_none());
         // Behind the camera.
-        assert!(visible_piece((-1.0, -1.0), (-1.0, 1.0), tan_half, 0.1).is_none());
+        let line = line_of((-1.0, -1.0), (-1.0, 1.0));
+        assert!(visible_piece((-1.0, -1.0), (-1.0, 1.0), tan_half, 0.1, &line).is_none());
+    }
+
+    #[test]
+    fn the_grid_keeps_every_feature_a_camera_can_see() {
+        let config = CameraConfig::default();
+        for preset in ["spl", "paper2010"] {
+            let field = Field::preset(preset).expect("preset");
+            let carpet = [field.half_length() + 0.7, field.half_width() + 0.7];
+            let scene = Scene::new(&field, &config, carpet);
+            let (points, lines) = (scene.points.len(), scene.lines.len());
+            let tan_half = (config.fov / 2.0).tan();
+            let mut rng = Stream::new(5, "grid");
+            let (mut candidates, mut visible) = (0usize, 0usize);
+            for _ in 0..20_000 {
+                let x = rng.uniform(-carpet[0] - 0.6, carpet[0] + 0.6);
+                let y = rng.uniform(-carpet[1] - 0.6, carpet[1] + 0.6);
+                let axis = rng.uniform(-6.0, 6.0);
+                let (sin, cos) = sin_cos(axis);
+                let local = |i: usize| {
+                    let (dx, dy) = (scene.xs[i] - x, scene.ys[i] - y);
+                    (cos * dx + sin * dy, -sin * dx + cos * dy)
+                };
+                assert!(scene.grid.fits(&config));
+                let (point_mask, line_mask) = scene.grid.candidates(x, y, axis);
+                let has = |mask: &[u64], bit: usize| mask[bit / 64] & (1 << (bit % 64)) != 0;
+                candidates += point_mask
+                    .iter()
+                    .chain(line_mask)
+                    .map(|w| w.count_ones() as usize)
+                    .sum::<usize>();
+                for i in 0..points {
+                    let (lx, ly) = local(i);
+                    let seen = lx > 0.0
+                        && lx * tan_half - ly >= 0.0
+                        && lx * tan_half + ly >= 0.0
+                        && lx * lx + ly * ly <= config.range * config.range;
+                    visible += usize::from(seen);
+                    assert!(!seen || has(point_mask, i), "point {i} from ({x}, {y}) at {axis}");
+                }
+                for j in 0..lines {
+                    let (a, b) = (local(points + j), local(points + lines + j));
+                    let piece = visible_piece(a, b, tan_half, 0.0, &scene.lines[j]);
+                    let seen = piece.is_some_and(|p| p.distance <= config.range);
+                    visible += usize::from(seen);
+                    assert!(!seen || has(line_mask, j), "line {j} from ({x}, {y}) at {axis}");
+                }
+            }
+            // The grid is worth it: far fewer candidates than features.
+            let per_image = candidates as f64 / 20_000.0;
+            assert!(per_image < 0.5 * (points + lines) as f64, "{preset}: {per_image} candidates");
+            assert!(visible > 0);
+        }
     }
 
     #[test]

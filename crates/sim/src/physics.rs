@@ -116,14 +116,22 @@ pub(crate) struct Ball {
     pub script: Option<BallScript>,
 }
 
-/// A robot as the ball and other robots see it.
+/// The robots as the ball sees them: discs by slot (none for a robot off the field), with
+/// their field-frame velocities, and the diving ones' blocking bodies.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Disc {
-    pub position: Point<FieldFrame>,
-    pub velocity: Vector<FieldFrame>,
+pub(crate) struct Discs<'a> {
+    pub positions: &'a [Option<Point<FieldFrame>>],
+    pub velocities: &'a [Vector<FieldFrame>],
     pub radius: f64,
-    /// Where the robot's body blocks the ball in a dive, as a segment.
-    pub block: Option<Segment<FieldFrame>>,
+    /// Where a diving robot's body blocks the ball, as a segment, by slot in increasing order.
+    pub blocks: &'a [(usize, Segment<FieldFrame>)],
+}
+
+#[cfg(test)]
+impl Discs<'_> {
+    /// No robots.
+    pub const NONE: Discs<'static> =
+        Discs { positions: &[], velocities: &[], radius: 0.0, blocks: &[] };
 }
 
 /// The width of a diving body (half), m.
@@ -131,12 +139,13 @@ const BLOCK_RADIUS: f64 = 0.08;
 
 impl Ball {
     /// Advances the ball by `dt`. Returns the index of the last robot that touched it.
+    #[inline(never)]
     pub fn step(
         &mut self,
         dt: f64,
         config: &BallConfig,
         obstacles: &Obstacles,
-        robots: &[Option<Disc>],
+        robots: &Discs<'_>,
     ) -> Option<usize> {
         if let Some(script) = &mut self.script {
             script.travelled += script.speed * dt;
@@ -191,33 +200,40 @@ impl Ball {
         &mut self,
         config: &BallConfig,
         obstacles: &Obstacles,
-        robots: &[Option<Disc>],
+        robots: &Discs<'_>,
     ) -> Option<usize> {
         let r = config.radius;
-        for &post in &obstacles.posts {
-            self.bounce_off_point(
-                post,
-                obstacles.post_radius + r,
-                Vector::new(0.0, 0.0),
-                config.restitution_posts,
-            );
-        }
-        for net in &obstacles.nets {
-            let closest = net.closest_point(self.position);
-            self.bounce_off_point(closest, r, Vector::new(0.0, 0.0), config.restitution_posts);
+        // Posts and nets only near the goals (like robots, see `resolve_robots`).
+        if obstacles.near_goal(self.position.x, r) {
+            for &post in &obstacles.posts {
+                self.bounce_off_point(
+                    post,
+                    obstacles.post_radius + r,
+                    Vector::new(0.0, 0.0),
+                    config.restitution_posts,
+                );
+            }
+            for net in &obstacles.nets {
+                let closest = net.closest_point(self.position);
+                self.bounce_off_point(closest, r, Vector::new(0.0, 0.0), config.restitution_posts);
+            }
         }
         let mut touched = None;
-        for (index, disc) in robots.iter().enumerate() {
-            let Some(disc) = disc else { continue };
-            if self.bounce_off_point(
-                disc.position,
-                disc.radius + r,
-                disc.velocity,
-                config.restitution_robots,
-            ) {
-                touched = Some(index);
+        let reach = robots.radius + r;
+        let mut blocks = robots.blocks.iter().peekable();
+        for (index, position) in robots.positions.iter().enumerate() {
+            if let Some(position) = position {
+                // Most robots are far from the ball: their velocity is not needed.
+                let offset = self.position - *position;
+                if offset.dot(offset) < reach * reach {
+                    let velocity = robots.velocities.get(index).copied().unwrap_or_default();
+                    if self.bounce_off_point(*position, reach, velocity, config.restitution_robots)
+                    {
+                        touched = Some(index);
+                    }
+                }
             }
-            if let Some(block) = disc.block {
+            while let Some((_, block)) = blocks.next_if(|(slot, _)| *slot <= index) {
                 let closest = block.closest_point(self.position);
                 if self.bounce_off_point(
                     closest,
@@ -292,6 +308,7 @@ pub(crate) struct Contact {
 /// Separates overlapping robots and keeps them off the posts, the nets and the carpet's edge.
 /// `positions` are updated in place; `previous` holds the pairs in contact in the last step
 /// and is replaced by this step's.
+#[inline(never)]
 pub(crate) fn resolve_robots(
     positions: &mut [Option<Point<FieldFrame>>],
     velocities: &[Vector<FieldFrame>],
@@ -303,39 +320,84 @@ pub(crate) fn resolve_robots(
     contacts.clear();
     let n = positions.len();
     let reach = 2.0 * radius;
-    let mut now_in_contact = Vec::new();
-    for a in 0..n {
-        for b in (a + 1)..n {
-            let (Some(pa), Some(pb)) = (positions[a], positions[b]) else { continue };
-            let offset = pb - pa;
-            let d2 = offset.dot(offset);
-            if d2 >= reach * reach {
-                continue;
+    // Separates a and b if they overlap; returns whether they did.
+    let mut touch = |positions: &mut [Option<Point<FieldFrame>>], a: usize, b: usize| {
+        let (Some(pa), Some(pb)) = (positions[a], positions[b]) else { return false };
+        let offset = pb - pa;
+        let d2 = offset.dot(offset);
+        if d2 >= reach * reach {
+            return false;
+        }
+        let d = d2.sqrt();
+        // Coincident robots (a teleport onto another) separate along x.
+        let normal = if d > 1e-9 { offset * (1.0 / d) } else { Vector::new(1.0, 0.0) };
+        let overlap = reach - d;
+        positions[a] = Some(pa - normal * (overlap / 2.0));
+        positions[b] = Some(pb + normal * (overlap / 2.0));
+        let relative = velocities[b] - velocities[a];
+        let approach_speed = (-relative.dot(normal)).max(0.0);
+        let onset = previous.binary_search(&(a, b)).is_err();
+        contacts.push(Contact {
+            a,
+            b,
+            normal,
+            approach_speed,
+            onset,
+            a_pushing: velocities[a].dot(normal) > 1e-3,
+            b_pushing: velocities[b].dot(normal) < -1e-3,
+        });
+        true
+    };
+    const COLUMN: usize = 32;
+    if n <= COLUMN {
+        // The robots on the field as columns, in slot order: a robot's distance tests against
+        // all the later ones are one loop, four at a time without branches (most robots are
+        // far from each other); after a contact moves it, the rest are tested from its new
+        // place. Pairs are handled in the same order, with the same arithmetic, as one by one.
+        let (mut xs, mut ys, mut slots) = ([0.0; COLUMN], [0.0; COLUMN], [0usize; COLUMN]);
+        let mut m = 0;
+        for (slot, p) in positions.iter().enumerate() {
+            if let Some(p) = p {
+                (xs[m], ys[m], slots[m]) = (p.x, p.y, slot);
+                m += 1;
             }
-            let d = d2.sqrt();
-            // Coincident robots (a teleport onto another) separate along x.
-            let normal = if d > 1e-9 { offset * (1.0 / d) } else { Vector::new(1.0, 0.0) };
-            let overlap = reach - d;
-            positions[a] = Some(pa - normal * (overlap / 2.0));
-            positions[b] = Some(pb + normal * (overlap / 2.0));
-            let relative = velocities[b] - velocities[a];
-            let approach_speed = (-relative.dot(normal)).max(0.0);
-            let onset = previous.binary_search(&(a, b)).is_err();
-            now_in_contact.push((a, b));
-            contacts.push(Contact {
-                a,
-                b,
-                normal,
-                approach_speed,
-                onset,
-                a_pushing: velocities[a].dot(normal) > 1e-3,
-                b_pushing: velocities[b].dot(normal) < -1e-3,
-            });
+        }
+        for i in 0..m {
+            let mut from = i + 1;
+            while let Some(k) = first_within(&xs[from..m], &ys[from..m], xs[i], ys[i], reach) {
+                let k = from + k;
+                from = k + 1;
+                if touch(positions, slots[i], slots[k]) {
+                    for c in [i, k] {
+                        if let Some(p) = positions[slots[c]] {
+                            (xs[c], ys[c]) = (p.x, p.y);
+                        }
+                    }
+                }
+            }
+        }
+    } else {
+        for a in 0..n {
+            for b in (a + 1)..n {
+                touch(positions, a, b);
+            }
         }
     }
-    *previous = now_in_contact;
+    // This step's pairs, in order (no allocation in the steady state).
+    previous.clear();
+    previous.extend(contacts.iter().map(|c| (c.a, c.b)));
 
     let [hx, hy] = obstacles.carpet;
+    // As `clamp`, by plain comparisons (cheaper; a NaN stays NaN either way).
+    let clamp = |v: f64, limit: f64| {
+        if v < -limit {
+            -limit
+        } else if v > limit {
+            limit
+        } else {
+            v
+        }
+    };
     for position in positions.iter_mut() {
         let Some(p) = position else { continue };
         if obstacles.near_goal(p.x, radius) {
@@ -347,9 +409,29 @@ pub(crate) fn resolve_robots(
                 push_out(p, closest, radius);
             }
         }
-        p.x = p.x.clamp(-(hx - radius), hx - radius);
-        p.y = p.y.clamp(-(hy - radius), hy - radius);
+        p.x = clamp(p.x, hx - radius);
+        p.y = clamp(p.y, hy - radius);
     }
+}
+
+/// The first of the points (xs, ys) closer than `reach` to (x, y), testing four at a time
+/// without branches (most robots are far from each other).
+#[inline]
+fn first_within(xs: &[f64], ys: &[f64], x: f64, y: f64, reach: f64) -> Option<usize> {
+    let n = xs.len().min(ys.len());
+    let (xs, ys) = (&xs[..n], &ys[..n]);
+    let near = |i: usize| {
+        let (dx, dy) = (xs[i] - x, ys[i] - y);
+        dx * dx + dy * dy < reach * reach
+    };
+    let mut start = 0;
+    while start + 4 <= n {
+        if near(start) | near(start + 1) | near(start + 2) | near(start + 3) {
+            break;
+        }
+        start += 4;
+    }
+    (start..n).find(|&i| near(i))
 }
 
 fn push_out(p: &mut Point<FieldFrame>, center: Point<FieldFrame>, distance: f64) {
@@ -378,14 +460,14 @@ mod tests {
             Ball { position: Point::new(0.0, 0.0), velocity: Vector::new(2.0, 0.0), script: None };
         let mut t = 0.0;
         while ball.velocity.norm() > 0.0 && t < 30.0 {
-            ball.step(0.012, &config, &obstacles(), &[]);
+            ball.step(0.012, &config, &obstacles(), &Discs::NONE);
             t += 0.012;
         }
         assert!(t < 10.0, "the ball stopped after {t} s");
         // Constant friction plus drag: shorter than the friction-only distance v^2 / 2a.
         assert!(ball.position.x > 1.0 && ball.position.x < 4.0, "{:?}", ball.position);
         let resting = ball.position;
-        ball.step(0.012, &config, &obstacles(), &[]);
+        ball.step(0.012, &config, &obstacles(), &Discs::NONE);
         assert_eq!(ball.position, resting);
     }
 
@@ -400,7 +482,7 @@ mod tests {
             script: None,
         };
         for _ in 0..40 {
-            ball.step(0.012, &config, &obstacles, &[]);
+            ball.step(0.012, &config, &obstacles, &Discs::NONE);
             assert!(ball.position.distance(post) >= obstacles.post_radius + config.radius - 1e-9);
         }
         assert!(ball.position.x > post.x, "bounced back: {:?}", ball.position);
@@ -436,12 +518,12 @@ mod tests {
             )),
         };
         for _ in 0..500 {
-            ball.step(0.01, &config, &obstacles(), &[]);
+            ball.step(0.01, &config, &obstacles(), &Discs::NONE);
         }
         // 5 s at 0.2 m/s: 1 m along x.
         assert!((ball.position.x - 1.0).abs() < 1e-9 && ball.position.y.abs() < 1e-9);
         for _ in 0..600 {
-            ball.step(0.01, &config, &obstacles(), &[]);
+            ball.step(0.01, &config, &obstacles(), &Discs::NONE);
         }
         assert!(ball.script.is_none(), "the script ended");
         assert!((ball.position.y - 1.0).abs() < 1e-9);

@@ -1,13 +1,20 @@
-//! Seeded random streams: ChaCha8 from `rand_chacha`, one stream per model and robot, all from
-//! the configuration's one seed.
+//! Seeded random streams: one wyrand generator per model and robot, each seeded from a ChaCha8
+//! stream of the configuration's one seed and the stream's stable name.
 //!
 //! Random draws are most of what the simulator computes (twelve noisy IMU channels per robot at
-//! 83 Hz), so a stream hands out 32-bit halves of each ChaCha word: uniforms take one half, and
-//! normal samples come from a 256-layer ziggurat (Marsaglia and Tsang's, the layout `rand_distr`
-//! uses) that needs only one half — half the generator's work of `rand_distr::StandardNormal`,
-//! which spends a whole 64-bit word per sample. The ziggurat's tables and its rare exponentials
-//! are computed with pure arithmetic, not the C library, so samples are the same bit for bit on
-//! every machine (the rare wedge test uses the library's exponential; see `normal_edge`).
+//! 83 Hz), so the generator is wyrand (Wang Yi's, with the constants of wyhash's final version;
+//! the generator of the `fastrand` crate, written out here): a 64-bit counter and one 64x64-bit
+//! multiplication per 64-bit word, about six instructions and no buffer to refill, where
+//! ChaCha8 spent about five times as much per word with its block refills. It passes BigCrush
+//! and PractRand; its period, 2^64 words per stream, is far beyond any simulation. ChaCha8
+//! only derives each stream's starting state from the seed and the name, so streams of
+//! different names start at unrelated places. A stream hands out 32-bit halves of each word:
+//! uniforms take one half, and normal samples come from a 256-layer ziggurat (Marsaglia and
+//! Tsang's, the layout `rand_distr` uses) that needs only one half — half the generator's work
+//! of `rand_distr::StandardNormal`, which spends a whole 64-bit word per sample. The ziggurat's
+//! tables and its rare exponentials are computed with pure arithmetic, not the C library, so
+//! samples are the same bit for bit on every machine (the rare wedge test uses the library's
+//! exponential; see `normal_edge`).
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -16,8 +23,9 @@ use strata_runtime::stable_hash;
 /// A seeded random stream.
 #[derive(Clone)]
 pub(crate) struct Stream {
-    rng: ChaCha8Rng,
-    /// The last ChaCha word; its upper half is unused while `spare` is set.
+    /// wyrand's counter.
+    state: u64,
+    /// The last word; its upper half is unused while `spare` is set.
     word: u64,
     spare: bool,
     tables: &'static Ziggurat,
@@ -25,7 +33,7 @@ pub(crate) struct Stream {
 
 impl std::fmt::Debug for Stream {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Stream").field("rng", &self.rng).finish_non_exhaustive()
+        f.debug_struct("Stream").field("state", &self.state).finish_non_exhaustive()
     }
 }
 
@@ -33,9 +41,18 @@ impl Stream {
     /// The stream `name` under `seed`. Every model draws from its own stream, so changing what
     /// one model draws (a camera setting, one robot) does not change the others' draws.
     pub fn new(seed: u64, name: &str) -> Stream {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        rng.set_stream(stable_hash(name));
-        Stream { rng, word: 0, spare: false, tables: ziggurat() }
+        let mut chacha = ChaCha8Rng::seed_from_u64(seed);
+        chacha.set_stream(stable_hash(name));
+        Stream { state: chacha.next_u64(), word: 0, spare: false, tables: ziggurat() }
+    }
+
+    /// The next 64-bit word (wyrand).
+    #[inline(always)]
+    pub fn next_u64(&mut self) -> u64 {
+        let s = self.state.wrapping_add(0x2d35_8dcc_aa6c_78a5);
+        self.state = s;
+        let t = u128::from(s) * u128::from(s ^ 0x8bb8_4b93_962e_acc9);
+        (t as u64) ^ (t >> 64) as u64
     }
 
     #[inline(always)]
@@ -44,7 +61,7 @@ impl Stream {
             self.spare = false;
             (self.word >> 32) as u32
         } else {
-            self.word = self.rng.next_u64();
+            self.word = self.next_u64();
             self.spare = true;
             self.word as u32
         }
@@ -53,7 +70,13 @@ impl Stream {
     /// Uniform in [0, 1), 32 bits of resolution.
     #[inline]
     pub fn unit(&mut self) -> f64 {
-        f64::from(self.bits()) * (1.0 / 4_294_967_296.0)
+        Stream::unit_from(self.bits())
+    }
+
+    /// Uniform in [0, 1) from 32 random bits.
+    #[inline(always)]
+    pub fn unit_from(bits: u32) -> f64 {
+        f64::from(bits) * (1.0 / 4_294_967_296.0)
     }
 
     /// Uniform in (0, 1], for logarithms.
@@ -68,51 +91,43 @@ impl Stream {
         self.normal_from(bits)
     }
 
-    /// A standard normal sample from 32 random bits (more only in the rare edge cases).
+    /// A standard normal sample from 32 random bits (more from the stream only in the rare
+    /// edge cases).
     #[inline(always)]
-    fn normal_from(&mut self, bits: u32) -> f64 {
+    pub fn normal_from(&mut self, bits: u32) -> f64 {
         let layer = (bits & 0xff) as usize;
-        // The upper 24 bits as a signed position in [-1, 1) across the layer.
-        let u = f64::from(bits >> 8) * (1.0 / 8_388_608.0) - 1.0;
-        let x = u * self.tables.x[layer];
+        // The upper 24 bits as a signed position across the layer: i / 2^23 in [-1, 1).
+        let i = (bits as i32) >> 8;
+        let x = f64::from(i) * self.tables.scaled[layer];
         // About 98.5 % of samples fall inside their layer's rectangle.
-        if x.abs() < self.tables.x[layer + 1] { x } else { self.normal_edge(layer, u, x) }
+        if x.abs() < self.tables.x[layer + 1] { x } else { self.normal_edge(layer, i < 0, x) }
     }
 
-    /// Normal samples with the given standard deviations, two per ChaCha word; no draw at all
-    /// when every deviation is zero (a zero deviation in a noisy group gives exactly 0).
+    /// Two normal samples with standard deviations `s0` and `s1`, from one word.
     #[inline(always)]
-    pub fn gauss_n<const N: usize>(&mut self, sigmas: [f64; N]) -> [f64; N] {
-        let mut out = [0.0; N];
-        if sigmas.iter().all(|s| *s <= 0.0) {
-            return out;
-        }
-        let mut i = 0;
-        while i < N {
-            let word = self.rng.next_u64();
-            out[i] = self.normal_from(word as u32) * sigmas[i].max(0.0);
-            if i + 1 < N {
-                out[i + 1] = self.normal_from((word >> 32) as u32) * sigmas[i + 1].max(0.0);
-            }
-            i += 2;
-        }
-        out
+    pub fn gauss_pair(&mut self, s0: f64, s1: f64) -> [f64; 2] {
+        let word = self.next_u64();
+        let n0 = self.normal_from(word as u32);
+        let n1 = self.normal_from((word >> 32) as u32);
+        [n0 * s0, n1 * s1]
     }
 
     /// The rare samples outside a layer's rectangle: the base layer's tail, or the wedge between
     /// a rectangle and the curve (accepted under the curve, otherwise a fresh sample).
     #[cold]
     #[inline(never)]
-    fn normal_edge(&mut self, layer: usize, u: f64, x: f64) -> f64 {
+    fn normal_edge(&mut self, layer: usize, negative: bool, x: f64) -> f64 {
         if layer == 0 {
             let tail = self.normal_tail();
-            return if u < 0.0 { -tail } else { tail };
+            return if negative { -tail } else { tail };
         }
         let t = self.tables;
         let y = t.f[layer + 1] + (t.f[layer] - t.f[layer + 1]) * self.unit();
-        // The library's exponential: it can differ from another machine's only in the last
-        // bit, which changes this comparison with a probability of about 1e-16.
-        if y < (-0.5 * x * x).exp() { x } else { self.normal() }
+        // The library's exponential only where the squeeze cannot decide: it can differ from
+        // another machine's only in the last bit, which changes the comparison with a
+        // probability of about 1e-16.
+        let under = t.wedge_decides(layer, x.abs(), y).unwrap_or_else(|| y < (-0.5 * x * x).exp());
+        if under { x } else { self.normal() }
     }
 
     /// Beyond the base layer's edge `R` (Marsaglia's method).
@@ -145,6 +160,11 @@ impl Stream {
         }
     }
 
+    /// Exponential with `rate` (mean 1 / rate); infinite, without a draw, for a rate of zero.
+    pub fn exponential(&mut self, rate: f64) -> f64 {
+        if rate > 0.0 { -ln(self.open_unit()) / rate } else { f64::INFINITY }
+    }
+
     /// Uniform in [lo, hi).
     #[inline]
     pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
@@ -161,6 +181,40 @@ const ZIGGURAT_V: f64 = 0.004_928_673_233_99;
 struct Ziggurat {
     x: [f64; 257],
     f: [f64; 257],
+    /// x / 2^23: a layer's edge per unit of a 24-bit signed position.
+    scaled: [f64; 256],
+    /// Slope of the chord from (x[i + 1], f[i + 1]) to (x[i], f[i]) of layer i.
+    chord: [f64; 256],
+}
+
+impl Ziggurat {
+    /// Decides a point (x, y) of layer `layer`'s wedge (x between x[layer + 1] and x[layer],
+    /// y between their densities) without the exponential when a bound does: the density
+    /// exp(-x^2/2) is convex beyond 1, where it lies under the chord of the layer and above
+    /// its tangent at x[layer], and concave below 1, where it lies above the chord and under
+    /// the tangent at x[layer + 1] (McFarland's squeeze). Some(true): under the curve.
+    #[inline]
+    fn wedge_decides(&self, layer: usize, x: f64, y: f64) -> Option<bool> {
+        let (lo, hi) = (self.x[layer + 1], self.x[layer]);
+        let chord = self.f[layer + 1] + self.chord[layer] * (x - lo);
+        if lo >= 1.0 {
+            if y >= chord {
+                return Some(false);
+            }
+            // The tangent at hi: f(hi) (1 - hi (x - hi)).
+            if y < self.f[layer] * (1.0 - hi * (x - hi)) {
+                return Some(true);
+            }
+        } else if hi <= 1.0 {
+            if y < chord {
+                return Some(true);
+            }
+            if y >= self.f[layer + 1] * (1.0 - lo * (x - lo)) {
+                return Some(false);
+            }
+        }
+        None
+    }
 }
 
 fn ziggurat() -> &'static Ziggurat {
@@ -178,7 +232,16 @@ fn ziggurat() -> &'static Ziggurat {
         for (f, x) in f.iter_mut().zip(&x) {
             *f = density(*x);
         }
-        Ziggurat { x, f }
+        let mut scaled = [0.0; 256];
+        for (s, x) in scaled.iter_mut().zip(&x) {
+            *s = x * (1.0 / 8_388_608.0);
+        }
+        let mut chord = [0.0; 256];
+        for (i, c) in chord.iter_mut().enumerate() {
+            let width = x[i] - x[i + 1];
+            *c = if width > 0.0 { (f[i] - f[i + 1]) / width } else { 0.0 };
+        }
+        Ziggurat { x, f, scaled, chord }
     })
 }
 
@@ -258,6 +321,49 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_generator_is_wyrand() {
+        // wyrand's (and `fastrand`'s) first outputs from the state 1.
+        let mut s = Stream::new(0, "x");
+        s.state = 1;
+        let words: Vec<u64> = (0..4).map(|_| s.next_u64()).collect();
+        assert_eq!(
+            words,
+            [
+                12_120_239_713_417_281_201,
+                9_861_924_296_701_902_397,
+                4_420_488_659_902_023_302,
+                14_367_571_835_928_699_312
+            ]
+        );
+        // Streams of one seed and name repeat; other names differ.
+        let (mut a, mut b) = (Stream::new(9, "n"), Stream::new(9, "n"));
+        for _ in 0..1000 {
+            assert_eq!(a.gauss_pair(1.0, 0.5), b.gauss_pair(1.0, 0.5));
+        }
+        assert_eq!(a.next_u64(), b.next_u64());
+        assert_ne!(Stream::new(9, "n").next_u64(), Stream::new(9, "m").next_u64());
+    }
+
+    #[test]
+    fn the_wedge_squeeze_agrees_with_the_density() {
+        let t = ziggurat();
+        let mut s = Stream::new(1, "squeeze");
+        let (mut decided, n) = (0, 400_000);
+        for _ in 0..n {
+            let layer = 1 + (s.unit() * 255.0) as usize;
+            let (lo, hi) = (t.x[layer + 1], t.x[layer]);
+            let x = lo + (hi - lo) * s.unit();
+            let y = t.f[layer + 1] + (t.f[layer] - t.f[layer + 1]) * s.unit();
+            let density = (-0.5 * x * x).exp();
+            if let Some(under) = t.wedge_decides(layer, x, y) {
+                decided += 1;
+                assert!(under == (y < density) || (y - density).abs() < 1e-15, "{layer} {x} {y}");
+            }
+        }
+        assert!(decided > n * 9 / 10, "the squeeze decides most wedge points: {decided}");
+    }
+
+    #[test]
     fn zero_sigma_and_certain_events_draw_nothing() {
         let mut a = Stream::new(3, "x");
         let mut b = Stream::new(3, "x");
@@ -315,10 +421,10 @@ mod tests {
         }
         let positive = samples.iter().filter(|x| **x > 0.0).count() as f64 / f64::from(n);
         assert!((positive - 0.5).abs() < 0.002, "symmetric: {positive}");
-        let pairs: Vec<f64> = (0..n / 2).flat_map(|_| s.gauss_n([2.0, 2.0])).collect();
+        let pairs: Vec<f64> = (0..n / 2).flat_map(|_| s.gauss_pair(2.0, 2.0)).collect();
         let var = pairs.iter().map(|x| x * x).sum::<f64>() / pairs.len() as f64;
         assert!((var - 4.0).abs() < 0.03, "paired samples: variance {var}");
-        assert_eq!(s.gauss_n([0.0; 3]), [0.0; 3]);
+        assert_eq!(s.gauss_pair(0.0, 0.0), [0.0; 2]);
         let units: Vec<f64> = (0..n).map(|_| s.unit()).collect();
         assert!(units.iter().all(|u| (0.0..1.0).contains(u)));
         let mean = units.iter().sum::<f64>() / f64::from(n);

@@ -17,20 +17,14 @@ use strata_spl::gamecontroller::{
 
 use crate::config::RefereeConfig;
 
-/// What the referee sees of one robot.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct RobotView {
-    pub position: Point<FieldFrame>,
-}
-
 /// What the referee sees of the world.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct RefereeView<'a> {
     pub field: &'a Field,
     pub ball: Point<FieldFrame>,
     pub ball_radius: f64,
-    /// Robots on the field (present and not penalized), by slot index.
-    pub robots: &'a [Option<RobotView>],
+    /// Positions of the robots on the field (present and not penalized), by slot index.
+    pub robots: &'a [Option<Point<FieldFrame>>],
 }
 
 /// A decision of the referee for the world to carry out.
@@ -261,7 +255,7 @@ impl Referee {
                 field.half_width() + d.line_width / 2.0 + self.config.leaving_field_margin;
             for (slot, robot) in view.robots.iter().enumerate() {
                 if let Some(robot) = robot
-                    && (robot.position.x.abs() > limit_x || robot.position.y.abs() > limit_y)
+                    && (robot.x.abs() > limit_x || robot.y.abs() > limit_y)
                 {
                     out.push(Decision::LeftField { slot });
                 }

@@ -28,6 +28,8 @@ pub(crate) fn length(x: f64, y: f64) -> f64 {
 
 /// Below this (rad), [`sin_cos`] skips the range reduction.
 const SMALL_ANGLE: f64 = 0.25;
+/// Below this (rad), [`sin_cos`] needs four terms per series.
+const TINY_ANGLE: f64 = 0.0625;
 
 /// Taylor coefficients: (-1)^k / (2k+1)! for the sine, (-1)^k / (2k)! for the cosine (k >= 1).
 const S: [f64; 8] = [
@@ -58,6 +60,14 @@ const C: [f64; 9] = [
 /// was a sixth of the step time.
 #[inline(always)]
 pub(crate) fn sin_cos(x: f64) -> (f64, f64) {
+    if x.abs() < TINY_ANGLE {
+        // Tiny angles (a step's turn, torso sway) need even fewer terms: the next ones are
+        // below 3e-19 at 1/16 rad.
+        let z = x * x;
+        let sin = x + x * z * (S[0] + z * (S[1] + z * (S[2] + z * S[3])));
+        let cos = 1.0 + z * (C[0] + z * (C[1] + z * (C[2] + z * C[3])));
+        return (sin, cos);
+    }
     if x.abs() < SMALL_ANGLE {
         // Small angles (turns and gait phase per step, sway, tilt) need no reduction and
         // fewer terms: the next terms are below 3e-18 at 0.25 rad.
@@ -148,6 +158,54 @@ pub(crate) fn atan2(y: f64, x: f64) -> f64 {
     if y < 0.0 { -angle } else { angle }
 }
 
+/// atan(k / 8) for k = 0..=8, correctly rounded (and padding: an index is masked to 4 bits).
+const ATAN_EIGHTHS: [f64; 16] = [
+    0.0,
+    0.124_354_994_546_761_44,
+    0.244_978_663_126_864_14,
+    0.358_770_670_270_572_25,
+    0.463_647_609_000_806_1,
+    0.558_599_315_343_562_4,
+    0.643_501_108_793_284_4,
+    0.718_829_999_621_624_5,
+    std::f64::consts::FRAC_PI_4,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+];
+
+/// 1.5 * 2^52: adding it rounds a small non-negative number to an integer, which the sum's
+/// lowest mantissa bits then hold (no float-to-integer conversion).
+const ROUNDER: f64 = 6_755_399_441_055_744.0;
+
+/// atan(t) for |t| <= 1: atan(c) + atan((t - c) / (1 + t c)) with c the nearest eighth, whose
+/// series needs seven terms where [`atan2`]'s needs thirteen (within two units in the last
+/// place).
+#[inline]
+fn atan_unit(t: f64) -> f64 {
+    let a = t.abs();
+    let rounded = a * 8.0 + ROUNDER;
+    let k = (rounded.to_bits() & 15) as usize;
+    let c = (rounded - ROUNDER) * 0.125;
+    let u = (a - c) / (1.0 + a * c);
+    let z = u * u;
+    // |u| <= 1/16: the next term, u^15 / 15, is below 1e-18 of u.
+    let p = -1.0 / 3.0
+        + z * (1.0 / 5.0 + z * (-1.0 / 7.0 + z * (1.0 / 9.0 + z * (-1.0 / 11.0 + z / 13.0))));
+    (ATAN_EIGHTHS[k] + (u + u * z * p)).copysign(t)
+}
+
+/// The angle of (x, y) like [`atan2`], faster for the points in front (x > 0, |y| <= x), such
+/// as a camera's detections.
+#[inline]
+pub(crate) fn bearing(y: f64, x: f64) -> f64 {
+    if x > 0.0 && y.abs() <= x { atan_unit(y / x) } else { atan2(y, x) }
+}
+
 /// Wraps an angle that is at most one turn outside (-pi, pi] back into it, without the
 /// division of a general wrap.
 #[inline]
@@ -162,45 +220,54 @@ pub(crate) fn wrap_near(angle: f64) -> f64 {
     }
 }
 
-/// `first` followed by `next`, both in the frame where each starts (odometry increments).
-#[inline]
-pub(crate) fn compose(
-    first: strata_robot::Odometry,
-    next: strata_robot::Odometry,
-) -> strata_robot::Odometry {
-    let (s, c) = sin_cos(first.dtheta);
-    strata_robot::Odometry {
-        dx: first.dx + c * next.dx - s * next.dy,
-        dy: first.dy + s * next.dx + c * next.dy,
-        dtheta: wrap_near(first.dtheta + next.dtheta),
-    }
-}
-
 /// Sine and cosine of an angle that moves in small steps, kept by rotating the previous value
 /// (four multiplications instead of a sine and a cosine) and recomputed exactly every few
-/// steps so rounding cannot accumulate.
+/// steps so rounding cannot accumulate. The rotation of the last step is kept: a gait phase or
+/// a head turning at its speed limit advances by the same step again and again.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Rotating {
     pub sin: f64,
     pub cos: f64,
     steps: u8,
+    /// The last step and its sine and cosine.
+    delta: f64,
+    delta_sin: f64,
+    delta_cos: f64,
 }
 
 impl Rotating {
     pub fn new(angle: f64) -> Rotating {
         let (sin, cos) = sin_cos(angle);
-        Rotating { sin, cos, steps: 0 }
+        Rotating { sin, cos, steps: 0, delta: 0.0, delta_sin: 0.0, delta_cos: 1.0 }
     }
 
     /// The sine and cosine of `angle`, which is the previous angle plus `delta`.
-    #[inline]
+    #[inline(always)]
     pub fn advance(&mut self, angle: f64, delta: f64) {
         self.steps += 1;
+        if self.steps >= 32 || delta != self.delta {
+            self.advance_by_new_step(angle, delta);
+        } else {
+            self.rotate();
+        }
+    }
+
+    #[inline(never)]
+    fn advance_by_new_step(&mut self, angle: f64, delta: f64) {
         if self.steps >= 32 || delta.abs() >= SMALL_ANGLE {
-            *self = Rotating::new(angle);
+            let (sin, cos) = sin_cos(angle);
+            (self.sin, self.cos, self.steps) = (sin, cos, 0);
             return;
         }
-        let (s, c) = sin_cos(delta);
+        (self.delta_sin, self.delta_cos) = sin_cos(delta);
+        self.delta = delta;
+        self.rotate();
+    }
+
+    /// Turns by the kept step.
+    #[inline(always)]
+    fn rotate(&mut self) {
+        let (s, c) = (self.delta_sin, self.delta_cos);
         let sin = self.sin * c + self.cos * s;
         let cos = self.cos * c - self.sin * s;
         self.sin = sin;
@@ -208,10 +275,32 @@ impl Rotating {
     }
 }
 
+/// Wraps an angle into (-pi, pi], bit for bit as `strata_robot::normalize_angle`, without its
+/// `%` (a library call) for angles within two turns: there `angle % 2pi` is `angle` or, exactly
+/// (Sterbenz), `angle - 2pi`.
+#[inline]
+pub(crate) fn wrap_angle(angle: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let mut a = if angle.abs() < TAU {
+        angle
+    } else if angle.abs() < 2.0 * TAU {
+        // `%` keeps the dividend's sign, on a zero too.
+        (angle - TAU.copysign(angle)).copysign(angle)
+    } else {
+        angle % TAU
+    };
+    if a <= -PI {
+        a += TAU;
+    } else if a > PI {
+        a -= TAU;
+    }
+    a
+}
+
 /// Wraps an angle into (-pi/2, pi/2]: the direction of an undirected line.
 #[inline]
 pub(crate) fn wrap_half_turn(angle: f64) -> f64 {
-    let mut a = strata_robot::normalize_angle(angle);
+    let mut a = wrap_angle(angle);
     if a > std::f64::consts::FRAC_PI_2 {
         a -= std::f64::consts::PI;
     } else if a <= -std::f64::consts::FRAC_PI_2 {
@@ -238,10 +327,6 @@ mod tests {
             let error = (s - x.sin()).abs().max((c - x.cos()).abs());
             assert!(error < 5e-16, "{x}: {error}");
         }
-        let a = strata_robot::Odometry { dx: 0.2, dy: 0.1, dtheta: 0.05 };
-        let b = strata_robot::Odometry { dx: -0.1, dy: 0.3, dtheta: 3.1 };
-        let (fast, exact) = (compose(a, b), a.then(b));
-        assert!((fast.dx - exact.dx).abs() < 1e-15 && (fast.dtheta - exact.dtheta).abs() < 1e-15);
         assert!((length(3.0, 4.0) - 5.0).abs() < 1e-15);
         for i in -300..=300 {
             for j in -300..=300 {
@@ -261,6 +346,34 @@ mod tests {
             let error = (r.sin - angle.sin()).abs().max((r.cos - angle.cos()).abs());
             // The reference accumulates rounding in `angle` itself (1e-15 per addition).
             assert!(error < 1e-13, "{angle}: {error} {r:?}");
+        }
+    }
+
+    #[test]
+    fn bearings_in_front_match_the_library() {
+        for i in -3000..=3000 {
+            for x in [1e-3, 0.37, 1.0, 5.9, 1e6] {
+                let y = x * f64::from(i) / 3000.0 * 1.0001;
+                let (ours, libm) = (bearing(y, x), y.atan2(x));
+                assert!(
+                    (ours - libm).abs() <= 2.0 * f64::EPSILON * libm.abs(),
+                    "({x}, {y}): {ours} vs {libm}"
+                );
+            }
+        }
+        assert_eq!(bearing(-0.0, 1.0).to_bits(), (-0.0f64).to_bits());
+        assert_eq!(bearing(1.0, -1.0), atan2(1.0, -1.0));
+        assert!(bearing(f64::NAN, 1.0).is_nan());
+    }
+
+    #[test]
+    fn wrapping_matches_normalize_angle_bit_for_bit() {
+        for i in -40_000..=40_000 {
+            let x = f64::from(i) * 7.3e-4;
+            for a in [x, x * 1.000_000_1, std::f64::consts::PI * f64::from(i % 9)] {
+                let (ours, theirs) = (wrap_angle(a), strata_robot::normalize_angle(a));
+                assert_eq!(ours.to_bits(), theirs.to_bits(), "{a}");
+            }
         }
     }
 

@@ -45,7 +45,7 @@ impl Simulation {
                 odometry: Odometry::ZERO,
             });
         }
-        let odometry = std::mem::replace(&mut r.body.odometry, Odometry::ZERO);
+        let odometry = r.body.take_odometry();
         Ok(MotionFeedback {
             stamp: now,
             body: r.body.motion_state(),

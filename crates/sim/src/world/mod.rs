@@ -1,8 +1,9 @@
 //! The world: robots, ball, referee and communications, stepped in simulated time.
 //!
 //! `step` is deterministic: the same configuration (seed included) and the same calls in the
-//! same order give the same world, bit for bit. Every random draw comes from a ChaCha stream of
-//! the configuration's seed; nothing reads the wall clock or depends on hashing order.
+//! same order give the same world, bit for bit. Every random draw comes from a stream seeded
+//! by the configuration's seed (`random::Stream`); nothing reads the wall clock or depends on
+//! hashing order.
 
 mod controls;
 mod io;
@@ -20,13 +21,13 @@ use strata_spl::Field;
 use strata_spl::gamecontroller::{GameControlData, GameState, Penalty, ReturnData, RobotInfo};
 
 use crate::body::{Body, FallCause, FallRecord, push_direction};
-use crate::camera::{Camera, RobotMark, Scene, Scratch, Viewer, ground_band};
+use crate::camera::{Camera, RobotMark, RobotMarks, Scene, Scratch, Viewer, ground_band};
 use crate::comms::Broadcast;
 use crate::config::{ConfigError, DiveSide, SimConfig};
 use crate::noise::NoiseParams;
-use crate::physics::{Ball, Contact, Disc, Obstacles, resolve_robots};
+use crate::physics::{Ball, Contact, Discs, Obstacles, resolve_robots};
 use crate::random::Stream;
-use crate::referee::{Decision, Referee, RefereeView, RobotView};
+use crate::referee::{Decision, Referee, RefereeView};
 use crate::sensors;
 use crate::truth::{CommsStats, Event, EventKind, RobotId};
 
@@ -106,6 +107,8 @@ pub struct Simulation {
     comms: CommsStats,
     events: Vec<Event>,
     sensor_period: Duration,
+    /// `timing.max_substep` in nanoseconds.
+    max_substep: u64,
     camera_period: Duration,
     packet_period: Duration,
     next_sensor: Time,
@@ -122,9 +125,9 @@ pub struct Simulation {
 struct Buffers {
     positions: Vec<Option<Point<FieldFrame>>>,
     velocities: Vec<Vector<FieldFrame>>,
-    discs: Vec<Option<Disc>>,
-    marks: Vec<Option<RobotMark>>,
-    views: Vec<Option<RobotView>>,
+    /// Diving robots' blocking bodies, by slot.
+    blocks: Vec<(usize, strata_robot::geometry::Segment<FieldFrame>)>,
+    marks: RobotMarks,
     contacts: Vec<Contact>,
     decisions: Vec<Decision>,
     camera: Scratch,
@@ -159,7 +162,7 @@ impl Simulation {
         .map_err(|source| SimError::Field { name: config.field.clone(), source })?;
         let noise = config.noise_params();
         let obstacles = Obstacles::new(&field);
-        let scene = Scene::new(&field);
+        let scene = Scene::new(&field, &config.robot.camera, obstacles.carpet);
         let info = platform_info(&config);
         let seed = config.seed;
         let referee = Referee::new(&config.referee);
@@ -216,6 +219,7 @@ impl Simulation {
             comms: CommsStats::default(),
             events: Vec::new(),
             sensor_period,
+            max_substep: period(config.timing.max_substep).as_nanos() as u64,
             camera_period,
             packet_period,
             next_sensor: Time::ZERO + sensor_period,
@@ -303,7 +307,7 @@ impl Simulation {
         }
         let start = self.time;
         let total = dt.as_nanos() as u64;
-        let max = period(self.config.timing.max_substep).as_nanos() as u64;
+        let max = self.max_substep;
         let steps = total.div_ceil(max).max(1);
         let mut done = 0u64;
         for k in 1..=steps {
@@ -357,13 +361,16 @@ impl Simulation {
         let radius = self.config.robot.radius;
         let mut scratch = self.scratch.take().unwrap_or_default();
 
-        // Bodies.
+        // Bodies, and each robot on the field as a position and a velocity.
         let n = self.robots.len();
-        scratch.discs.clear();
-        scratch.discs.resize(n, None);
+        scratch.blocks.clear();
+        scratch.positions.clear();
+        scratch.velocities.clear();
         for slot in 0..n {
             let robot = &mut self.robots[slot];
             if !robot.active() {
+                scratch.positions.push(None);
+                scratch.velocities.push(Vector::new(0.0, 0.0));
                 continue;
             }
             let events =
@@ -391,33 +398,24 @@ impl Simulation {
                 self.event(EventKind::StandUp { robot: id, success });
             }
             let body = &self.robots[slot].body;
-            let block = events.dive_block.map(|(side, reach)| {
+            if let Some((side, reach)) = events.dive_block {
                 let p = body.pose.position();
                 let (lx, ly) = body.to_field(0.0, 1.0);
                 let left = Vector::new(lx, ly);
-                match side {
+                let block = match side {
                     DiveSide::Left => strata_robot::geometry::Segment::new(p, p + left * reach),
                     DiveSide::Right => strata_robot::geometry::Segment::new(p, p - left * reach),
                     DiveSide::Both => {
                         strata_robot::geometry::Segment::new(p - left * reach, p + left * reach)
                     }
-                }
-            });
-            scratch.discs[slot] = Some(Disc {
-                position: body.pose.position(),
-                velocity: field_velocity(body),
-                radius,
-                block,
-            });
+                };
+                scratch.blocks.push((slot, block));
+            }
+            scratch.positions.push(Some(body.pose.position()));
+            scratch.velocities.push(field_velocity(body));
         }
 
         // Robots against robots, posts, nets and the carpet's edge.
-        scratch.positions.clear();
-        scratch.velocities.clear();
-        for (robot, disc) in self.robots.iter().zip(&scratch.discs) {
-            scratch.positions.push(disc.map(|d| d.position).filter(|_| robot.active()));
-            scratch.velocities.push(disc.map_or(Vector::new(0.0, 0.0), |d| d.velocity));
-        }
         resolve_robots(
             &mut scratch.positions,
             &scratch.velocities,
@@ -432,45 +430,50 @@ impl Simulation {
                 if p.x != body.pose.x || p.y != body.pose.y {
                     body.set_position(p.x, p.y);
                 }
-                if let Some(disc) = scratch.discs[slot].as_mut() {
-                    disc.position = *p;
-                }
             }
         }
-        for contact in std::mem::take(&mut scratch.contacts) {
-            self.collision_falls(&contact, h);
-            scratch.contacts.push(contact);
+        for contact in &scratch.contacts {
+            self.collision_falls(contact, h);
         }
 
         // The ball.
-        if let Some(slot) = self.ball.step(h, &self.config.ball, &self.obstacles, &scratch.discs) {
+        let discs = Discs {
+            positions: &scratch.positions,
+            velocities: &scratch.velocities,
+            radius,
+            blocks: &scratch.blocks,
+        };
+        if let Some(slot) = self.ball.step(h, &self.config.ball, &self.obstacles, &discs) {
             self.touch(slot);
         }
 
         // Penalty timers run in Ready and Playing, as the GameController's do.
+        let mut unpenalized = false;
         if matches!(self.referee.state, GameState::Ready | GameState::Playing) {
             for slot in 0..n {
                 if let Some(remaining) = self.robots[slot].penalty_remaining.as_mut() {
                     *remaining -= h;
                     if *remaining <= 0.0 {
                         self.unpenalize_slot(slot);
+                        unpenalized = true;
                     }
                 }
             }
         }
 
-        // The referee.
-        scratch.views.clear();
-        for robot in &self.robots {
-            scratch
-                .views
-                .push(robot.active().then(|| RobotView { position: robot.body.pose.position() }));
+        // The referee sees the robots on the field where they are: where the collisions left
+        // them, unless a robot just came back.
+        if unpenalized {
+            scratch.positions.clear();
+            for robot in &self.robots {
+                scratch.positions.push(robot.active().then(|| robot.body.pose.position()));
+            }
         }
         let view = RefereeView {
             field: &self.field,
             ball: self.ball.position,
             ball_radius: self.config.ball.radius,
-            robots: &scratch.views,
+            robots: &scratch.positions,
         };
         scratch.decisions.clear();
         self.referee.update(h, &view, &mut scratch.decisions);
@@ -612,6 +615,7 @@ impl Simulation {
     // ---------------------------------------------------------------------------------------
     // Sensors.
 
+    #[inline(never)] // once per step; kept apart so profiles show it
     fn sample_sensors(&mut self) {
         let now = self.time;
         let battery = Some((1.0 - now.as_secs_f64() / self.config.robot.battery_life).max(0.0));
@@ -641,18 +645,23 @@ impl Simulation {
         }
     }
 
+    #[inline(never)] // once per step; kept apart so profiles show it
     fn take_images(&mut self) {
         let now = self.time;
         let mut scratch = self.scratch.take().unwrap_or_default();
         scratch.marks.clear();
-        for robot in &self.robots {
-            scratch.marks.push(robot.active().then(|| RobotMark {
-                position: robot.body.pose.position(),
-                variant: robot.jersey,
-            }));
+        for (slot, robot) in self.robots.iter().enumerate() {
+            if robot.active() {
+                let position = robot.body.pose.position();
+                scratch.marks.push(slot, RobotMark { position, variant: robot.jersey });
+            }
         }
-        let camera =
-            Camera::new(&self.config.robot.camera, &self.noise.camera, self.config.robot.radius);
+        let camera = Camera::new(
+            &self.config.robot.camera,
+            &self.noise.camera,
+            self.config.robot.radius,
+            &self.scene,
+        );
         for (index, robot) in self.robots.iter_mut().enumerate() {
             if !robot.present {
                 continue;
@@ -700,6 +709,7 @@ impl Simulation {
     // ---------------------------------------------------------------------------------------
     // Communication.
 
+    #[inline(never)] // once per step; kept apart so profiles show it
     fn deliver_team_messages(&mut self) {
         let mut scratch = self.scratch.take().unwrap_or_default();
         let mut deliveries = std::mem::take(&mut scratch.deliveries);
