@@ -224,11 +224,15 @@ where
     // The world module's processing time and trigger are set by its constructor; its timing
     // model is applied through the builder below.
     graph.set_processing_time(&names.world, timing.world.processing());
+    // The sensor path (perception, world modeling, reactive layer, actuation) runs at the sensor
+    // rate whatever the deliberative and planning layers do (paper 3.7, Table 6).
+    graph.set_real_time(&names.world);
 
     let platform = parts.platform.clone();
     let perception_config = parts.perception;
     let percepts_out = graph.add(&names.perception, |p| {
         p.trigger(Trigger::every(timing.perception.period(83.3)));
+        p.real_time();
         p.processing_time(timing.perception.processing());
         let out = p.output::<Percepts>("percepts");
         (PerceptionModule::new(platform, perception_config, out), out)
@@ -242,6 +246,7 @@ where
         let messages = p.output::<ActuationMessage>("messages");
         let feedback = p.output::<MotionFeedback>("feedback");
         p.trigger(Trigger::on_any([commands.into()]));
+        p.real_time();
         p.processing_time(timing.actuation.processing());
         let module = ActuationModule::new(
             platform,
@@ -266,6 +271,7 @@ where
             stability: p.output("stability"),
         };
         p.trigger(Trigger::on_any([ports.percepts.into()]));
+        p.real_time();
         p.processing_time(timing.reactive.processing());
         (ReactiveModule::new(layer, ports), ports)
     });

@@ -256,6 +256,7 @@ pub(crate) struct ModuleDecl {
     pub(crate) module: Option<Box<dyn Module>>,
     pub(crate) trigger: Option<Trigger>,
     pub(crate) priority: i32,
+    pub(crate) real_time: bool,
     pub(crate) processing_time: ProcessingTime,
     pub(crate) inputs: Vec<InputDecl>,
     pub(crate) outputs: Vec<OutputDecl>,
@@ -350,6 +351,16 @@ impl Ports<'_> {
     /// (a simulator stepping its world before the robots read their sensors).
     pub fn priority(&mut self, priority: i32) {
         self.decl.priority = priority;
+    }
+
+    /// Marks the module as part of the sensor path (paper 3.7: perception, world modeling, the
+    /// reactive layer, actuation), whose rate must not depend on slower modules. The threaded
+    /// host runs such a module's thread at a real-time priority when its config asks for one
+    /// ([`crate::HostConfig::real_time_priority`]), so a deliberative cycle busy for hundreds of
+    /// milliseconds cannot delay it on a machine without a free core. The lockstep host ignores
+    /// it: there, processing time is modelled, not contended for.
+    pub fn real_time(&mut self) {
+        self.decl.real_time = true;
     }
 
     pub fn processing_time(&mut self, model: ProcessingTime) {
@@ -457,6 +468,7 @@ impl GraphBuilder {
             module: None,
             trigger: None,
             priority: 0,
+            real_time: false,
             processing_time: ProcessingTime::default(),
             inputs: Vec::new(),
             outputs: Vec::new(),
@@ -518,6 +530,17 @@ impl GraphBuilder {
         match self.names.get(module) {
             Some(id) => {
                 self.modules[id.index()].processing_time = model;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Marks a module already added as part of the sensor path ([`Ports::real_time`]).
+    pub fn set_real_time(&mut self, module: &str) -> bool {
+        match self.names.get(module) {
+            Some(id) => {
+                self.modules[id.index()].real_time = true;
                 true
             }
             None => false,
@@ -794,6 +817,7 @@ impl Graph {
                 name: m.name.clone(),
                 trigger: m.trigger.clone(),
                 priority: m.priority,
+                real_time: m.real_time,
                 processing_time: m.processing_time.clone(),
                 inputs: m
                     .inputs
@@ -851,6 +875,9 @@ pub struct ModuleDescription {
     pub name: String,
     pub trigger: Option<Trigger>,
     pub priority: i32,
+    /// Declared part of the sensor path ([`Ports::real_time`]). Absent in logs written before it.
+    #[serde(default)]
+    pub real_time: bool,
     pub processing_time: ProcessingTime,
     pub inputs: Vec<PortDescription>,
     pub outputs: Vec<PortDescription>,

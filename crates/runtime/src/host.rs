@@ -13,11 +13,18 @@ pub struct HostConfig {
     /// The span over which min/max rates are measured.
     #[serde(with = "crate::serde_duration")]
     pub stats_window: Duration,
+    /// Threaded host: run the threads of the modules declared real-time (the sensor path, see
+    /// [`crate::Ports::real_time`]) under `SCHED_FIFO` at this priority (1-99). `None`: every
+    /// thread keeps the operating system's default policy. When the system refuses (no
+    /// permission, another OS), the module runs with the default policy and its statistics say
+    /// why ([`crate::Scheduling::RealTimeRefused`]); nothing else changes.
+    #[serde(default)]
+    pub real_time_priority: Option<u8>,
 }
 
 impl Default for HostConfig {
     fn default() -> Self {
-        HostConfig { seed: 0, stats_window: Duration::from_secs(1) }
+        HostConfig { seed: 0, stats_window: Duration::from_secs(1), real_time_priority: None }
     }
 }
 

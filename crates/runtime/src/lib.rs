@@ -41,7 +41,9 @@ pub use message::{ErasedPackage, Message};
 pub use module::{Context, Module, ModuleError, Wake};
 pub use package::{ModuleId, Package};
 pub use rng::{module_rng, stable_hash};
-pub use stats::{HostKind, HostStats, InputStats, ModuleStats, RateStats, StatsCollector, Summary};
+pub use stats::{
+    HostKind, HostStats, InputStats, ModuleStats, RateStats, Scheduling, StatsCollector, Summary,
+};
 pub use tap::{Tap, TapRecord};
 pub use threaded::{RunningHost, StopHandle, ThreadedHost};
 pub use time::{Clock, ManualClock, MonotonicClock, Time};

@@ -35,6 +35,7 @@ pub struct StatsCollector {
     latency: Histogram<u64>,
     period: Histogram<u64>,
     errors: u64,
+    pub(crate) scheduling: Scheduling,
 }
 
 impl StatsCollector {
@@ -55,7 +56,13 @@ impl StatsCollector {
             latency: new_histogram(),
             period: new_histogram(),
             errors: 0,
+            scheduling: Scheduling::Default,
         }
+    }
+
+    /// Records how the host scheduled the module's thread (reported with the statistics).
+    pub fn set_scheduling(&mut self, scheduling: Scheduling) {
+        self.scheduling = scheduling;
     }
 
     /// Records a cycle that started at `start`, took `compute`, and whose outputs became
@@ -114,6 +121,7 @@ impl StatsCollector {
             latency: Summary::of(&self.latency),
             period: Summary::of(&self.period),
             inputs,
+            scheduling: self.scheduling.clone(),
         }
     }
 }
@@ -185,6 +193,23 @@ pub struct ModuleStats {
     /// Intervals between consecutive cycle starts (their spread is the jitter).
     pub period: Summary,
     pub inputs: Vec<InputStats>,
+    /// How the module's thread was scheduled (threaded host).
+    #[serde(default)]
+    pub scheduling: Scheduling,
+}
+
+/// How the threaded host scheduled a module's thread.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "policy")]
+pub enum Scheduling {
+    /// The operating system's default policy: every module of the lockstep host, and those the
+    /// threaded host was not asked to run in real time.
+    #[default]
+    Default,
+    /// `SCHED_FIFO` at this priority: the module's thread preempts every default-policy thread.
+    RealTime { priority: u8 },
+    /// A real-time priority was asked for and refused; the thread runs with the default policy.
+    RealTimeRefused { priority: u8, reason: String },
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

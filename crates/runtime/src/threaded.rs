@@ -21,7 +21,7 @@ use crate::message::ErasedPackage;
 use crate::module::{Backend, Context, Wake};
 use crate::package::ModuleId;
 use crate::rng::module_rng;
-use crate::stats::{HostKind, HostStats, InputStats, StatsCollector};
+use crate::stats::{HostKind, HostStats, InputStats, Scheduling, StatsCollector};
 use crate::tap::{Tap, TapRecord};
 use crate::time::{Clock, MonotonicClock};
 use crate::wiring::{ModuleParts, Wiring, split};
@@ -93,14 +93,19 @@ impl ThreadedHost {
                 parts,
                 events,
                 shared: Arc::clone(&shared),
-                stats,
+                stats: Arc::clone(&stats),
                 failures: failure_tx.clone(),
             };
             let name = format!("strata:{}", worker.parts.name);
+            let real_time = worker.parts.real_time;
             let handle = std::thread::Builder::new()
                 .name(name)
                 .spawn(move || worker.run())
                 .map_err(|e| HostError::Spawn(e.to_string()))?;
+            if let (true, Some(priority)) = (real_time, config.real_time_priority) {
+                let scheduling = make_real_time(&handle, priority);
+                stats.lock().unwrap_or_else(|e| e.into_inner()).set_scheduling(scheduling);
+            }
             threads.push(handle);
         }
         Ok(RunningHost {
@@ -113,6 +118,38 @@ impl ThreadedHost {
             wall_start: Instant::now(),
         })
     }
+}
+
+/// Moves a running module thread to `SCHED_FIFO`. Its first cycles may have run with the
+/// default policy; a module's first cycle waits for its first input or period anyway.
+#[cfg(unix)]
+fn make_real_time(handle: &JoinHandle<()>, priority: u8) -> Scheduling {
+    use std::os::unix::thread::JoinHandleExt;
+    use thread_priority::{
+        RealtimeThreadSchedulePolicy, ThreadPriority, ThreadPriorityValue, ThreadSchedulePolicy,
+        set_thread_priority_and_policy,
+    };
+    let refused = |reason: String| Scheduling::RealTimeRefused { priority, reason };
+    let value = match ThreadPriorityValue::try_from(priority) {
+        Ok(value) => value,
+        Err(reason) => return refused(format!("priority {priority}: {reason}")),
+    };
+    match set_thread_priority_and_policy(
+        handle.as_pthread_t(),
+        ThreadPriority::Crossplatform(value),
+        ThreadSchedulePolicy::Realtime(RealtimeThreadSchedulePolicy::Fifo),
+    ) {
+        Ok(()) => Scheduling::RealTime { priority },
+        Err(thread_priority::Error::OS(code)) => {
+            refused(std::io::Error::from_raw_os_error(code).to_string())
+        }
+        Err(error) => refused(format!("{error:?}")),
+    }
+}
+
+#[cfg(not(unix))]
+fn make_real_time(_handle: &JoinHandle<()>, priority: u8) -> Scheduling {
+    Scheduling::RealTimeRefused { priority, reason: "only implemented on Unix".into() }
 }
 
 /// Asks a running host to stop; cheap to clone and usable from any thread.
@@ -164,6 +201,20 @@ impl RunningHost {
     /// Stops the host on Ctrl-C / SIGTERM.
     pub fn stop_on_interrupt(&self) -> Result<(), HostError> {
         crate::signal::stop_on_interrupt(self.stop.clone()).map_err(HostError::Signal)
+    }
+
+    /// The modules that asked for a real-time priority and did not get it, with the reason
+    /// (for the caller to warn about: the host runs on, with the default policy).
+    pub fn real_time_refusals(&self) -> Vec<(String, String)> {
+        self.monitors
+            .iter()
+            .filter_map(|m| match &m.stats.lock().unwrap_or_else(|e| e.into_inner()).scheduling {
+                Scheduling::RealTimeRefused { reason, .. } => {
+                    Some((m.name.clone(), reason.clone()))
+                }
+                _ => None,
+            })
+            .collect()
     }
 
     /// A snapshot of every module's statistics, while running.

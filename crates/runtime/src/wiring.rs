@@ -37,6 +37,7 @@ pub(crate) struct ModuleParts {
     pub(crate) module: Box<dyn Module>,
     pub(crate) trigger: Trigger,
     pub(crate) priority: i32,
+    pub(crate) real_time: bool,
     pub(crate) processing_time: ProcessingTime,
     pub(crate) inputs: Vec<InputDecl>,
 }
@@ -124,7 +125,16 @@ pub(crate) fn split(graph: Graph) -> (Wiring, Vec<ModuleParts>) {
         .into_iter()
         .enumerate()
         .filter_map(|(i, decl)| {
-            let ModuleDecl { name, module, trigger, priority, processing_time, inputs, .. } = decl;
+            let ModuleDecl {
+                name,
+                module,
+                trigger,
+                priority,
+                real_time,
+                processing_time,
+                inputs,
+                ..
+            } = decl;
             Some(ModuleParts {
                 id: ModuleId(i as u32),
                 name,
@@ -133,6 +143,7 @@ pub(crate) fn split(graph: Graph) -> (Wiring, Vec<ModuleParts>) {
                 trigger: trigger
                     .unwrap_or_else(|| Trigger::every(std::time::Duration::from_secs(1))),
                 priority,
+                real_time,
                 processing_time,
                 inputs,
             })

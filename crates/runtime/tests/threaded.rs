@@ -261,3 +261,101 @@ fn receiver_ready_messages_drive_a_pull_flow_across_threads() {
     assert_eq!(values, (0..200).collect::<Vec<_>>());
     assert_eq!(stats.module("consumer").expect("stats").inputs[0].counters.overwritten, 0);
 }
+
+/// Whether a thread ran under a real-time policy; None until its module's first cycle.
+type RealTimeSeen = Arc<Mutex<Option<bool>>>;
+
+/// Records the scheduling policy its thread runs under, as the operating system reports it.
+struct PolicyProbe {
+    real_time: RealTimeSeen,
+}
+
+impl Module for PolicyProbe {
+    fn cycle(&mut self, _: &mut Context<'_>) -> Result<(), ModuleError> {
+        use thread_priority::unix::{ThreadSchedulePolicy, thread_schedule_policy};
+        let policy = thread_schedule_policy().map_err(|e| format!("{e:?}"))?;
+        *self.real_time.lock().expect("lock") =
+            Some(matches!(policy, ThreadSchedulePolicy::Realtime(_)));
+        Ok(())
+    }
+}
+
+fn probe_graph() -> (strata_runtime::Graph, RealTimeSeen, RealTimeSeen) {
+    let sensor_path = Arc::new(Mutex::new(None));
+    let background = Arc::new(Mutex::new(None));
+    let mut graph = GraphBuilder::new();
+    {
+        let real_time = Arc::clone(&sensor_path);
+        graph.add("reactive", move |p| {
+            p.trigger(Trigger::every(Duration::from_millis(2)));
+            p.real_time();
+            (PolicyProbe { real_time }, ())
+        });
+    }
+    {
+        let real_time = Arc::clone(&background);
+        graph.add("deliberative", move |p| {
+            p.trigger(Trigger::every(Duration::from_millis(2)));
+            (PolicyProbe { real_time }, ())
+        });
+    }
+    (graph.build().expect("valid"), sensor_path, background)
+}
+
+#[cfg(unix)]
+#[test]
+fn modules_declared_real_time_get_a_real_time_policy_or_say_why_not() {
+    use strata_runtime::Scheduling;
+    let (graph, sensor_path, background) = probe_graph();
+    let config = HostConfig { real_time_priority: Some(10), ..HostConfig::default() };
+    let host = ThreadedHost::new(graph, config).start().expect("starts");
+    wait_until("both modules to cycle", || {
+        sensor_path.lock().expect("lock").is_some() && background.lock().expect("lock").is_some()
+    });
+    let refusals = host.real_time_refusals();
+    let stats = host.stop().expect("clean stop");
+    let reactive = &stats.module("reactive").expect("reactive").scheduling;
+    // Whether the system grants SCHED_FIFO depends on the permissions the tests run with;
+    // both outcomes must be reported truthfully.
+    match reactive {
+        Scheduling::RealTime { priority } => {
+            assert_eq!(*priority, 10);
+            assert_eq!(
+                *sensor_path.lock().expect("lock"),
+                Some(true),
+                "the thread runs SCHED_FIFO"
+            );
+            assert!(refusals.is_empty());
+        }
+        Scheduling::RealTimeRefused { priority, reason } => {
+            assert_eq!(*priority, 10);
+            assert!(!reason.is_empty());
+            assert_eq!(*sensor_path.lock().expect("lock"), Some(false));
+            assert_eq!(refusals, vec![("reactive".to_owned(), reason.clone())]);
+        }
+        Scheduling::Default => panic!("a real-time module was left at the default policy"),
+    }
+    assert_eq!(stats.module("deliberative").expect("deliberative").scheduling, Scheduling::Default);
+    assert_eq!(
+        *background.lock().expect("lock"),
+        Some(false),
+        "undeclared modules keep the default"
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn without_a_real_time_priority_in_the_config_every_thread_keeps_the_default_policy() {
+    use strata_runtime::Scheduling;
+    let (graph, sensor_path, background) = probe_graph();
+    let host = ThreadedHost::new(graph, HostConfig::default()).start().expect("starts");
+    wait_until("both modules to cycle", || {
+        sensor_path.lock().expect("lock").is_some() && background.lock().expect("lock").is_some()
+    });
+    assert!(host.real_time_refusals().is_empty());
+    let stats = host.stop().expect("clean stop");
+    for module in ["reactive", "deliberative"] {
+        assert_eq!(stats.module(module).expect(module).scheduling, Scheduling::Default);
+    }
+    assert_eq!(*sensor_path.lock().expect("lock"), Some(false));
+}

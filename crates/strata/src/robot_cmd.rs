@@ -134,6 +134,14 @@ pub struct RobotArgs {
     /// Seeds the modules' random numbers [default: 100 x team + player].
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Real-time priority (SCHED_FIFO, 1-99) of the sensor path's threads (perception, world
+    /// modeling, reactive layer, actuation), so that a long deliberative cycle cannot delay
+    /// them when no core is free; 0: the operating system's default policy for every thread.
+    /// Without the permission (root or CAP_SYS_NICE) the robot says so and runs with the
+    /// default policy.
+    #[arg(long, value_name = "PRIORITY", default_value_t = 10,
+          value_parser = clap::value_parser!(u8).range(0..=99))]
+    pub real_time_priority: u8,
     /// Print JSON lines (start, game-state changes, status, final report) instead of text.
     #[arg(long)]
     pub json: bool,
@@ -240,7 +248,11 @@ pub fn run(args: RobotArgs) -> Result<()> {
     let graph = graph.build().context("wiring the robot's modules")?;
     let watch = Arc::new(Watch::new(&modules.planning));
     let seed = args.seed.unwrap_or(100 * u64::from(args.team) + u64::from(args.player));
-    let mut host = ThreadedHost::new(graph, HostConfig::with_seed(seed));
+    let host_config = HostConfig {
+        real_time_priority: (args.real_time_priority > 0).then_some(args.real_time_priority),
+        ..HostConfig::with_seed(seed)
+    };
+    let mut host = ThreadedHost::new(graph, host_config);
     host.set_tap(Arc::clone(&watch) as Arc<dyn Tap>);
 
     out.start(&StartInfo {
@@ -261,6 +273,13 @@ pub fn run(args: RobotArgs) -> Result<()> {
     });
 
     let running = host.start().context("starting the robot's module threads")?;
+    for (module, reason) in running.real_time_refusals() {
+        out.note(&format!(
+            "module {module} runs with the default scheduling policy: real-time priority {} \
+             refused ({reason}); --real-time-priority 0 silences this",
+            args.real_time_priority
+        ));
+    }
     running.stop_on_interrupt().context("installing the Ctrl-C handler")?;
     let stop = running.stop_handle();
     let started = Instant::now();

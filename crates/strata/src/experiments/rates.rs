@@ -21,7 +21,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use strata_robot::assembly::RobotModules;
 use strata_robot::geometry::{Point, Pose, Vector};
-use strata_runtime::{HostStats, ModuleStats};
+use strata_runtime::{HostStats, ModuleStats, Scheduling};
 use strata_sim::net::{Server, ServerOptions};
 use strata_sim::{GameState, NoiseLevel, RobotId, SimConfig, SimHandle, Simulation};
 use strata_soccer::field::TeamField;
@@ -66,6 +66,11 @@ pub struct Scenario {
     /// The reactive layer's rate under load may not fall below this fraction of its rate
     /// without load.
     pub tolerance: f64,
+    /// Real-time priority (SCHED_FIFO, 1-99) the robot processes give their sensor path
+    /// (`strata robot --real-time-priority`); 0: every thread at the default policy. The
+    /// in-process transport always uses the default policy.
+    #[serde(default = "default_real_time_priority")]
+    pub real_time_priority: u8,
     pub robots: Vec<RobotSpec>,
     /// The paper's Table 6.
     #[serde(default)]
@@ -189,9 +194,34 @@ struct RunResult {
     seed: u64,
     /// Per robot (scenario order), per layer.
     robots: Vec<Vec<(String, LayerFigures)>>,
+    /// How each robot's sensor-path threads were scheduled.
+    scheduling: Vec<String>,
     wall_s: f64,
     /// The machine's 1-minute load average when the run ended.
     machine_load: Option<f64>,
+}
+
+fn default_real_time_priority() -> u8 {
+    10
+}
+
+/// How a robot's sensor-path threads were scheduled, in a few words for the report.
+fn scheduling_note(stats: &HostStats, modules: &RobotModules) -> String {
+    let sensor_path = [&modules.perception, &modules.world, &modules.reactive, &modules.actuation];
+    let mut notes: Vec<String> = sensor_path
+        .iter()
+        .filter_map(|name| stats.module(name))
+        .map(|m| match &m.scheduling {
+            Scheduling::Default => "default policy".to_owned(),
+            Scheduling::RealTime { priority } => format!("SCHED_FIFO {priority}"),
+            Scheduling::RealTimeRefused { priority, reason } => {
+                format!("default policy (SCHED_FIFO {priority} refused: {reason})")
+            }
+        })
+        .collect();
+    notes.sort();
+    notes.dedup();
+    notes.join("; ")
 }
 
 fn team_with_load(scenario: &Scenario, load: f64) -> TeamConfig {
@@ -247,7 +277,7 @@ fn run_in_process(
     load: f64,
     seed: u64,
     tick: &dyn Fn(u64),
-) -> Result<Vec<Vec<(String, LayerFigures)>>> {
+) -> Result<(Vec<Vec<(String, LayerFigures)>>, Vec<String>)> {
     let team = team_with_load(scenario, load);
     let robots: Vec<SceneRobot> = scenario
         .robots
@@ -276,7 +306,10 @@ fn run_in_process(
         }
     }
     let stats = host.finish()?;
-    Ok(modules.iter().map(|m| figures(&stats, m)).collect())
+    Ok((
+        modules.iter().map(|m| figures(&stats, m)).collect(),
+        modules.iter().map(|m| scheduling_note(&stats, m)).collect(),
+    ))
 }
 
 struct NoTap;
@@ -331,7 +364,7 @@ fn run_tcp(
     load: f64,
     seed: u64,
     tick: &dyn Fn(u64),
-) -> Result<Vec<Vec<(String, LayerFigures)>>> {
+) -> Result<(Vec<Vec<(String, LayerFigures)>>, Vec<String>)> {
     let config = sim_config(scenario, seed)?;
     let simulation = Simulation::new(config).context("building the simulated world")?;
     let team_number = simulation.team_number(0);
@@ -363,6 +396,7 @@ fn run_tcp(
             .args(["--gc-wait", "0", "--json", "--status-interval", "3600"])
             .args(["--duration", &scenario.duration.to_string()])
             .args(["--seed", &(seed * 10 + u64::from(robot.player)).to_string()])
+            .args(["--real-time-priority", &scenario.real_time_priority.to_string()])
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -411,6 +445,7 @@ fn run_tcp(
     }
     let _ = server.stop();
     let mut out = Vec::new();
+    let mut scheduling = Vec::new();
     for mut p in processes {
         let status = p.child.wait().context("waiting for a robot process")?;
         let stdout = p.stdout.take().and_then(|h| h.join().ok()).unwrap_or_default();
@@ -440,8 +475,9 @@ fn run_tcp(
                 .with_context(|| format!("robot {}: reading its host statistics", p.player))?;
         let prefix = format!("t{}/{}", team_number, p.player);
         out.push(figures(&host, &RobotModules::new(&prefix)));
+        scheduling.push(scheduling_note(&host, &RobotModules::new(&prefix)));
     }
-    Ok(out)
+    Ok((out, scheduling))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -489,6 +525,8 @@ pub struct Summary {
     pub reactive_rate_kept: bool,
     /// The machine's 1-minute load average at the end of each run (empty where unknown).
     pub machine_load_1min: Vec<f64>,
+    /// How the robots' sensor-path threads were scheduled, each distinct way once.
+    pub sensor_path_scheduling: Vec<String>,
 }
 
 pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
@@ -509,7 +547,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         for load in &scenario.loads {
             let seed = ctx.seed(run);
             let started = Instant::now();
-            let robots = match (scenario.transport, &exe) {
+            let (robots, scheduling) = match (scenario.transport, &exe) {
                 (Transport::Tcp, Some(exe)) => {
                     run_tcp(scenario, &ctx.out_dir, exe, *load, seed, &|n| bar.inc(n))?
                 }
@@ -520,6 +558,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
                 run,
                 seed,
                 robots,
+                scheduling,
                 wall_s: started.elapsed().as_secs_f64(),
                 machine_load: super::load_average(),
             });
@@ -605,6 +644,13 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         layers,
         claims,
         machine_load_1min: results.iter().filter_map(|r| r.machine_load).collect(),
+        sensor_path_scheduling: {
+            let mut notes: Vec<String> =
+                results.iter().flat_map(|r| r.scheduling.iter().cloned()).collect();
+            notes.sort();
+            notes.dedup();
+            notes
+        },
     };
     write_outputs(scenario, ctx, &results, &summary, runs)?;
     Ok(summary)
@@ -764,6 +810,10 @@ fn write_outputs(
             "Machine load: {}",
             super::describe_load(&s.machine_load_1min)
         ),
+        format!(
+            "Scheduling of the sensor path (perception, world modeling, reactive layer, actuation): {}; the deliberative and planning layers: default policy",
+            if s.sensor_path_scheduling.is_empty() { "unknown".to_owned() } else { s.sensor_path_scheduling.join(" | ") }
+        ),
         "Min and max frequencies are over 1 s windows; jitter is the cycle period's 99th percentile minus its median".to_owned(),
     ]);
     md.heading("Table 6, beside the paper's");
@@ -913,6 +963,7 @@ mod tests {
                 max_us: 45000.0,
             },
             inputs: Vec::new(),
+            scheduling: Default::default(),
         };
         let f = layer_figures(&m);
         assert_eq!((f.min_hz, f.mean_hz, f.max_hz), (40.0, 55.0, 70.0));
