@@ -11,7 +11,7 @@ use super::math::{RangeBearing, polar, symmetrize2};
 use super::object::{cartesian_noise_at, posterior_position_covariance};
 use super::pose::pose_posterior_covariance;
 use super::state::{ObjectId, WorldState};
-use crate::geometry::{Field, Point, Pose, normalize_angle};
+use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
 use crate::percept::ViewCone;
 
 /// One observation a sensing action would produce.
@@ -197,7 +197,7 @@ impl WorldState {
         let sr = (s[(0, 0)] + 1e-12).sqrt();
         let p_angle = normal_cdf((half - angle) / sb) - normal_cdf((-half - angle) / sb);
         let p_range = normal_cdf((view.range - z.x) / sr);
-        let position = Point::new(prior.position.x, prior.position.y);
+        let position = Point::<Robot>::new(prior.position.x, prior.position.y);
         Some(PredictedObservation {
             object,
             range: z.x,
@@ -205,7 +205,9 @@ impl WorldState {
             range_sigma,
             bearing_sigma,
             visibility: (p_angle * p_range).clamp(0.0, 1.0),
-            in_view: view.contains(position, self.view_margin),
+            // `ViewCone::contains` with the bearing and angle already at hand (its bearing is
+            // the same `atan2`).
+            in_view: angle.abs() <= half && position.range() <= view.range,
         })
     }
 

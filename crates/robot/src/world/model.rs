@@ -14,10 +14,11 @@ use super::config::{
 };
 use super::expected::{BeliefView, ExpectedBelief, ObjectPrior, SensingCandidate};
 use super::math::{
-    Innovation, RangeBearing, chi2_2dof_quantile, major_sigma, polar, rotation, sigma_radius,
-    symmetrize2,
+    Innovation, RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius, symmetrize2,
 };
-use super::object::{GainedInformation, MotionModel, ObjectFilter, cartesian_innovation};
+use super::object::{
+    GainedInformation, MotionModel, ObjectFilter, cartesian_innovation, innovation_at,
+};
 use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
 use super::pose::PoseFilter;
 use super::recovery::{MapInstance, RecoveryInput, RecoveryOutcome, Sighting, TeamCue, recover};
@@ -28,7 +29,7 @@ use super::state::{
 use super::team::{
     FusionCandidate, Source, TeamError, TeamFusion, TeamObject, TeammateEstimate, fuse,
 };
-use crate::geometry::{Field, Odometry, Point, Pose, Vector};
+use crate::geometry::{Field, Odometry, Point, Pose, Vector, normalize_angle};
 use crate::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use crate::platform::{FootContact, ObjectClass};
 
@@ -120,6 +121,9 @@ enum Assignment {
     Ambiguous(usize),
 }
 
+/// A position estimate (robot frame) and its covariance.
+type Gaussian2 = (Vector2<f64>, Matrix2<f64>);
+
 /// Buffers reused from frame to frame (no allocation in the steady state).
 #[derive(Clone, Debug, Default)]
 struct Scratch {
@@ -129,6 +133,10 @@ struct Scratch {
     observation_done: Vec<Assignment>,
     slot_taken: Vec<bool>,
     shifts: Vec<LandmarkShift>,
+    /// Per slot, once asked for: its [`WorldModel::association_prior`].
+    priors: Vec<Option<Option<Gaussian2>>>,
+    /// Team fusion's candidates.
+    candidates: Vec<FusionCandidate>,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -383,12 +391,14 @@ impl WorldModel {
         if let Some(pose) = &mut self.pose {
             pose.predict(&odometry, &q);
         }
+        let turn = odometry.dtheta.sin_cos();
+        let reported_turn = reported.dtheta.sin_cos();
         for slot in &mut self.slots {
             if let Some(track) = &mut slot.track {
-                track.filter.predict_odometry(&odometry, &q);
+                track.filter.predict_odometry_with(&odometry, turn, &q);
                 if slot.map_position.is_some() {
                     let position = track.filter.position_vector();
-                    track.lag.predict(position, &reported, &used);
+                    track.lag.predict(position, &reported, reported_turn, &used);
                 }
             }
         }
@@ -492,19 +502,24 @@ impl WorldModel {
     /// Where the pose and the map put a landmark instance (robot frame), with covariance.
     fn map_prediction(&self, slot: usize) -> Option<(Vector2<f64>, Matrix2<f64>)> {
         let pose = self.pose_usable()?;
-        let map = self.slots[slot].map_position?;
-        let (l, jac) = pose.expected_landmark(map);
-        let cov =
-            jac * pose.covariance() * jac.transpose() + Matrix2::identity() * MAP_SIGMA * MAP_SIGMA;
-        Some((l, symmetrize2(cov)))
+        Some(map_prediction_at(pose, pose.heading_sin_cos(), self.slots[slot].map_position?))
     }
 
-    fn candidate_innovation(&self, slot: usize, z: &RangeBearing) -> Option<Innovation> {
-        match &self.slots[slot].track {
-            Some(track) => track.filter.innovation(z),
+    /// What association compares an observation with: the filter's position estimate, or
+    /// where the pose and the map put an untracked landmark instance.
+    fn association_prior(
+        &self,
+        slot: usize,
+        pose: Option<&(PoseFilter, (f64, f64))>,
+    ) -> Option<(Vector2<f64>, Matrix2<f64>)> {
+        let slot = &self.slots[slot];
+        match &slot.track {
+            Some(track) => {
+                Some((track.filter.position_vector(), track.filter.position_covariance()))
+            }
             None => {
-                let (l, cov) = self.map_prediction(slot)?;
-                gaussian_innovation(l, &cov, z)
+                let (pose, heading) = pose?;
+                Some(map_prediction_at(pose, *heading, slot.map_position?))
             }
         }
     }
@@ -516,6 +531,11 @@ impl WorldModel {
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.measurements.clear();
         scratch.pairs.clear();
+        // Nothing changes until every candidate pair is scored: each filter's prior (or map
+        // prediction) is worked out once per image, each observation converted once.
+        scratch.priors.clear();
+        scratch.priors.resize(self.slots.len(), None);
+        let pose = self.pose_usable().map(|p| (p.clone(), p.heading_sin_cos()));
         for (i, obs) in observations.iter().enumerate() {
             self.diagnostics.observations += 1;
             let z = self.measurement(obs);
@@ -526,9 +546,14 @@ impl WorldModel {
                 continue;
             };
             scratch.measurements.push(Some((z, group)));
+            let (measured, noise) = (z.cartesian(), z.cartesian_noise());
             for g in self.groups.iter().filter(|g| g.accepts(obs)) {
                 for slot in g.slots.clone() {
-                    if let Some(innovation) = self.candidate_innovation(slot, &z)
+                    let prior = *scratch.priors[slot]
+                        .get_or_insert_with(|| self.association_prior(slot, pose.as_ref()));
+                    if let Some((position, covariance)) = prior
+                        && let Some(innovation) =
+                            innovation_at(position, &covariance, measured, &noise)
                         && innovation.nis <= self.gate
                     {
                         scratch.pairs.push((innovation.cost(), i, slot));
@@ -584,8 +609,15 @@ impl WorldModel {
         let k = self.config.confidence;
         match &mut self.slots[slot].track {
             Some(track) => {
-                let gained = track.filter.gained_information(z);
-                let Some(innovation) = track.filter.innovation(z) else {
+                // Converted once for the gate, the update and the pose filter.
+                let (measured, noise) = (z.cartesian(), z.cartesian_noise());
+                let gained = GainedInformation { position: measured, covariance: noise };
+                let Some(innovation) = innovation_at(
+                    track.filter.position_vector(),
+                    &track.filter.position_covariance(),
+                    measured,
+                    &noise,
+                ) else {
                     self.diagnostics.ignored += 1;
                     return;
                 };
@@ -596,7 +628,7 @@ impl WorldModel {
                 }
                 let prior = track.filter.position_vector();
                 let prior_covariance = track.filter.position_covariance();
-                if track.filter.update(z).is_none() {
+                if track.filter.update_at(measured, &noise).is_none() {
                     self.diagnostics.ignored += 1;
                     return;
                 }
@@ -760,14 +792,21 @@ impl WorldModel {
             if track.updated {
                 continue;
             }
+            // Too close or beyond the camera's range whatever the uncertainty (the range
+            // tests below only get stricter): no need for the bearing's trigonometry.
+            let range = track.filter.position_vector().norm();
+            if range < MIN_VISIBLE_RANGE || range > view.range {
+                continue;
+            }
             let (z, h) = polar(track.filter.position_vector());
             let s = h * track.filter.position_covariance() * h.transpose();
             let (sr, sb) = (s[(0, 0)].max(0.0).sqrt(), s[(1, 1)].max(0.0).sqrt());
             let margin = k.view_margin + 2.0 * sb;
-            if z.x < MIN_VISIBLE_RANGE
-                || z.x + 2.0 * sr > view.range
-                || !view.contains(track.filter.position(), margin)
-            {
+            // `ViewCone::contains` with the bearing at hand (its bearing is the same `atan2`).
+            let angle = normalize_angle(z.y - view.direction);
+            let inside = angle.abs() <= (view.fov / 2.0 - margin).max(0.0)
+                && track.filter.position().range() <= view.range;
+            if z.x < MIN_VISIBLE_RANGE || z.x + 2.0 * sr > view.range || !inside {
                 continue;
             }
             track.existence = bayes_miss(track.existence, k.detection_probability)
@@ -995,13 +1034,19 @@ impl WorldModel {
             return;
         }
         let pose = self.pose_usable().map(|p| (p.pose(), p.covariance()));
+        let mut candidates = std::mem::take(&mut self.scratch.candidates);
         for group in &self.groups {
             if group.category != ObjectCategory::Mobile {
                 continue;
             }
             let slot = group.slots.start;
-            let mut candidates =
-                self.team.candidates(now, group.class, group.variant, group.friction);
+            self.team.candidates_into(
+                now,
+                group.class,
+                group.variant,
+                group.friction,
+                &mut candidates,
+            );
             if let (Some((pose, pose_cov)), Some(track)) = (pose, &self.slots[slot].track)
                 && self.confidence(slot) >= self.config.confidence.unknown_threshold
             {
@@ -1042,6 +1087,7 @@ impl WorldModel {
                 rejected: teammates(&f.rejected),
             });
         }
+        self.scratch.candidates = candidates;
     }
 
     /// Stores a teammate's estimate for team fusion (MAWM); malformed ones are refused.
@@ -1128,82 +1174,88 @@ impl WorldModel {
             .pose
             .as_ref()
             .map_or((Pose::default(), unknown_pose), |p| (p.pose(), p.covariance()));
-        let usable = self.pose_usable().is_some();
+        let usable_pose = self.pose_usable();
+        let usable = usable_pose.is_some();
+        // The heading's trigonometry once per publication rather than once per object.
+        let map_frame = usable_pose.map(|p| (p, p.heading_sin_cos()));
+        let heading = pose.theta.sin_cos();
         let threshold = self.config.confidence.unknown_threshold;
         let max_age = self.config.pose.map_accuracy_max_age;
-        let mut objects = Vec::with_capacity(self.slots.len());
-        let mut errors = Vec::new();
-        for (i, slot) in self.slots.iter().enumerate() {
-            let group = &self.groups[slot.group];
-            let confidence = self.confidence(i);
-            let moving = group.category != ObjectCategory::Landmark;
-            let (tracked, position, covariance, velocity, velocity_cov, last_seen) =
-                match &slot.track {
-                    Some(t) => (
-                        true,
-                        t.filter.position_vector(),
-                        t.filter.position_covariance(),
-                        moving.then(|| t.filter.velocity()),
-                        moving.then(|| t.filter.velocity_covariance()),
-                        Some(t.last_seen),
-                    ),
-                    None => match self.map_prediction(i) {
-                        Some((l, cov)) => (false, l, cov, None, None, None),
-                        None => (
-                            false,
-                            Vector2::zeros(),
-                            Matrix2::identity() * UNKNOWN_VARIANCE,
-                            None,
-                            None,
-                            None,
-                        ),
-                    },
+        let mut errors = MapErrors::default();
+        // Collected straight into the shared list (exact size): no intermediate `Vec` to copy.
+        let objects: std::sync::Arc<[ObjectEstimate]> = self
+            .slots
+            .iter()
+            .enumerate()
+            .map(|(i, slot)| {
+                let group = &self.groups[slot.group];
+                let confidence = self.confidence(i);
+                let moving = group.category != ObjectCategory::Landmark;
+                let predicted = || {
+                    let (pose, heading) = map_frame?;
+                    Some(map_prediction_at(pose, heading, slot.map_position?))
                 };
-            let (field_position, field_covariance) = if tracked || !usable {
-                let (f, c) = field_estimate(&pose, &pose_cov, position, &covariance);
-                (Point::new(f.x, f.y), c)
-            } else {
-                (slot.map_position.unwrap_or_default(), Matrix2::identity() * MAP_SIGMA.powi(2))
-            };
-            let known = tracked && confidence >= threshold;
-            let recent = last_seen.is_some_and(|t| (stamp - t).as_secs_f64() <= max_age);
-            if known
-                && usable
-                && recent
-                && let Some(map) = slot.map_position
-            {
-                errors.push(field_position.distance(map));
-            }
-            objects.push(ObjectEstimate {
-                id: ObjectId(u16::try_from(i).unwrap_or(u16::MAX)),
-                name: slot.name.clone(),
-                group: group.name.clone(),
-                class: group.class,
-                variant: group.variant,
-                category: group.category,
-                tracked,
-                known,
-                position: Point::new(position.x, position.y),
-                covariance,
-                field_position,
-                field_covariance,
-                velocity,
-                velocity_covariance: velocity_cov,
-                field_velocity: velocity.map(|v| pose.vector_to_field(v)),
-                confidence,
-                last_seen,
-                map_position: slot.map_position,
-            });
-        }
-        let map_accuracy = (!errors.is_empty()).then(|| {
-            let n = errors.len() as f64;
-            MapAccuracy {
-                mean_error: errors.iter().sum::<f64>() / n,
-                rms_error: (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt(),
-                max_error: errors.iter().copied().fold(0.0, f64::max),
-                landmarks: errors.len(),
-            }
-        });
+                let (tracked, position, covariance, velocity, velocity_cov, last_seen) =
+                    match &slot.track {
+                        Some(t) => (
+                            true,
+                            t.filter.position_vector(),
+                            t.filter.position_covariance(),
+                            moving.then(|| t.filter.velocity()),
+                            moving.then(|| t.filter.velocity_covariance()),
+                            Some(t.last_seen),
+                        ),
+                        None => match predicted() {
+                            Some((l, cov)) => (false, l, cov, None, None, None),
+                            None => (
+                                false,
+                                Vector2::zeros(),
+                                Matrix2::identity() * UNKNOWN_VARIANCE,
+                                None,
+                                None,
+                                None,
+                            ),
+                        },
+                    };
+                let (field_position, field_covariance) = if tracked || !usable {
+                    let (f, c) =
+                        field_estimate_with(&pose, heading, &pose_cov, position, &covariance);
+                    (Point::new(f.x, f.y), c)
+                } else {
+                    (slot.map_position.unwrap_or_default(), Matrix2::identity() * MAP_SIGMA.powi(2))
+                };
+                let known = tracked && confidence >= threshold;
+                let recent = last_seen.is_some_and(|t| (stamp - t).as_secs_f64() <= max_age);
+                if known
+                    && usable
+                    && recent
+                    && let Some(map) = slot.map_position
+                {
+                    errors.add(field_position.distance(map));
+                }
+                ObjectEstimate {
+                    id: ObjectId(u16::try_from(i).unwrap_or(u16::MAX)),
+                    name: slot.name.clone(),
+                    group: group.name.clone(),
+                    class: group.class,
+                    variant: group.variant,
+                    category: group.category,
+                    tracked,
+                    known,
+                    position: Point::new(position.x, position.y),
+                    covariance,
+                    field_position,
+                    field_covariance,
+                    velocity,
+                    velocity_covariance: velocity_cov,
+                    field_velocity: velocity.map(|v| pose.vector_to_field(v)),
+                    confidence,
+                    last_seen,
+                    map_position: slot.map_position,
+                }
+            })
+            .collect();
+        let map_accuracy = errors.accuracy();
         WorldState {
             stamp,
             pose: PoseEstimate {
@@ -1214,7 +1266,7 @@ impl WorldModel {
                 lost_reason: self.lost,
                 last_correction: self.last_pose_correction,
             },
-            objects: objects.into(),
+            objects,
             map_accuracy,
             odometry_error: self.odometry_error.estimate(),
             team: self.team_objects.clone(),
@@ -1295,11 +1347,72 @@ fn field_estimate(
     l: Vector2<f64>,
     cov: &Matrix2<f64>,
 ) -> (Vector2<f64>, Matrix2<f64>) {
-    let r = rotation(pose.theta);
+    field_estimate_with(pose, pose.theta.sin_cos(), pose_cov, l, cov)
+}
+
+/// [`field_estimate`] with `(sin, cos)` of the pose's heading given.
+fn field_estimate_with(
+    pose: &Pose,
+    (s, c): (f64, f64),
+    pose_cov: &Matrix3<f64>,
+    l: Vector2<f64>,
+    cov: &Matrix2<f64>,
+) -> (Vector2<f64>, Matrix2<f64>) {
+    let r = Matrix2::new(c, -s, s, c);
     let f = Vector2::new(pose.x, pose.y) + r * l;
-    let (s, c) = pose.theta.sin_cos();
     let j = SMatrix::<f64, 2, 3>::new(1.0, 0.0, -s * l.x - c * l.y, 0.0, 1.0, c * l.x - s * l.y);
     (f, symmetrize2(r * cov * r.transpose() + j * pose_cov * j.transpose()))
+}
+
+/// Where the pose and the map put the landmark instance at `map` (robot frame), with
+/// covariance; `heading` is `pose.heading_sin_cos()`.
+fn map_prediction_at(
+    pose: &PoseFilter,
+    heading: (f64, f64),
+    map: Point<Field>,
+) -> (Vector2<f64>, Matrix2<f64>) {
+    let (l, jac) = pose.expected_landmark_with(heading, map);
+    let cov =
+        jac * pose.covariance() * jac.transpose() + Matrix2::identity() * MAP_SIGMA * MAP_SIGMA;
+    (l, symmetrize2(cov))
+}
+
+/// The map accuracy's statistics, accumulated without storing the errors (same order and
+/// starting values as summing a list of them).
+#[derive(Clone, Copy, Debug)]
+struct MapErrors {
+    sum: f64,
+    sum_squares: f64,
+    max: f64,
+    count: usize,
+}
+
+impl Default for MapErrors {
+    fn default() -> Self {
+        // `Sum for f64` starts from -0.0.
+        MapErrors { sum: -0.0, sum_squares: -0.0, max: 0.0, count: 0 }
+    }
+}
+
+impl MapErrors {
+    fn add(&mut self, error: f64) {
+        self.sum += error;
+        self.sum_squares += error * error;
+        self.max = self.max.max(error);
+        self.count += 1;
+    }
+
+    fn accuracy(&self) -> Option<MapAccuracy> {
+        (self.count > 0).then(|| {
+            let n = self.count as f64;
+            MapAccuracy {
+                mean_error: self.sum / n,
+                rms_error: (self.sum_squares / n).sqrt(),
+                max_error: self.max,
+                landmarks: self.count,
+            }
+        })
+    }
 }
 
 fn swap_tracks(slots: &mut [Slot], a: usize, b: usize) {

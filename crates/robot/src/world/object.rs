@@ -127,11 +127,34 @@ impl ObjectFilter {
     /// Moves the object into the robot frame reached after `odometry`, whose error covariance
     /// (in the starting frame) is `odometry_covariance`.
     pub fn predict_odometry(&mut self, odometry: &Odometry, odometry_covariance: &Matrix3<f64>) {
-        let (s, c) = odometry.dtheta.sin_cos();
+        self.predict_odometry_with(odometry, odometry.dtheta.sin_cos(), odometry_covariance);
+    }
+
+    /// [`ObjectFilter::predict_odometry`] with `(sin, cos)` of `odometry.dtheta` given: the
+    /// world model moves every filter by the same increment.
+    pub(crate) fn predict_odometry_with(
+        &mut self,
+        odometry: &Odometry,
+        (s, c): (f64, f64),
+        odometry_covariance: &Matrix3<f64>,
+    ) {
         // Rotation by -dtheta: a fixed point turns the other way when the robot turns.
         let rt = Matrix2::new(c, s, -s, c);
         let pos = rt * (self.position_vector() - Vector2::new(odometry.dx, odometry.dy));
         let vel = rt * Vector2::new(self.x[2], self.x[3]);
+        if self.model.is_static() {
+            // A static object's velocity block and cross-covariances stay zero: the 4x4
+            // propagation would only add zero terms to the position block.
+            let mut g = SMatrix::<f64, 2, 3>::zeros();
+            g.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));
+            g[(0, 2)] = pos.y;
+            g[(1, 2)] = -pos.x;
+            let p = self.position_covariance();
+            let p = symmetrize2(rt * p * rt.transpose() + g * odometry_covariance * g.transpose());
+            self.x = Vector4::new(pos.x, pos.y, vel.x, vel.y);
+            self.p.fixed_view_mut::<2, 2>(0, 0).copy_from(&p);
+            return;
+        }
         let mut f = Matrix4::zeros();
         f.fixed_view_mut::<2, 2>(0, 0).copy_from(&rt);
         f.fixed_view_mut::<2, 2>(2, 2).copy_from(&rt);
@@ -239,11 +262,35 @@ impl ObjectFilter {
     /// to the robot and for priors far from the measurement. Joseph form. Returns the
     /// innovation, or `None` (filter untouched) when the update is numerically degenerate.
     pub fn update(&mut self, z: &RangeBearing) -> Option<Innovation> {
-        let nu = z.cartesian() - self.position_vector();
+        self.update_at(z.cartesian(), &z.cartesian_noise())
+    }
+
+    /// [`ObjectFilter::update`] with the observation already converted to the robot frame
+    /// (`measured`, with covariance `noise`).
+    pub(crate) fn update_at(
+        &mut self,
+        measured: Vector2<f64>,
+        noise: &Matrix2<f64>,
+    ) -> Option<Innovation> {
+        let nu = measured - self.position_vector();
+        if self.model.is_static() {
+            // Only the position block of a static object's covariance is non-zero (see
+            // `predict_odometry_with`): the 4-state update would only add zero terms.
+            let mut x = self.position_vector();
+            let mut p = self.position_covariance();
+            let innovation = joseph_update(&mut x, &mut p, &Matrix2::identity(), nu, noise)?;
+            if !(all_finite(&x) && all_finite(&p)) {
+                return None;
+            }
+            self.x[0] = x.x;
+            self.x[1] = x.y;
+            self.p.fixed_view_mut::<2, 2>(0, 0).copy_from(&p);
+            return Some(innovation);
+        }
         let mut x = self.x;
         let mut p = self.p;
         let h = SMatrix::<f64, 2, 4>::identity();
-        let innovation = joseph_update(&mut x, &mut p, &h, nu, &z.cartesian_noise())?;
+        let innovation = joseph_update(&mut x, &mut p, &h, nu, noise)?;
         if !(all_finite(&x) && all_finite(&p)) {
             return None;
         }
@@ -285,8 +332,19 @@ pub(crate) fn cartesian_innovation(
     covariance: &Matrix2<f64>,
     z: &RangeBearing,
 ) -> Option<Innovation> {
-    let nu = z.cartesian() - position;
-    let s = symmetrize2(covariance + z.cartesian_noise());
+    innovation_at(position, covariance, z.cartesian(), &z.cartesian_noise())
+}
+
+/// [`cartesian_innovation`] of an observation already converted to the robot frame (`measured`
+/// with covariance `noise`): association converts each observation once for all candidates.
+pub(crate) fn innovation_at(
+    position: Vector2<f64>,
+    covariance: &Matrix2<f64>,
+    measured: Vector2<f64>,
+    noise: &Matrix2<f64>,
+) -> Option<Innovation> {
+    let nu = measured - position;
+    let s = symmetrize2(covariance + noise);
     let d = nis(&nu, &s)?;
     Some(Innovation { nu, s, nis: d })
 }
@@ -363,6 +421,35 @@ mod tests {
         // (I - K) P = diag(0.2 * 0.04, (1 - 0.04 / 0.051025) * 0.04).
         let expected = Matrix2::new(0.008, 0.0, 0.0, 0.04 * 0.011025 / 0.051025);
         assert_relative_eq!(f.position_covariance(), expected, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn static_objects_take_the_position_block_shortcut_exactly() {
+        // The same estimate as a static landmark and as a resting walker without velocity
+        // uncertainty: odometry and observations move them identically, bit for bit.
+        let covariance = Matrix2::new(0.04, 0.01, 0.01, 0.02);
+        let at_rest = |model| {
+            ObjectFilter::new(
+                Point::new(2.0, -0.5),
+                covariance,
+                Vector::new(0.0, 0.0),
+                Matrix2::zeros(),
+                model,
+            )
+        };
+        let mut fixed = at_rest(MotionModel::Static { position_noise: 0.0 });
+        let mut general =
+            at_rest(MotionModel::Walking { velocity_decay: 1.0, acceleration_noise: 0.0 });
+        let q = Matrix3::new(4e-4, 1e-5, 0.0, 1e-5, 3e-4, 2e-5, 0.0, 2e-5, 1e-3);
+        let z = RangeBearing { range: 2.2, bearing: -0.3, range_sigma: 0.1, bearing_sigma: 0.05 };
+        for step in 0..5 {
+            let odometry = Odometry { dx: 0.03 * f64::from(step), dy: -0.01, dtheta: 0.02 };
+            fixed.predict_odometry(&odometry, &q);
+            general.predict_odometry(&odometry, &q);
+            assert_eq!(fixed.update(&z), general.update(&z));
+            assert_eq!(fixed.position_vector(), general.position_vector());
+            assert_eq!(fixed.position_covariance(), general.position_covariance());
+        }
     }
 
     #[test]

@@ -35,9 +35,15 @@ impl Default for Lag {
 
 impl Lag {
     /// After the reported increment `reported` (corrected with `used` before being applied),
-    /// for a landmark now at `position`.
-    pub fn predict(&mut self, position: Vector2<f64>, reported: &Odometry, used: &Vector3<f64>) {
-        let (s, c) = reported.dtheta.sin_cos();
+    /// for a landmark now at `position`; `(s, c)` is `reported.dtheta.sin_cos()`, computed once
+    /// for every landmark of the frame.
+    pub fn predict(
+        &mut self,
+        position: Vector2<f64>,
+        reported: &Odometry,
+        (s, c): (f64, f64),
+        used: &Vector3<f64>,
+    ) {
         let rt = Matrix2::new(c, s, -s, c);
         let mut g = SMatrix::<f64, 2, 3>::zeros();
         g.fixed_view_mut::<2, 2>(0, 0).copy_from(&(-rt));

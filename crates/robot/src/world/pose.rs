@@ -55,6 +55,21 @@ impl PoseFilter {
         landmark_measurement(&self.x, map)
     }
 
+    /// `(sin, cos)` of the heading, for [`PoseFilter::expected_landmark_with`].
+    pub(crate) fn heading_sin_cos(&self) -> (f64, f64) {
+        self.x[2].sin_cos()
+    }
+
+    /// As [`PoseFilter::expected_landmark`] with the heading's trigonometry given: one
+    /// `sin_cos` serves every landmark instance of a frame.
+    pub(crate) fn expected_landmark_with(
+        &self,
+        heading: (f64, f64),
+        map: Point<Field>,
+    ) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
+        landmark_measurement_with(&self.x, heading, map)
+    }
+
     /// The innovation of a landmark estimate `measured` of the landmark at `map`.
     pub fn landmark_innovation(
         &self,
@@ -104,7 +119,15 @@ pub(crate) fn landmark_measurement(
     pose: &Vector3<f64>,
     map: Point<Field>,
 ) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
-    let (s, c) = pose[2].sin_cos();
+    landmark_measurement_with(pose, pose[2].sin_cos(), map)
+}
+
+/// [`landmark_measurement`] with `(sin, cos)` of the heading given.
+fn landmark_measurement_with(
+    pose: &Vector3<f64>,
+    (s, c): (f64, f64),
+    map: Point<Field>,
+) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
     let dx = map.x - pose[0];
     let dy = map.y - pose[1];
     let h = Vector2::new(c * dx + s * dy, -s * dx + c * dy);

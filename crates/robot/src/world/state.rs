@@ -121,6 +121,14 @@ impl PartialEq<ObjectName> for String {
     }
 }
 
+/// String equality that looks at the first and last bytes before calling `memcmp`: object
+/// names often have the same length and differ at one end ("l_crossing#3", "t_crossing#3",
+/// "t_crossing#4").
+fn same_text(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    a.len() == b.len() && a.first() == b.first() && a.last() == b.last() && a == b
+}
+
 /// The estimate of one object of interest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectEstimate {
@@ -268,12 +276,25 @@ impl WorldState {
 
     /// The object (or instance, `name#k`) with this name.
     pub fn object(&self, name: &str) -> Option<&ObjectEstimate> {
-        self.objects.iter().find(|o| o.name == name)
+        self.objects.iter().find(|o| same_text(&o.name, name))
     }
 
     /// The instances of one object of interest.
     pub fn group<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a ObjectEstimate> + 'a {
-        self.objects.iter().filter(move |o| o.group == name)
+        // The instances of a group share one name: its text is compared once per group, not
+        // once per instance.
+        let mut last: Option<(*const u8, bool)> = None;
+        self.objects.iter().filter(move |o| {
+            let text = o.group.as_str().as_ptr();
+            match last {
+                Some((seen, matches)) if seen == text => matches,
+                _ => {
+                    let matches = same_text(&o.group, name);
+                    last = Some((text, matches));
+                    matches
+                }
+            }
+        })
     }
 
     pub fn objects_of_class(&self, class: ObjectClass) -> impl Iterator<Item = &ObjectEstimate> {

@@ -142,39 +142,64 @@ pub struct Fused {
     pub rejected: Vec<Source>,
 }
 
+/// Up to this many candidates, [`fuse`] tabulates which pairs agree.
+const SMALL_FUSION: usize = 16;
+
 /// Fuses the largest set of mutually agreeing estimates (each within the gate of the set's
 /// seed). Ties prefer the set holding this robot's own estimate (a single teammate cannot
 /// overrule it, two agreeing teammates can), then the most informative set.
 pub fn fuse(candidates: &[FusionCandidate], gate: f64) -> Option<Fused> {
-    let mut best: Option<(usize, bool, f64, Vec<usize>)> = None;
-    for (i, seed) in candidates.iter().enumerate() {
-        let members: Vec<usize> = (0..candidates.len())
-            .filter(|&j| {
-                j == i || {
-                    let other = &candidates[j];
-                    nis(&(seed.position - other.position), &(seed.covariance + other.covariance))
-                        .is_some_and(|d| d <= gate)
+    let n = candidates.len();
+    let agree_pair = |i: usize, j: usize| {
+        let (seed, other) = (&candidates[i], &candidates[j]);
+        nis(&(seed.position - other.position), &(seed.covariance + other.covariance))
+            .is_some_and(|d| d <= gate)
+    };
+    let information_of =
+        |j: usize| candidates[j].covariance.try_inverse().map(|inv| inv.determinant());
+    // A team's worth of candidates: each pair is tested once (the test gives the same numbers
+    // either way round: the difference only changes sign) and each candidate's information is
+    // computed once, not once per seed.
+    let small = n <= SMALL_FUSION;
+    let mut agreeing = [0u16; SMALL_FUSION];
+    let mut informations = [None; SMALL_FUSION];
+    if small {
+        for i in 0..n {
+            informations[i] = information_of(i);
+            for j in i + 1..n {
+                if agree_pair(i, j) {
+                    agreeing[i] |= 1 << j;
+                    agreeing[j] |= 1 << i;
                 }
-            })
-            .collect();
-        let own = members.iter().any(|&j| candidates[j].source == Source::Own);
-        let information: f64 = members
-            .iter()
-            .filter_map(|&j| candidates[j].covariance.try_inverse())
-            .map(|inv| inv.determinant())
-            .sum();
+            }
+        }
+    }
+    let agree = |i: usize, j: usize| {
+        j == i || if small { agreeing[i] & (1 << j) != 0 } else { agree_pair(i, j) }
+    };
+    // Only the best seed's members are listed (again, at the end): no list per seed.
+    let mut best: Option<(usize, bool, f64, usize)> = None;
+    for i in 0..n {
+        let (mut count, mut own, mut information) = (0, false, -0.0);
+        for j in (0..n).filter(|&j| agree(i, j)) {
+            count += 1;
+            own |= candidates[j].source == Source::Own;
+            if let Some(det) = if small { informations[j] } else { information_of(j) } {
+                information += det;
+            }
+        }
         let better = match &best {
             None => true,
             Some((n, o, info, _)) => {
-                (members.len(), own) > (*n, *o)
-                    || ((members.len(), own) == (*n, *o) && information > *info)
+                (count, own) > (*n, *o) || ((count, own) == (*n, *o) && information > *info)
             }
         };
         if better {
-            best = Some((members.len(), own, information, members));
+            best = Some((count, own, information, i));
         }
     }
-    let (_, _, _, members) = best?;
+    let (_, _, _, seed) = best?;
+    let members: Vec<usize> = (0..n).filter(|&j| agree(seed, j)).collect();
     let mut info = Matrix2::zeros();
     let mut info_mean = Vector2::zeros();
     let mut velocity_sum = Vector2::zeros();
@@ -261,6 +286,20 @@ impl TeamFusion {
         friction: f64,
     ) -> Vec<FusionCandidate> {
         let mut out = Vec::new();
+        self.candidates_into(now, class, variant, friction, &mut out);
+        out
+    }
+
+    /// As [`TeamFusion::candidates`], into `out` (cleared first; no allocation once warm).
+    pub fn candidates_into(
+        &self,
+        now: Time,
+        class: ObjectClass,
+        variant: Option<u16>,
+        friction: f64,
+        out: &mut Vec<FusionCandidate>,
+    ) {
+        out.clear();
         for e in self.teammates.values() {
             let Some(o) = e
                 .objects
@@ -299,7 +338,6 @@ impl TeamFusion {
                 velocity,
             });
         }
-        out
     }
 }
 
