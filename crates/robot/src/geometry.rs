@@ -21,6 +21,10 @@ pub struct Robot;
 
 /// Wraps an angle into (-pi, pi].
 pub fn normalize_angle(angle: f64) -> f64 {
+    // Most angles are in range already; `%` (a call to fmod) would return them unchanged.
+    if angle > -PI && angle <= PI {
+        return angle;
+    }
     let mut a = angle % (2.0 * PI);
     if a <= -PI {
         a += 2.0 * PI;
@@ -382,6 +386,14 @@ mod tests {
         assert_relative_eq!(normalize_angle(-PI), PI);
         assert_relative_eq!(normalize_angle(0.5), 0.5);
         assert_relative_eq!(normalize_angle(-2.0 * PI - 0.1), -0.1, epsilon = 1e-12);
+        // The in-range shortcut returns exactly what the remainder would.
+        for k in -1000..=1000 {
+            let a = f64::from(k) * PI / 1000.0 + 1e-9;
+            if a > -PI && a <= PI {
+                assert_eq!(normalize_angle(a).to_bits(), (a % (2.0 * PI)).to_bits());
+            }
+        }
+        assert_eq!(normalize_angle(-0.0).to_bits(), (-0.0f64).to_bits());
     }
 
     #[test]
