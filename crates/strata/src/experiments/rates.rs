@@ -201,6 +201,14 @@ struct RunResult {
     machine_load: Option<f64>,
 }
 
+/// What one run of one condition measured, per robot in scenario order.
+struct RunOutcome {
+    /// Per layer.
+    robots: Vec<Vec<(String, LayerFigures)>>,
+    /// How the robot's sensor-path threads were scheduled.
+    scheduling: Vec<String>,
+}
+
 fn default_real_time_priority() -> u8 {
     10
 }
@@ -277,7 +285,7 @@ fn run_in_process(
     load: f64,
     seed: u64,
     tick: &dyn Fn(u64),
-) -> Result<(Vec<Vec<(String, LayerFigures)>>, Vec<String>)> {
+) -> Result<RunOutcome> {
     let team = team_with_load(scenario, load);
     let robots: Vec<SceneRobot> = scenario
         .robots
@@ -306,10 +314,10 @@ fn run_in_process(
         }
     }
     let stats = host.finish()?;
-    Ok((
-        modules.iter().map(|m| figures(&stats, m)).collect(),
-        modules.iter().map(|m| scheduling_note(&stats, m)).collect(),
-    ))
+    Ok(RunOutcome {
+        robots: modules.iter().map(|m| figures(&stats, m)).collect(),
+        scheduling: modules.iter().map(|m| scheduling_note(&stats, m)).collect(),
+    })
 }
 
 struct NoTap;
@@ -364,7 +372,7 @@ fn run_tcp(
     load: f64,
     seed: u64,
     tick: &dyn Fn(u64),
-) -> Result<(Vec<Vec<(String, LayerFigures)>>, Vec<String>)> {
+) -> Result<RunOutcome> {
     let config = sim_config(scenario, seed)?;
     let simulation = Simulation::new(config).context("building the simulated world")?;
     let team_number = simulation.team_number(0);
@@ -477,7 +485,7 @@ fn run_tcp(
         out.push(figures(&host, &RobotModules::new(&prefix)));
         scheduling.push(scheduling_note(&host, &RobotModules::new(&prefix)));
     }
-    Ok((out, scheduling))
+    Ok(RunOutcome { robots: out, scheduling })
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -547,7 +555,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         for load in &scenario.loads {
             let seed = ctx.seed(run);
             let started = Instant::now();
-            let (robots, scheduling) = match (scenario.transport, &exe) {
+            let RunOutcome { robots, scheduling } = match (scenario.transport, &exe) {
                 (Transport::Tcp, Some(exe)) => {
                     run_tcp(scenario, &ctx.out_dir, exe, *load, seed, &|n| bar.inc(n))?
                 }
