@@ -28,6 +28,9 @@ pub struct SoccerPlanningConfig {
     /// A striker that has not come closer to the ball for this long is not accomplishing its
     /// mission (MAMC), s.
     pub striker_patience: f64,
+    /// The most a teammate going to the ball is credited for walking since its message, s:
+    /// beyond that, it may well have been held up.
+    pub claim_progress_limit: f64,
 }
 
 impl Default for SoccerPlanningConfig {
@@ -38,6 +41,7 @@ impl Default for SoccerPlanningConfig {
             walk_speed: 0.25,
             turn_speed: 1.0,
             striker_patience: 20.0,
+            claim_progress_limit: 8.0,
         }
     }
 }
@@ -168,6 +172,23 @@ impl PlanningPolicy for SoccerPlanning {
         let sees = |s: &OwnState| s.objects.iter().any(|o| o.name == BALL && o.age < 1.0);
         sees(previous) != sees(current)
     }
+
+    fn claim_progress(&self, role: Role, age: f64) -> f64 {
+        // The robot going to the ball has walked toward it since it spoke: its time to the
+        // ball (the utility) has shrunk by about as much time as has passed.
+        match role {
+            Role::Striker | Role::ActiveDefender => {
+                // max/min, not clamp: a configured limit below zero must not panic.
+                age.max(0.0).min(self.config.claim_progress_limit)
+            }
+            _ => 0.0,
+        }
+    }
+
+    fn same_claim(&self, held: Role, role: Role) -> bool {
+        let to_ball = |r: Role| matches!(r, Role::Striker | Role::ActiveDefender);
+        held == role || (to_ball(held) && to_ball(role))
+    }
 }
 
 /// The Fig. 2 message in 128 bytes.
@@ -181,5 +202,91 @@ impl TeamCodec<Mission, Role> for SoccerCodec {
 
     fn decode(&self, bytes: &[u8]) -> Result<TeamMessage<Mission, Role>, String> {
         message::decode(bytes).map_err(|e| e.to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_robot::control::planning::{
+        Planner, PlanningConfig, SharedObject, StandingStatus, TeamMessage,
+    };
+    use strata_robot::geometry::Pose;
+
+    fn ball() -> Vec<SharedObject> {
+        vec![SharedObject {
+            name: BALL.into(),
+            position: Point::new(1.0, 0.0),
+            sigma: 0.05,
+            confidence: 0.9,
+            age: 0.0,
+        }]
+    }
+
+    fn own(x: f64) -> OwnState {
+        OwnState {
+            id: 3,
+            status: StandingStatus::Stable,
+            penalized: false,
+            localized: true,
+            pose: Pose::new(x, 0.0, 0.0),
+            pose_confidence: 0.9,
+            objects: ball(),
+        }
+    }
+
+    /// Robot 2, going to the ball from 2 m behind it (8 s away at the assumed walking speed).
+    fn striker() -> TeamMessage<Mission, Role> {
+        TeamMessage {
+            sender: 2,
+            mission: Mission::Attack,
+            role: Role::Striker,
+            status: StandingStatus::Stable,
+            penalized: false,
+            localized: true,
+            since_last_received: 0.0,
+            data_received: true,
+            utility: -8.0,
+            conflict: false,
+            pose: Pose::new(-1.0, 0.0, 0.0),
+            pose_confidence: 0.9,
+            objects: ball(),
+        }
+    }
+
+    fn supporter() -> Planner<SoccerPlanning> {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let mut planner = Planner::new(
+            SoccerPlanning::new(field, SoccerPlanningConfig::default()),
+            PlanningConfig::default(),
+        );
+        planner.receive(Time::from_secs_f64(0.0), striker());
+        planner.evaluate(Time::from_secs_f64(0.0), own(-3.0));
+        assert_eq!(planner.assignment().role, Role::StrikerCover);
+        planner
+    }
+
+    #[test]
+    fn a_striker_heard_seconds_ago_is_credited_with_its_walk_toward_the_ball() {
+        // Four seconds later robot 3 stands half a metre from the ball. Robot 2 has been
+        // walking to the ball meanwhile: no takeover on its four-second-old pose.
+        let mut planner = supporter();
+        planner.evaluate(Time::from_secs_f64(4.0), own(0.5));
+        assert_eq!(planner.assignment().role, Role::StrikerCover);
+        // Had robot 2 just said it was still 2 m behind the ball, robot 3 would take over.
+        let mut planner = supporter();
+        planner.receive(Time::from_secs_f64(4.0), striker());
+        planner.evaluate(Time::from_secs_f64(4.0), own(0.5));
+        assert_eq!(planner.assignment().role, Role::Striker);
+    }
+
+    #[test]
+    fn going_to_the_ball_is_one_claim_whether_attacking_or_defending() {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let policy = SoccerPlanning::new(field, SoccerPlanningConfig::default());
+        assert!(policy.same_claim(Role::Striker, Role::ActiveDefender));
+        assert!(!policy.same_claim(Role::StrikerCover, Role::Striker));
+        assert_eq!(policy.claim_progress(Role::StrikerCover, 3.0), 0.0);
+        assert_eq!(policy.claim_progress(Role::Striker, 100.0), 8.0);
     }
 }

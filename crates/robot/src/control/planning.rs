@@ -8,13 +8,17 @@
 //!   application's default mission.
 //! - **ARS** (agent role selector) assigns the mission's roles to the available robots (this one
 //!   included) by their utilities — every robot runs the same deterministic assignment on the
-//!   same shared data, so no leader is needed. When two robots hold a single-robot role, the
-//!   first to detect it sends an instant message; the one with the lower utility (the higher
-//!   number on a tie) yields.
+//!   same shared data, so no leader is needed. Teammates' data is as old as their last message
+//!   (the budget allows one every few seconds), so a robot holding a single-robot role gives it
+//!   up only to a teammate that claims it (or whose data is fresh), and two claimants settle on
+//!   the utilities they announced, which both know alike: the lower one (the higher number on
+//!   a tie) yields. The first to detect a double claim sends an instant message.
 //! - Communication lives only here: a periodic message, plus an instant message when this
-//!   robot's status changes (falls, stands up, loses or finds the ball) or a role conflict is
-//!   detected, always within the message budget. The deliberative layer is told only when the
-//!   mission, the role or the application's directive change.
+//!   robot's status changes (falls, stands up, loses or finds the ball), its role changes or a
+//!   role conflict is detected, always within the message budget; part of the budget is kept
+//!   for the urgent ones (a claim or release of the mission's first role, a fall). The
+//!   deliberative layer is told only when the mission, the role or the application's
+//!   directive change.
 
 use std::collections::BTreeMap;
 use std::fmt::Debug;
@@ -200,6 +204,22 @@ pub trait PlanningPolicy: Send {
     fn instant_worthy(&self, _previous: &OwnState, _current: &OwnState) -> bool {
         false
     }
+
+    /// How much a teammate's utility for the role it claims has likely grown in the `age`
+    /// seconds since its message: it has been working at the role meanwhile. This robot's own
+    /// candidacy is measured on fresh data, a teammate's on its last message; without this
+    /// credit, a teammate closing in on the ball would look as far as it was when it spoke, and
+    /// two robots would each find themselves best.
+    fn claim_progress(&self, _role: Self::Role, _age: f64) -> f64 {
+        0.0
+    }
+
+    /// Whether holding `held` is a claim to `role`: roles that are the same job under another
+    /// mission (the robot going to the ball, attacking or defending) keep their claim when the
+    /// mission changes.
+    fn same_claim(&self, held: Self::Role, role: Self::Role) -> bool {
+        held == role
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -216,8 +236,21 @@ pub struct PlanningConfig {
     pub message_burst: f64,
     /// Utility bonus of the robot currently holding a role: another must be better by this
     /// much to take it over, so that two nearly equal robots do not swap roles back and forth
-    /// on stale data.
+    /// on stale data. Every handover leaves the team with two or no robots in the role until
+    /// both have heard of it, so handovers must be worth it.
     pub role_hysteresis: f64,
+    /// A teammate is silent only after this many of the intervals its message budget allows
+    /// (and never before `teammate_timeout`): when the budget spaces messages by more than
+    /// the timeout, a fixed timeout would declare every teammate silent between two of its
+    /// messages, and the team would fall back to all strikers.
+    pub silence_intervals: f64,
+    /// Tokens of the message budget kept for urgent messages (a claim or release of the
+    /// mission's first role, a fall, a conflict over that role): ordinary messages wait until
+    /// the bucket holds more than this.
+    pub urgent_reserve: f64,
+    /// A robot holding a single-robot role hands it to a teammate that has not claimed it
+    /// only on that teammate's data younger than this, s.
+    pub release_age: f64,
 }
 
 impl Default for PlanningConfig {
@@ -227,7 +260,10 @@ impl Default for PlanningConfig {
             teammate_timeout: 6.0,
             min_message_spacing: 0.5,
             message_burst: 3.0,
-            role_hysteresis: 1.5,
+            role_hysteresis: 3.0,
+            silence_intervals: 2.5,
+            urgent_reserve: 1.0,
+            release_age: 1.0,
         }
     }
 }
@@ -315,6 +351,9 @@ pub struct Planner<P: PlanningPolicy> {
     /// This robot was out (fallen, penalized) since its last assignment: its old role is no
     /// claim any more (teammates have taken it over meanwhile).
     relinquished: bool,
+    /// The role, utility and time of this robot's last message: what teammates know of its
+    /// claim.
+    announced: Option<(P::Role, f64, Time)>,
     last_sent: Option<Time>,
     /// Token bucket of the message budget: refilled at the sustainable rate.
     tokens: f64,
@@ -322,6 +361,9 @@ pub struct Planner<P: PlanningPolicy> {
     last_received: Option<Time>,
     received_since_sent: bool,
     instant_pending: bool,
+    /// The pending instant message must not wait behind the reserve: it changes who holds
+    /// the mission's first role (or whether this robot can play at all).
+    urgent_pending: bool,
     conflict_pending: bool,
     pub budget: MessageBudget,
     pub stats: PlanningStats,
@@ -356,12 +398,14 @@ impl<P: PlanningPolicy> Planner<P> {
             own: None,
             own_utility: 0.0,
             relinquished: false,
+            announced: None,
             last_sent: None,
             tokens: 0.0,
             last_refill: None,
             last_received: None,
             received_since_sent: false,
             instant_pending: false,
+            urgent_pending: false,
             conflict_pending: false,
             budget: MessageBudget::unlimited(),
             stats: PlanningStats::default(),
@@ -411,10 +455,20 @@ impl<P: PlanningPolicy> Planner<P> {
 
     /// MAMC: marks teammates available or not.
     fn coordinate(&mut self, now: Time) {
-        let timeout = Duration::from_secs_f64(self.config.teammate_timeout.max(0.0));
+        let paced = self.budget.sustainable_interval() * self.config.silence_intervals;
+        // Once the budget is down to its reserve, teammates speak only of falls and claims:
+        // their silence is the rule's, not a lost link, and their last word stands.
+        let muted = !self.budget.can_send(false);
+        let timeout = if muted {
+            f64::INFINITY
+        } else if paced.is_finite() {
+            self.config.teammate_timeout.max(paced)
+        } else {
+            self.config.teammate_timeout
+        };
         for record in self.teammates.values_mut() {
             let m = &record.message;
-            record.unavailable = if now - record.last_heard > timeout {
+            record.unavailable = if (now - record.last_heard).as_secs_f64() > timeout {
                 Some(format!("silent for {:.1} s", (now - record.last_heard).as_secs_f64()))
             } else if m.penalized {
                 Some("penalized".to_owned())
@@ -451,6 +505,12 @@ impl<P: PlanningPolicy> Planner<P> {
                 || self.policy.instant_worthy(previous, &own))
         {
             self.instant_pending = true;
+            // Teammates must learn at once that this robot can or cannot play; how it lies
+            // while it cannot is no matter to them.
+            let playing = |s: &OwnState| s.status == StandingStatus::Stable && !s.penalized;
+            if playing(previous) != playing(&own) {
+                self.urgent_pending = true;
+            }
         }
         self.own = Some(own.clone());
         self.coordinate(now);
@@ -461,6 +521,8 @@ impl<P: PlanningPolicy> Planner<P> {
         let out = own.penalized || own.status != StandingStatus::Stable;
         if out {
             self.relinquished = true;
+            // What it announced before is no claim any more either.
+            self.announced = None;
         }
         let (mission, role, utility) = if out {
             // An unavailable robot keeps its assignment; teammates free its role.
@@ -470,10 +532,14 @@ impl<P: PlanningPolicy> Planner<P> {
             // field players' mission is.
             (mission, role, 1.0)
         } else if alone {
-            (catalog.default_mission, catalog.default_role, 0.0)
+            // Its true utility all the same: teammates that hear it again weigh its claim.
+            let candidate = Candidate { id: own.id, pose: own.pose, objects: &own.objects };
+            let utility =
+                self.policy.role_utility(&candidate, catalog.default_role, catalog.default_mission);
+            (catalog.default_mission, catalog.default_role, utility)
         } else {
             let mission = self.policy.select_mission(&own, &available);
-            let (role, utility) = self.assign_role(mission, &own, &available);
+            let (role, utility) = self.assign_role(now, mission, &own, &available);
             (mission, role, utility)
         };
         self.own_utility = utility;
@@ -486,6 +552,8 @@ impl<P: PlanningPolicy> Planner<P> {
             self.stats.conflicts_detected += 1;
             self.conflict_pending = true;
             self.instant_pending = true;
+            // The budget cannot settle every conflict at once: the first role's can.
+            self.urgent_pending |= Self::leads(catalog, mission, role);
         }
         if !out {
             // Back in: the role just computed, without the old claim, is the claim from now on.
@@ -495,6 +563,12 @@ impl<P: PlanningPolicy> Planner<P> {
         if next != self.assignment {
             if next.role != self.assignment.role {
                 self.stats.role_changes += 1;
+                // A claim or a release of the first role is what teammates must hear first.
+                if Self::leads(catalog, next.mission, next.role)
+                    || Self::leads(catalog, self.assignment.mission, self.assignment.role)
+                {
+                    self.urgent_pending = true;
+                }
             }
             self.assignment = next.clone();
             // Teammates must learn the new role soon, not at the next period.
@@ -502,6 +576,15 @@ impl<P: PlanningPolicy> Planner<P> {
             return Some(next);
         }
         None
+    }
+
+    /// Whether `role` is the first role of `mission` (the one its roles are assigned around).
+    fn leads(
+        catalog: &MissionCatalog<P::Mission, P::Role>,
+        mission: P::Mission,
+        role: P::Role,
+    ) -> bool {
+        catalog.mission(mission).and_then(|m| m.roles.first()).is_some_and(|r| r.role == role)
     }
 
     fn designated_role(&self, id: u8) -> Option<(P::Mission, P::Role)> {
@@ -513,6 +596,7 @@ impl<P: PlanningPolicy> Planner<P> {
     /// ARS: the deterministic assignment every robot computes on the same data.
     fn assign_role(
         &self,
+        now: Time,
         mission: P::Mission,
         own: &OwnState,
         available: &[&TeammateRecord<P::Mission, P::Role>],
@@ -527,6 +611,10 @@ impl<P: PlanningPolicy> Planner<P> {
         // teammate last claimed.
         let mut holding: Vec<Option<P::Role>> =
             vec![(!self.relinquished).then_some(self.assignment.role)];
+        // How old each candidate's data is, s.
+        let mut ages: Vec<f64> = vec![0.0];
+        // The utility each teammate announced for the role it claims.
+        let mut teammate_utility: Vec<f64> = vec![0.0];
         for r in available {
             // Robots bound to a designated role (the goalkeeper) are not candidates for others.
             if self.designated_role(r.message.sender).is_none() {
@@ -536,34 +624,83 @@ impl<P: PlanningPolicy> Planner<P> {
                     objects: &r.message.objects,
                 });
                 holding.push(Some(r.message.role));
+                ages.push((now - r.last_heard).as_secs_f64());
+                teammate_utility.push(r.message.utility);
             }
         }
         let mut unassigned: Vec<usize> = (0..candidates.len()).collect();
         let mut fallback = None;
         for role_spec in spec.roles.iter().filter(|r| r.designated.is_none()) {
-            let mut ranked: Vec<(usize, f64)> = unassigned
+            let holds = |i: usize| {
+                holding[i].is_some_and(|held| self.policy.same_claim(held, role_spec.role))
+            };
+            // (candidate, utility as ranked, the candidate's own utility for the role)
+            let mut ranked: Vec<(usize, f64, f64)> = unassigned
                 .iter()
                 .map(|&i| {
                     let utility = self.policy.role_utility(&candidates[i], role_spec.role, mission);
-                    let bonus = if holding[i] == Some(role_spec.role) {
+                    let bonus = if holds(i) {
                         self.config.role_hysteresis
+                            + self.policy.claim_progress(role_spec.role, ages[i])
                     } else {
                         0.0
                     };
-                    (i, utility + bonus)
+                    (i, utility + bonus, utility)
                 })
                 .collect();
+            // Two announced claims to a single-robot role are settled on what both claimants
+            // know alike, the utilities they announced (aged alike): each measuring itself on
+            // fresh data and the other on its last message, both could keep the role, or both
+            // yield it. The losing claims leave the ranking.
+            if role_spec.max_robots == Some(1)
+                && holds(0)
+                && let Some((announced_role, announced_utility, announced_at)) = self.announced
+                && self.policy.same_claim(announced_role, role_spec.role)
+            {
+                let aged = |utility: f64, age: f64| {
+                    utility + self.policy.claim_progress(role_spec.role, age.max(0.0))
+                };
+                let claims: Vec<(usize, f64)> = ranked
+                    .iter()
+                    .filter(|(i, _, _)| holds(*i))
+                    .map(|&(i, _, _)| {
+                        let claim = if i == 0 {
+                            aged(announced_utility, (now - announced_at).as_secs_f64())
+                        } else {
+                            aged(teammate_utility[i], ages[i])
+                        };
+                        (i, claim)
+                    })
+                    .collect();
+                if let Some(&(winner, _)) = claims.iter().max_by(|a, b| {
+                    a.1.total_cmp(&b.1).then(candidates[b.0].id.cmp(&candidates[a.0].id))
+                }) {
+                    ranked.retain(|(i, _, _)| *i == winner || !holds(*i));
+                }
+            }
             // Higher utility first; on a tie, the lower robot number.
             ranked.sort_by(|a, b| {
                 b.1.total_cmp(&a.1).then(candidates[a.0].id.cmp(&candidates[b.0].id))
             });
             let take = role_spec.max_robots.unwrap_or(ranked.len()).min(ranked.len());
-            for &(i, utility) in &ranked[..take] {
+            for &(i, _, utility) in &ranked[..take] {
                 if candidates[i].id == own.id {
                     return (role_spec.role, utility);
                 }
             }
-            let taken: Vec<usize> = ranked[..take].iter().map(|(i, _)| *i).collect();
+            // A single-robot role is released only to a teammate that has announced its claim,
+            // or whose data is fresh: the teammate that looks better on this robot's older data
+            // may, on its own, not find itself best, and the role would be nobody's.
+            if role_spec.max_robots == Some(1)
+                && holds(0)
+                && !ranked[..take]
+                    .iter()
+                    .any(|&(i, _, _)| holds(i) || ages[i] < self.config.release_age)
+                && let Some(&(_, _, utility)) = ranked.iter().find(|(i, _, _)| *i == 0)
+            {
+                return (role_spec.role, utility);
+            }
+            let taken: Vec<usize> = ranked[..take].iter().map(|(i, _, _)| *i).collect();
             unassigned.retain(|i| !taken.contains(i));
             fallback.get_or_insert(role_spec.role);
         }
@@ -600,7 +737,9 @@ impl<P: PlanningPolicy> Planner<P> {
         } else {
             return None;
         };
-        if self.tokens < 1.0 || !self.budget.can_send(kind == MessageKind::Instant) {
+        let reserve = if self.urgent_pending { 0.0 } else { self.config.urgent_reserve.max(0.0) };
+        // The team's reserve is for urgent messages too.
+        if self.tokens < 1.0 + reserve || !self.budget.can_send(self.urgent_pending) {
             self.stats.withheld += 1;
             // An instant message that cannot go now is merged into the next one that can.
             return None;
@@ -633,8 +772,15 @@ impl<P: PlanningPolicy> Planner<P> {
             objects: own.objects.clone(),
         };
         self.last_sent = Some(now);
+        // A claim made while unable to play is no claim.
+        self.announced = (own.status == StandingStatus::Stable && !own.penalized).then_some((
+            self.assignment.role,
+            self.own_utility,
+            now,
+        ));
         self.received_since_sent = false;
         self.instant_pending = false;
+        self.urgent_pending = false;
         self.conflict_pending = false;
         self.tokens -= 1.0;
         self.budget.spend();
@@ -643,5 +789,180 @@ impl<P: PlanningPolicy> Planner<P> {
             MessageKind::Instant => self.stats.sent_instant += 1,
         }
         Some(message)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+    enum Mission {
+        Attack,
+    }
+
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+    enum Role {
+        Striker,
+        StrikerCover,
+    }
+
+    /// One mission, a single striker nearest to the ball at x = 1, covers for the rest.
+    struct Nearest(MissionCatalog<Mission, Role>);
+
+    impl Nearest {
+        fn new() -> Nearest {
+            Nearest(MissionCatalog {
+                missions: vec![MissionSpec {
+                    mission: Mission::Attack,
+                    roles: vec![
+                        RoleSpec { role: Role::Striker, max_robots: Some(1), designated: None },
+                        RoleSpec { role: Role::StrikerCover, max_robots: None, designated: None },
+                    ],
+                }],
+                default_mission: Mission::Attack,
+                default_role: Role::Striker,
+            })
+        }
+    }
+
+    impl PlanningPolicy for Nearest {
+        type Mission = Mission;
+        type Role = Role;
+
+        fn catalog(&self) -> &MissionCatalog<Mission, Role> {
+            &self.0
+        }
+
+        fn select_mission(&self, _: &OwnState, _: &[&TeammateRecord<Mission, Role>]) -> Mission {
+            Mission::Attack
+        }
+
+        fn role_utility(&self, candidate: &Candidate<'_>, role: Role, _: Mission) -> f64 {
+            match role {
+                Role::Striker => -candidate.pose.position().distance(Point::new(1.0, 0.0)),
+                Role::StrikerCover => 0.0,
+            }
+        }
+    }
+
+    fn own(id: u8, x: f64) -> OwnState {
+        OwnState {
+            id,
+            status: StandingStatus::Stable,
+            penalized: false,
+            localized: true,
+            pose: Pose::new(x, 0.0, 0.0),
+            pose_confidence: 0.9,
+            objects: Vec::new(),
+        }
+    }
+
+    fn message(sender: u8, x: f64, role: Role, utility: f64) -> TeamMessage<Mission, Role> {
+        TeamMessage {
+            sender,
+            mission: Mission::Attack,
+            role,
+            status: StandingStatus::Stable,
+            penalized: false,
+            localized: true,
+            since_last_received: 0.0,
+            data_received: true,
+            utility,
+            conflict: false,
+            pose: Pose::new(x, 0.0, 0.0),
+            pose_confidence: 0.9,
+            objects: Vec::new(),
+        }
+    }
+
+    fn t(s: f64) -> Time {
+        Time::from_secs_f64(s)
+    }
+
+    fn planner() -> Planner<Nearest> {
+        Planner::new(Nearest::new(), PlanningConfig::default())
+    }
+
+    #[test]
+    fn a_striker_keeps_its_role_until_the_better_teammate_claims_it() {
+        let mut p = planner();
+        p.receive(t(0.0), message(3, -3.0, Role::StrikerCover, 0.0));
+        p.evaluate(t(0.0), own(2, 0.5));
+        assert_eq!(p.assignment().role, Role::Striker);
+        p.compose(t(0.0), MessageKind::Periodic);
+        // Robot 3 has come close to the ball, robot 2 has been pushed away: on two-second-old
+        // data, 3 looks better, but 3 may not know it; 2 keeps the role rather than leave it
+        // to nobody.
+        p.receive(t(1.0), message(3, 0.9, Role::StrikerCover, 0.0));
+        p.evaluate(t(3.0), own(2, -3.0));
+        assert_eq!(p.assignment().role, Role::Striker);
+        // 3 claims it: 2 yields.
+        p.receive(t(3.5), message(3, 0.9, Role::Striker, -0.1));
+        p.evaluate(t(3.6), own(2, -3.0));
+        assert_eq!(p.assignment().role, Role::StrikerCover);
+    }
+
+    #[test]
+    fn two_claimants_agree_on_who_keeps_the_role_whatever_their_own_fresh_data_says() {
+        let (mut a, mut b) = (planner(), planner());
+        // Alone, each attacks as striker and says how far it is.
+        a.evaluate(t(0.0), own(2, 0.0));
+        b.evaluate(t(0.0), own(3, -1.0));
+        let from_a = a.compose(t(0.0), MessageKind::Periodic).expect("a message");
+        let from_b = b.compose(t(0.0), MessageKind::Periodic).expect("a message");
+        assert_eq!((from_a.utility, from_b.utility), (-1.0, -2.0));
+        a.receive(t(0.1), from_b);
+        b.receive(t(0.1), from_a);
+        // Both have walked on; each, fresh, finds itself nearer than the other's last message.
+        a.evaluate(t(1.0), own(2, 0.8));
+        b.evaluate(t(1.0), own(3, 0.9));
+        // The announced claims decide, alike for both.
+        assert_eq!(a.assignment().role, Role::Striker);
+        assert_eq!(b.assignment().role, Role::StrikerCover);
+    }
+
+    #[test]
+    fn teammates_are_silent_only_beyond_what_their_budget_allows() {
+        let mut p = planner();
+        // Seven robots sharing 1200 messages over 1200 s: one message every 7 s each.
+        p.budget = MessageBudget { team_remaining: 1200, robots: 7, time_left: 1200.0, reserve: 3 };
+        p.receive(t(0.0), message(3, -3.0, Role::StrikerCover, -4.0));
+        p.evaluate(t(10.0), own(2, 0.5));
+        assert!(!p.assignment().alone, "heard 10 s ago, within the budget's pace");
+        p.evaluate(t(20.0), own(2, 0.5));
+        assert!(p.assignment().alone, "silent for 20 s");
+        // Down to the reserve, teammates may only speak of falls and claims: their last word
+        // stands.
+        p.budget.team_remaining = 20;
+        p.receive(t(21.0), message(3, -3.0, Role::StrikerCover, -4.0));
+        p.evaluate(t(80.0), own(2, 0.5));
+        assert!(!p.assignment().alone);
+    }
+
+    #[test]
+    fn ordinary_messages_leave_a_token_for_a_claim() {
+        let mut p = Planner::new(
+            Nearest::new(),
+            PlanningConfig {
+                message_interval: 1.0,
+                min_message_spacing: 0.0,
+                ..PlanningConfig::default()
+            },
+        );
+        p.budget = MessageBudget { team_remaining: 10, robots: 1, time_left: 1000.0, reserve: 0 };
+        p.receive(t(0.0), message(3, -3.0, Role::StrikerCover, -4.0));
+        for time in [0.0, 1.0] {
+            p.evaluate(t(time), own(2, 0.5));
+            let kind = p.message_due(t(time)).expect("a periodic message");
+            p.compose(t(time), kind);
+        }
+        p.evaluate(t(2.0), own(2, 0.5));
+        assert_eq!(p.message_due(t(2.0)), None, "the last token is kept");
+        // Robot 3 claims the striker role from nearer: the release goes out at once.
+        p.receive(t(2.5), message(3, 0.9, Role::Striker, -0.1));
+        p.evaluate(t(2.5), own(2, 0.5));
+        assert_eq!(p.assignment().role, Role::StrikerCover);
+        assert_eq!(p.message_due(t(2.5)), Some(MessageKind::Instant));
     }
 }
