@@ -21,7 +21,7 @@ use strata_robot::control::active_vision::{
     ActiveVision, ActiveVisionConfig, ActiveVisionReport, Criterion, GazeCandidate, ValueFunction,
 };
 use strata_robot::control::bt::{
-    Status, Tree, action, condition, reactive_selector, reactive_sequence,
+    Status, Tree, action, condition, reactive_selector, reactive_sequence, sequence,
 };
 use strata_robot::control::deliberative::{
     DeliberativeInput, DeliberativeOutput, DeliberativePolicy,
@@ -649,24 +649,31 @@ fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
             );
         }
         s = match state {
+            // The striker's guards are memory sequences: once it searches for the ball (or
+            // localizes, or detours), it keeps at it until its state is left (a role or mission
+            // change) instead of re-checking the guard every tick as goal covering does. Both
+            // were measured against the no-coordination baseline (docs/results.md): reactive
+            // guards lost 15 of 20 games, memory guards won 16 of 20. Why the persistent search
+            // (walking to the team's ball, head on the ball) plays better than going back to
+            // "go to ball and kick" is not understood yet.
             S::Striker => s.tree(Tree::new(reactive_selector(
                 "go to ball",
                 [
-                    reactive_sequence(
+                    sequence(
                         "localizing",
                         [
                             condition("lost", |ctx: &Ctx| ctx.lost() && !ctx.ball_known()),
                             action("look for landmarks", |ctx: &mut Ctx, _| localizing(ctx)),
                         ],
                     ),
-                    reactive_sequence(
+                    sequence(
                         "searching for object",
                         [
                             condition("ball unknown", |ctx: &Ctx| !ctx.ball_known()),
                             action("search ball", |ctx: &mut Ctx, _| searching_for_object(ctx)),
                         ],
                     ),
-                    reactive_sequence(
+                    sequence(
                         "avoiding obstacle",
                         [
                             condition("obstacle in the way", obstacle_in_the_way),
