@@ -653,9 +653,8 @@ fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
             // localizes, or detours), it keeps at it until its state is left (a role or mission
             // change) instead of re-checking the guard every tick as goal covering does. Both
             // were measured against the no-coordination baseline (docs/results.md): reactive
-            // guards lost 15 of 20 games, memory guards won 16 of 20. Why the persistent search
-            // (walking to the team's ball, head on the ball) plays better than going back to
-            // "go to ball and kick" is not understood yet.
+            // guards lost 15 of 20 games, memory guards won 16 of 20. Why is not understood yet:
+            // a striker searches or detours only a few seconds per game either way.
             S::Striker => s.tree(Tree::new(reactive_selector(
                 "go to ball",
                 [
