@@ -45,8 +45,14 @@ impl ViewCone {
     /// Whether a point lies inside the cone, shrunk by `margin` rad on each side (objects at the
     /// border are often missed without being absent).
     pub fn contains(&self, point: Point<Robot>, margin: f64) -> bool {
-        let angle = crate::geometry::normalize_angle(point.bearing() - self.direction);
-        point.range() <= self.range && angle.abs() <= (self.fov / 2.0 - margin).max(0.0)
+        self.contains_polar(point.range(), point.bearing(), margin)
+    }
+
+    /// [`ViewCone::contains`] for a point given by its range and bearing, for callers that have
+    /// them at hand (world modeling computes them for every filter anyway).
+    pub fn contains_polar(&self, range: f64, bearing: f64, margin: f64) -> bool {
+        let angle = crate::geometry::normalize_angle(bearing - self.direction);
+        range <= self.range && angle.abs() <= (self.fov / 2.0 - margin).max(0.0)
     }
 }
 

@@ -205,9 +205,7 @@ impl WorldState {
             range_sigma,
             bearing_sigma,
             visibility: (p_angle * p_range).clamp(0.0, 1.0),
-            // `ViewCone::contains` with the bearing and angle already at hand (its bearing is
-            // the same `atan2`).
-            in_view: angle.abs() <= half && position.range() <= view.range,
+            in_view: view.contains_polar(position.range(), z.y, self.view_margin),
         })
     }
 

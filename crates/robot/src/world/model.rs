@@ -29,7 +29,7 @@ use super::state::{
 use super::team::{
     FusionCandidate, Source, TeamError, TeamFusion, TeamObject, TeammateEstimate, fuse,
 };
-use crate::geometry::{Field, Odometry, Point, Pose, Vector, normalize_angle};
+use crate::geometry::{Field, Odometry, Point, Pose, Vector};
 use crate::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use crate::platform::{FootContact, ObjectClass};
 
@@ -802,10 +802,7 @@ impl WorldModel {
             let s = h * track.filter.position_covariance() * h.transpose();
             let (sr, sb) = (s[(0, 0)].max(0.0).sqrt(), s[(1, 1)].max(0.0).sqrt());
             let margin = k.view_margin + 2.0 * sb;
-            // `ViewCone::contains` with the bearing at hand (its bearing is the same `atan2`).
-            let angle = normalize_angle(z.y - view.direction);
-            let inside = angle.abs() <= (view.fov / 2.0 - margin).max(0.0)
-                && track.filter.position().range() <= view.range;
+            let inside = view.contains_polar(track.filter.position().range(), z.y, margin);
             if z.x < MIN_VISIBLE_RANGE || z.x + 2.0 * sr > view.range || !inside {
                 continue;
             }
