@@ -168,6 +168,17 @@ pub struct Candidate<'a> {
     pub objects: &'a [SharedObject],
 }
 
+/// A robot competing for the mission's roles, as this robot sees it.
+struct Contender<'a, R> {
+    candidate: Candidate<'a>,
+    /// The role it holds now: this robot's current one, a teammate's last announced one.
+    holding: Option<R>,
+    /// How old the data about it is, s.
+    age: f64,
+    /// A teammate's announced utility for the role it holds (unused for this robot).
+    announced_utility: f64,
+}
+
 /// The application's part of planning.
 pub trait PlanningPolicy: Send {
     type Mission: Label;
@@ -605,43 +616,47 @@ impl<P: PlanningPolicy> Planner<P> {
         let Some(spec) = catalog.mission(mission) else {
             return (catalog.default_role, 0.0);
         };
-        let mut candidates: Vec<Candidate<'_>> =
-            vec![Candidate { id: own.id, pose: own.pose, objects: &own.objects }];
-        // The role each candidate holds now: ours (unless we were out meanwhile), and what each
-        // teammate last claimed.
-        let mut holding: Vec<Option<P::Role>> =
-            vec![(!self.relinquished).then_some(self.assignment.role)];
-        // How old each candidate's data is, s.
-        let mut ages: Vec<f64> = vec![0.0];
-        // The utility each teammate announced for the role it claims.
-        let mut teammate_utility: Vec<f64> = vec![0.0];
-        for r in available {
-            // Robots bound to a designated role (the goalkeeper) are not candidates for others.
-            if self.designated_role(r.message.sender).is_none() {
-                candidates.push(Candidate {
-                    id: r.message.sender,
-                    pose: r.message.pose,
-                    objects: &r.message.objects,
-                });
-                holding.push(Some(r.message.role));
-                ages.push((now - r.last_heard).as_secs_f64());
-                teammate_utility.push(r.message.utility);
-            }
-        }
-        let mut unassigned: Vec<usize> = (0..candidates.len()).collect();
+        // This robot first (index 0), then the teammates not bound to a designated role (the
+        // goalkeeper is no candidate for others).
+        let mut contenders = vec![Contender {
+            candidate: Candidate { id: own.id, pose: own.pose, objects: &own.objects },
+            // Unless it was out meanwhile.
+            holding: (!self.relinquished).then_some(self.assignment.role),
+            age: 0.0,
+            announced_utility: 0.0,
+        }];
+        contenders.extend(
+            available.iter().filter(|r| self.designated_role(r.message.sender).is_none()).map(
+                |r| Contender {
+                    candidate: Candidate {
+                        id: r.message.sender,
+                        pose: r.message.pose,
+                        objects: &r.message.objects,
+                    },
+                    holding: Some(r.message.role),
+                    age: (now - r.last_heard).as_secs_f64(),
+                    announced_utility: r.message.utility,
+                },
+            ),
+        );
+        let id = |i: usize| contenders[i].candidate.id;
+        let mut unassigned: Vec<usize> = (0..contenders.len()).collect();
         let mut fallback = None;
         for role_spec in spec.roles.iter().filter(|r| r.designated.is_none()) {
             let holds = |i: usize| {
-                holding[i].is_some_and(|held| self.policy.same_claim(held, role_spec.role))
+                contenders[i]
+                    .holding
+                    .is_some_and(|held| self.policy.same_claim(held, role_spec.role))
             };
             // (candidate, utility as ranked, the candidate's own utility for the role)
             let mut ranked: Vec<(usize, f64, f64)> = unassigned
                 .iter()
                 .map(|&i| {
-                    let utility = self.policy.role_utility(&candidates[i], role_spec.role, mission);
+                    let utility =
+                        self.policy.role_utility(&contenders[i].candidate, role_spec.role, mission);
                     let bonus = if holds(i) {
                         self.config.role_hysteresis
-                            + self.policy.claim_progress(role_spec.role, ages[i])
+                            + self.policy.claim_progress(role_spec.role, contenders[i].age)
                     } else {
                         0.0
                     };
@@ -667,24 +682,22 @@ impl<P: PlanningPolicy> Planner<P> {
                         let claim = if i == 0 {
                             aged(announced_utility, (now - announced_at).as_secs_f64())
                         } else {
-                            aged(teammate_utility[i], ages[i])
+                            aged(contenders[i].announced_utility, contenders[i].age)
                         };
                         (i, claim)
                     })
                     .collect();
-                if let Some(&(winner, _)) = claims.iter().max_by(|a, b| {
-                    a.1.total_cmp(&b.1).then(candidates[b.0].id.cmp(&candidates[a.0].id))
-                }) {
+                if let Some(&(winner, _)) =
+                    claims.iter().max_by(|a, b| a.1.total_cmp(&b.1).then(id(b.0).cmp(&id(a.0))))
+                {
                     ranked.retain(|(i, _, _)| *i == winner || !holds(*i));
                 }
             }
             // Higher utility first; on a tie, the lower robot number.
-            ranked.sort_by(|a, b| {
-                b.1.total_cmp(&a.1).then(candidates[a.0].id.cmp(&candidates[b.0].id))
-            });
+            ranked.sort_by(|a, b| b.1.total_cmp(&a.1).then(id(a.0).cmp(&id(b.0))));
             let take = role_spec.max_robots.unwrap_or(ranked.len()).min(ranked.len());
             for &(i, _, utility) in &ranked[..take] {
-                if candidates[i].id == own.id {
+                if id(i) == own.id {
                     return (role_spec.role, utility);
                 }
             }
@@ -695,7 +708,7 @@ impl<P: PlanningPolicy> Planner<P> {
                 && holds(0)
                 && !ranked[..take]
                     .iter()
-                    .any(|&(i, _, _)| holds(i) || ages[i] < self.config.release_age)
+                    .any(|&(i, _, _)| holds(i) || contenders[i].age < self.config.release_age)
                 && let Some(&(_, _, utility)) = ranked.iter().find(|(i, _, _)| *i == 0)
             {
                 return (role_spec.role, utility);
