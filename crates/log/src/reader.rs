@@ -13,11 +13,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use mcap::records::{Record, op};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
-use strata_runtime::{GraphDescription, Time};
+use strata_runtime::{Encoding, EncodingError, GraphDescription, Time};
 
 use crate::error::LogError;
-use crate::writer::{ConfigFormat, RunInfo, WRAP_PREFIX};
+use crate::writer::{ConfigFormat, RunInfo, wrap_frame};
 use crate::{
     CONFIG_ATTACHMENT_PREFIX, GRAPH_METADATA, RUN_METADATA, STATS_METADATA, WRAP_FIELD, WRAPPED_KEY,
 };
@@ -36,13 +37,21 @@ pub struct LogMessage {
     /// When its data was measured (the package's stamp).
     pub stamp: Time,
     pub seq: u64,
-    /// The value, as JSON.
+    /// How `data` is encoded (its channel's `message_encoding`).
+    pub encoding: Encoding,
+    /// The value, encoded.
     pub data: Vec<u8>,
 }
 
 impl LogMessage {
-    pub fn json(&self) -> Result<serde_json::Value, serde_json::Error> {
-        serde_json::from_slice(&self.data)
+    /// The value as a JSON value, whatever its encoding.
+    pub fn json(&self) -> Result<serde_json::Value, EncodingError> {
+        self.encoding.decode(&self.data)
+    }
+
+    /// The value as its Rust type.
+    pub fn decode<T: DeserializeOwned>(&self) -> Result<T, EncodingError> {
+        self.encoding.decode(&self.data)
     }
 }
 
@@ -113,6 +122,10 @@ struct ChannelInfo {
     type_name: Arc<str>,
     /// Values are stored as `{"value": ...}`.
     wrapped: bool,
+    /// `None`: an encoding Strata does not read (its messages are an error when read).
+    encoding: Option<Encoding>,
+    /// The channel's `message_encoding`, for the error.
+    encoding_name: Arc<str>,
 }
 
 fn is_wrapped(metadata: &BTreeMap<String, String>) -> bool {
@@ -120,8 +133,9 @@ fn is_wrapped(metadata: &BTreeMap<String, String>) -> bool {
 }
 
 /// The value inside a wrapped message, exactly as the writer framed it.
-fn unwrap_value(data: &[u8]) -> Option<&[u8]> {
-    data.strip_prefix(WRAP_PREFIX)?.strip_suffix(b"}")
+fn unwrap_value(encoding: Encoding, data: &[u8]) -> Option<&[u8]> {
+    let (prefix, suffix) = wrap_frame(encoding);
+    data.strip_prefix(prefix)?.strip_suffix(suffix)
 }
 
 /// An opened log: its topics, metadata and where its messages are; messages are read on demand,
@@ -240,6 +254,8 @@ fn decode_chunk(path: &Path, offset: u64, body: &[u8]) -> Result<ChunkContents, 
                                 wrapped: is_wrapped(&channel.metadata),
                                 topic: channel.topic.into(),
                                 type_name: type_name.into(),
+                                encoding: Encoding::from_mcap_name(&channel.message_encoding),
+                                encoding_name: channel.message_encoding.as_str().into(),
                             },
                             channel.message_encoding,
                             schema.map(|s| s.1.clone()),
@@ -418,6 +434,8 @@ impl LogReader {
                     topic: channel.topic.as_str().into(),
                     type_name: type_name.as_str().into(),
                     wrapped: is_wrapped(&channel.metadata),
+                    encoding: Encoding::from_mcap_name(&channel.message_encoding),
+                    encoding_name: channel.message_encoding.as_str().into(),
                 },
             );
             let entry = topics.entry(channel.topic.clone()).or_insert_with(|| TopicInfo {
@@ -821,8 +839,17 @@ impl<'a> Messages<'a> {
                     ),
                 })?;
             let seq = self.unwrap_seq(header.channel_id, header.sequence);
+            let Some(encoding) = info.encoding else {
+                return Err(LogError::Invalid {
+                    path: path.clone(),
+                    what: format!(
+                        "topic `{}` is encoded as `{}`: Strata reads json and msgpack",
+                        info.topic, info.encoding_name
+                    ),
+                });
+            };
             let data = if info.wrapped {
-                match unwrap_value(&data) {
+                match unwrap_value(encoding, &data) {
                     Some(value) => value.to_vec(),
                     None => {
                         return Err(LogError::Invalid {
@@ -843,6 +870,7 @@ impl<'a> Messages<'a> {
                 log_time: Time::from_nanos(header.log_time),
                 stamp: Time::from_nanos(header.publish_time),
                 seq,
+                encoding,
                 data,
             });
         }

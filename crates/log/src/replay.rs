@@ -23,8 +23,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use strata_runtime::{
-    GraphBuilder, GraphDescription, GraphErrors, HostConfig, HostError, InputRef, LockstepHost,
-    ModuleDescription, PortDescription, Tap, TapRecord, Time, Trigger,
+    Encoding, ErasedPackage, GraphBuilder, GraphDescription, GraphErrors, HostConfig, HostError,
+    InputRef, LockstepHost, ModuleDescription, PortDescription, Tap, TapRecord, Time, Trigger,
 };
 
 use crate::error::LogError;
@@ -277,13 +277,13 @@ impl fmt::Display for ReplayReport {
     }
 }
 
-/// One package the replayed modules sent.
-#[derive(Clone, Debug)]
+/// One package the replayed modules sent, kept as a value: it is encoded as the logged package
+/// it is compared with was.
 struct Captured {
     time: Time,
     stamp: Time,
     seq: u64,
-    data: Vec<u8>,
+    package: Box<dyn ErasedPackage>,
 }
 
 /// Collects the replayed modules' outputs by topic.
@@ -295,9 +295,6 @@ struct Capture {
 
 impl Tap for Capture {
     fn package(&self, record: &TapRecord<'_>) {
-        let mut data = Vec::new();
-        // A value that cannot be serialized is recorded as empty: it will differ from the log.
-        let _ = record.package.write_json(&mut data);
         let topic =
             format!("{}{}", self.scope, crate::package_topic(record.module_name, record.output));
         self.outputs.lock().unwrap_or_else(PoisonError::into_inner).entry(topic).or_default().push(
@@ -305,7 +302,7 @@ impl Tap for Capture {
                 time: record.time,
                 stamp: record.package.stamp(),
                 seq: record.package.seq(),
-                data,
+                package: record.package.clone_boxed(),
             },
         );
     }
@@ -580,7 +577,13 @@ pub fn replay(
             _ => host.run_until(t)?,
         }
         let (message, feed) = (&packages[m], &mut feeds[f]);
-        host.inject_json(feed.input, &message.data, message.stamp, message.seq)?;
+        host.inject_encoded(
+            feed.input,
+            message.encoding,
+            &message.data,
+            message.stamp,
+            message.seq,
+        )?;
         feed.packages += 1;
     }
     host.run_until(end)?;
@@ -617,8 +620,11 @@ pub fn replay(
                         if a.seq != b.seq {
                             details.push(format!("seq: {} -> {}", a.seq, b.seq));
                         }
-                        if a.data != b.data {
-                            details.extend(value_differences(&a.data, &b.data, 8));
+                        let mut ours = Vec::new();
+                        // A value that cannot be encoded stays empty: it differs from the log.
+                        let _ = b.package.encode(a.encoding, &mut ours);
+                        if a.data != ours {
+                            details.extend(value_differences(a.encoding, &a.data, &ours, 8));
                         }
                         details
                     }
@@ -672,9 +678,14 @@ pub fn replay(
     })
 }
 
-/// Where two JSON values differ, as `path: old -> new` lines (at most `limit`).
-pub fn value_differences(logged: &[u8], replayed: &[u8], limit: usize) -> Vec<String> {
-    match (serde_json::from_slice::<Value>(logged), serde_json::from_slice::<Value>(replayed)) {
+/// Where two encoded values differ, as `path: old -> new` lines (at most `limit`).
+pub fn value_differences(
+    encoding: Encoding,
+    logged: &[u8],
+    replayed: &[u8],
+    limit: usize,
+) -> Vec<String> {
+    match (encoding.decode::<Value>(logged), encoding.decode::<Value>(replayed)) {
         (Ok(a), Ok(b)) => {
             let mut out = Vec::new();
             let mut count = 0usize;
@@ -684,11 +695,11 @@ pub fn value_differences(logged: &[u8], replayed: &[u8], limit: usize) -> Vec<St
             }
             if out.is_empty() {
                 // Same value, different text (e.g. float formatting): still a difference.
-                out.push("value: same JSON value, different encoding".to_owned());
+                out.push("value: same value, different bytes".to_owned());
             }
             out
         }
-        _ => vec!["value: not comparable (invalid JSON on one side)".to_owned()],
+        _ => vec![format!("value: not comparable (invalid {} on one side)", encoding.mcap_name())],
     }
 }
 
@@ -759,7 +770,7 @@ mod tests {
     fn value_differences_name_paths() {
         let a = br#"{"x":1.0,"y":[1,2],"z":"a","gone":1}"#;
         let b = br#"{"x":1.5,"y":[1,3],"z":"a","new":2}"#;
-        let diff = value_differences(a, b, 8);
+        let diff = value_differences(Encoding::Json, a, b, 8);
         assert_eq!(
             diff,
             vec![

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TrySendError};
 use serde::{Deserialize, Serialize};
-use strata_runtime::{GraphDescription, Tap, TapRecord, Time};
+use strata_runtime::{Encoding, ErasedPackage, GraphDescription, Tap, TapRecord, Time};
 
 use crate::error::LogError;
 use crate::schema::infer_json_schema;
@@ -21,12 +21,28 @@ use crate::{
     WRAP_FIELD, WRAPPED_KEY,
 };
 
-/// What a wrapped message starts with (see `WriterThread::channel`).
-pub(crate) const WRAP_PREFIX: &[u8] = b"{\"value\":";
+/// How a wrapped message is framed in each encoding (see `WriterThread::channel`): the bytes
+/// of a one-entry map with the key [`WRAP_FIELD`] in front of the value, and what closes it.
+pub(crate) fn wrap_frame(encoding: Encoding) -> (&'static [u8], &'static [u8]) {
+    match encoding {
+        Encoding::Json => (b"{\"value\":", b"}"),
+        // fixmap of one entry, then fixstr "value".
+        Encoding::MessagePack => (b"\x81\xa5value", b""),
+    }
+}
 
-/// How chunks are compressed. JSON compresses about tenfold, so the default is zstd, at a
-/// fast level, on the writer thread only (no compression worker threads competing with the
-/// real-time layers for the robot's cores).
+/// Whether an encoded value is a map (an object), as generic tools expect messages to be.
+fn is_map(encoding: Encoding, bytes: &[u8]) -> bool {
+    match (encoding, bytes.first()) {
+        (Encoding::Json, Some(first)) => *first == b'{',
+        // fixmap, map 16, map 32.
+        (Encoding::MessagePack, Some(first)) => matches!(first, 0x80..=0x8f | 0xde | 0xdf),
+        (_, None) => false,
+    }
+}
+
+/// How chunks are compressed: zstd at its fastest level by default, on the writer thread only
+/// (no compression worker threads competing with the real-time layers for the robot's cores).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LogCompression {
@@ -34,6 +50,19 @@ pub enum LogCompression {
     Zstd,
     Lz4,
     None,
+}
+
+impl std::str::FromStr for LogCompression {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<LogCompression, String> {
+        match text {
+            "zstd" => Ok(LogCompression::Zstd),
+            "lz4" => Ok(LogCompression::Lz4),
+            "none" => Ok(LogCompression::None),
+            _ => Err(format!("unknown compression `{text}` (zstd, lz4 or none)")),
+        }
+    }
 }
 
 /// What a record does when the writer's queue is full.
@@ -67,6 +96,8 @@ pub struct McapTapOptions {
     /// ... or once it has been open this long in real time (a quiet real-time robot).
     pub max_chunk_age: Duration,
     pub compression: LogCompression,
+    /// How package values are encoded (MCAP's `message_encoding`).
+    pub encoding: Encoding,
 }
 
 impl Default for McapTapOptions {
@@ -79,6 +110,7 @@ impl Default for McapTapOptions {
             max_chunk_span: Duration::from_millis(200),
             max_chunk_age: Duration::from_millis(500),
             compression: LogCompression::Zstd,
+            encoding: Encoding::MessagePack,
         }
     }
 }
@@ -91,7 +123,7 @@ pub struct LogSummary {
     /// Records dropped because the queue was full, the writer had failed or the log was
     /// already finished.
     pub dropped: u64,
-    /// Packages whose value could not be serialized to JSON (not written).
+    /// Packages whose value could not be encoded (not written).
     pub serialize_errors: u64,
     /// Size of the file.
     pub bytes: u64,
@@ -172,8 +204,16 @@ struct Topic {
     next_seq: AtomicU64,
 }
 
+/// A message's value on its way to the writer thread.
+enum Payload {
+    /// A package, encoded by the writer thread: the sending module only pays for a clone.
+    Package(Box<dyn ErasedPackage>),
+    /// An application record, already encoded.
+    Encoded(Vec<u8>),
+}
+
 enum Command {
-    Message { topic: Arc<Topic>, log_time: u64, stamp: u64, seq: u64, json: Vec<u8> },
+    Message { topic: Arc<Topic>, log_time: u64, stamp: u64, seq: u64, payload: Payload },
     Metadata { name: String, entries: BTreeMap<String, String> },
     Attachment { name: String, media_type: String, time: u64, data: Vec<u8> },
     Finish(Sender<Result<LogSummary, LogError>>),
@@ -186,6 +226,7 @@ struct Shared {
     /// Cleared by `finish`: later records are counted as dropped instead of queued.
     accepting: AtomicBool,
     when_full: WhenFull,
+    encoding: Encoding,
     /// Module-name prefixes to log (empty: all).
     modules: Vec<String>,
     /// Records offered to the queue: what was not written of them was dropped. Counting
@@ -200,18 +241,11 @@ struct Shared {
     topics: Mutex<Vec<Arc<Topic>>>,
     /// Application record topics, by name.
     record_topics: RwLock<HashMap<String, Arc<Topic>>>,
-    /// Emptied payload buffers coming back from the writer, so a steady-state tap allocates
-    /// nothing on the sending module's thread.
-    spare_buffers: (Sender<Vec<u8>>, Receiver<Vec<u8>>),
     #[cfg(test)]
     gate: Arc<test_gate::Gate>,
 }
 
 impl Shared {
-    fn buffer(&self) -> Vec<u8> {
-        self.spare_buffers.1.try_recv().unwrap_or_else(|_| Vec::with_capacity(256))
-    }
-
     fn new_topic(&self, name: String, type_name: &str) -> Arc<Topic> {
         let topic = Arc::new(Topic {
             id: self.next_topic_id.fetch_add(1, Ordering::Relaxed),
@@ -232,7 +266,7 @@ impl Shared {
 
     /// Queues a message; a full queue costs the record (counted) or, in [`WhenFull::Wait`]
     /// mode, the sender's time.
-    fn submit(&self, topic: &Arc<Topic>, log_time: Time, stamp: Time, seq: u64, json: Vec<u8>) {
+    fn submit(&self, topic: &Arc<Topic>, log_time: Time, stamp: Time, seq: u64, payload: Payload) {
         self.offered.fetch_add(1, Ordering::Relaxed);
         topic.offered.fetch_add(1, Ordering::Relaxed);
         if !self.accepting.load(Ordering::Acquire) {
@@ -244,7 +278,7 @@ impl Shared {
             log_time: log_time.as_nanos(),
             stamp: stamp.as_nanos(),
             seq,
-            json,
+            payload,
         };
         let refused = match self.when_full {
             WhenFull::Drop => match self.sender.try_send(command) {
@@ -255,26 +289,22 @@ impl Shared {
             },
             WhenFull::Wait => self.sender.send(command).err().map(|e| e.into_inner()),
         };
-        match refused {
-            None => {}
-            Some(command) => {
-                self.drop_record(topic);
-                if let Command::Message { mut json, .. } = command {
-                    json.clear();
-                    let _ = self.spare_buffers.0.try_send(json);
-                }
-            }
+        if refused.is_some() {
+            self.drop_record(topic);
         }
     }
 
     fn tap_package(&self, topics: &TopicCache, record: &TapRecord<'_>) {
         let Some(topic) = topics.get(self, record) else { return };
-        let mut json = self.buffer();
-        if record.package.write_json(&mut json).is_err() {
-            self.serialize_errors.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-        self.submit(&topic, record.time, record.package.stamp(), record.package.seq(), json);
+        let package = record.package.clone_boxed();
+        self.submit(&topic, record.time, package.stamp(), package.seq(), Payload::Package(package));
+    }
+
+    /// A value that could not be encoded: an error, not a drop.
+    fn unencodable(&self, topic: &Topic) {
+        self.serialize_errors.fetch_add(1, Ordering::Relaxed);
+        self.offered.fetch_sub(1, Ordering::Relaxed);
+        topic.offered.fetch_sub(1, Ordering::Relaxed);
     }
 
     /// Queues a command that must not be lost (metadata): waits for room in the queue.
@@ -292,35 +322,73 @@ impl Shared {
 /// Per output name, its topic (`None`: the module is not logged).
 type OutputTopics = HashMap<String, Option<Arc<Topic>>>;
 
-/// Topics of packages by module and output name, looked up without allocating.
+/// One module's topics, as the fast path finds them.
+#[derive(Default)]
+struct ModuleTopics {
+    name: String,
+    outputs: Vec<(String, Option<Arc<Topic>>)>,
+}
+
+impl ModuleTopics {
+    fn get(&self, module_name: &str, output: &str) -> Option<&Option<Arc<Topic>>> {
+        if self.name != module_name {
+            return None;
+        }
+        self.outputs.iter().find(|(name, _)| name == output).map(|(_, topic)| topic)
+    }
+}
+
+/// Topics of packages by module and output name. Every package of a match passes here on the
+/// sending module's thread, so the usual lookup goes by module id and a short list of outputs,
+/// without hashing; the map by name is where topics are created, once each.
 #[derive(Default)]
 struct TopicCache {
     prefix: String,
-    by_module: RwLock<HashMap<String, OutputTopics>>,
+    /// By module id; the name is checked too, in case one tap serves several graphs.
+    by_id: RwLock<Vec<ModuleTopics>>,
+    by_name: Mutex<HashMap<String, OutputTopics>>,
 }
 
 impl TopicCache {
     /// The topic of a record's output; `None` for modules the options leave out.
     fn get(&self, shared: &Shared, record: &TapRecord<'_>) -> Option<Arc<Topic>> {
+        let index = record.module.index();
         {
-            let map = self.by_module.read().unwrap_or_else(PoisonError::into_inner);
-            if let Some(topic) = map.get(record.module_name).and_then(|m| m.get(record.output)) {
+            let modules = self.by_id.read().unwrap_or_else(PoisonError::into_inner);
+            if let Some(topic) =
+                modules.get(index).and_then(|m| m.get(record.module_name, record.output))
+            {
                 return topic.clone();
             }
         }
-        let mut map = self.by_module.write().unwrap_or_else(PoisonError::into_inner);
-        let outputs = map.entry(record.module_name.to_owned()).or_default();
-        let topic = outputs.entry(record.output.to_owned()).or_insert_with(|| {
-            let name = format!(
-                "{}{}",
-                self.prefix,
-                crate::package_topic(record.module_name, record.output)
-            );
-            let wanted = shared.modules.is_empty()
-                || shared.modules.iter().any(|prefix| name.starts_with(prefix.as_str()));
-            wanted.then(|| shared.new_topic(name, record.type_name))
-        });
-        topic.clone()
+        let topic = {
+            let mut by_name = self.by_name.lock().unwrap_or_else(PoisonError::into_inner);
+            let outputs = by_name.entry(record.module_name.to_owned()).or_default();
+            outputs
+                .entry(record.output.to_owned())
+                .or_insert_with(|| {
+                    let name = format!(
+                        "{}{}",
+                        self.prefix,
+                        crate::package_topic(record.module_name, record.output)
+                    );
+                    let wanted = shared.modules.is_empty()
+                        || shared.modules.iter().any(|prefix| name.starts_with(prefix.as_str()));
+                    wanted.then(|| shared.new_topic(name, record.type_name))
+                })
+                .clone()
+        };
+        let mut modules = self.by_id.write().unwrap_or_else(PoisonError::into_inner);
+        if modules.len() <= index {
+            modules.resize_with(index + 1, ModuleTopics::default);
+        }
+        let module = &mut modules[index];
+        if module.name != record.module_name {
+            // Another graph's module with the same id: the slot follows the latest one.
+            *module = ModuleTopics { name: record.module_name.to_owned(), outputs: Vec::new() };
+        }
+        module.outputs.push((record.output.to_owned(), topic.clone()));
+        topic
     }
 }
 
@@ -384,6 +452,7 @@ impl McapTap {
             sender,
             accepting: AtomicBool::new(true),
             when_full,
+            encoding: options.encoding,
             modules: options.modules.clone(),
             offered: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
@@ -391,7 +460,6 @@ impl McapTap {
             next_topic_id: AtomicU32::new(0),
             topics: Mutex::new(Vec::new()),
             record_topics: RwLock::new(HashMap::new()),
-            spare_buffers: crossbeam_channel::bounded(options.capacity.clamp(1, 4096)),
             #[cfg(test)]
             gate: Arc::new(test_gate::Gate::default()),
         });
@@ -402,6 +470,7 @@ impl McapTap {
             channels: HashMap::new(),
             schemas: HashMap::new(),
             scratch: Vec::new(),
+            encoded: Vec::new(),
             chunk: None,
             messages: 0,
             written_by_topic: HashMap::new(),
@@ -437,25 +506,27 @@ impl McapTap {
     /// Handled like packages: with [`WhenFull::Drop`] it never blocks, and a record that
     /// finds the queue full is dropped and counted.
     pub fn record(&self, topic: &str, type_name: &str, time: Time, value: &serde_json::Value) {
-        let mut json = self.shared.buffer();
-        if serde_json::to_writer(&mut json, value).is_err() {
-            self.shared.serialize_errors.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-        self.record_json(topic, type_name, time, json);
+        self.record_encoded(topic, type_name, time, value);
     }
 
     /// [`McapTap::record`] for any serializable value, named by its Rust type.
     pub fn record_value<T: Serialize>(&self, topic: &str, time: Time, value: &T) {
-        let mut json = self.shared.buffer();
-        if serde_json::to_writer(&mut json, value).is_err() {
+        self.record_encoded(topic, std::any::type_name::<T>(), time, value);
+    }
+
+    /// Records are few (a game state, a behavior path when it changes): encoded right here.
+    fn record_encoded<T: Serialize + ?Sized>(
+        &self,
+        topic: &str,
+        type_name: &str,
+        time: Time,
+        value: &T,
+    ) {
+        let mut bytes = Vec::with_capacity(256);
+        if self.shared.encoding.encode(value, &mut bytes).is_err() {
             self.shared.serialize_errors.fetch_add(1, Ordering::Relaxed);
             return;
         }
-        self.record_json(topic, std::any::type_name::<T>(), time, json);
-    }
-
-    fn record_json(&self, topic: &str, type_name: &str, time: Time, json: Vec<u8>) {
         let existing = self
             .shared
             .record_topics
@@ -471,7 +542,7 @@ impl McapTap {
             )
         });
         let seq = topic.next_seq.fetch_add(1, Ordering::Relaxed);
-        self.shared.submit(&topic, time, time, seq, json);
+        self.shared.submit(&topic, time, time, seq, Payload::Encoded(bytes));
     }
 
     /// Writes a metadata record. Waits for room in the queue (metadata is never dropped): call
@@ -636,6 +707,8 @@ struct WriterThread {
     schemas: HashMap<(String, bool), u16>,
     /// Where wrapped messages are assembled.
     scratch: Vec<u8>,
+    /// Where packages are encoded (one buffer, reused).
+    encoded: Vec<u8>,
     chunk: Option<OpenChunk>,
     messages: u64,
     written_by_topic: HashMap<u32, u64>,
@@ -666,12 +739,20 @@ impl WriterThread {
             #[cfg(test)]
             self.shared.gate.wait_open();
             match command {
-                Command::Message { topic, log_time, stamp, seq, json } => {
-                    self.write_message(&topic, log_time, stamp, seq, &json);
-                    let mut json = json;
-                    json.clear();
-                    let _ = self.shared.spare_buffers.0.try_send(json);
-                }
+                Command::Message { topic, log_time, stamp, seq, payload } => match payload {
+                    Payload::Package(package) => {
+                        let mut encoded = std::mem::take(&mut self.encoded);
+                        encoded.clear();
+                        match package.encode(self.shared.encoding, &mut encoded) {
+                            Ok(()) => self.write_message(&topic, log_time, stamp, seq, &encoded),
+                            Err(_) => self.shared.unencodable(&topic),
+                        }
+                        self.encoded = encoded;
+                    }
+                    Payload::Encoded(bytes) => {
+                        self.write_message(&topic, log_time, stamp, seq, &bytes);
+                    }
+                },
                 Command::Metadata { name, entries } => {
                     let metadata = mcap::records::Metadata { name, metadata: entries };
                     self.apply(|w| w.write_metadata(&metadata));
@@ -720,12 +801,12 @@ impl WriterThread {
         self.chunk = None;
     }
 
-    fn write_message(&mut self, topic: &Topic, log_time: u64, stamp: u64, seq: u64, json: &[u8]) {
+    fn write_message(&mut self, topic: &Topic, log_time: u64, stamp: u64, seq: u64, value: &[u8]) {
         if self.error.is_some() {
             self.shared.drop_record(topic);
             return;
         }
-        let result = self.channel(topic, json).and_then(|(channel_id, wrapped)| {
+        let result = self.channel(topic, value).and_then(|(channel_id, wrapped)| {
             let header = mcap::records::MessageHeader {
                 channel_id,
                 // MCAP sequences are 32 bits; readers unwrap them per channel.
@@ -734,13 +815,14 @@ impl WriterThread {
                 publish_time: stamp,
             };
             let payload = if wrapped {
+                let (prefix, suffix) = wrap_frame(self.shared.encoding);
                 self.scratch.clear();
-                self.scratch.extend_from_slice(WRAP_PREFIX);
-                self.scratch.extend_from_slice(json);
-                self.scratch.push(b'}');
+                self.scratch.extend_from_slice(prefix);
+                self.scratch.extend_from_slice(value);
+                self.scratch.extend_from_slice(suffix);
                 &self.scratch[..]
             } else {
-                json
+                value
             };
             match self.writer.as_mut() {
                 Some(writer) => writer.write_to_known_channel(&header, payload),
@@ -770,7 +852,7 @@ impl WriterThread {
     }
 
     /// The channel of a topic and whether its messages are wrapped, created on its first
-    /// message. Generic tools (Foxglove) take JSON messages that are objects: a topic whose
+    /// message. Generic tools (Foxglove) take messages that are objects (maps): a topic whose
     /// first value is not one (a number, a tuple, a unit enum variant) has every value
     /// wrapped as `{"value": ...}`, which the channel's metadata records and readers undo.
     fn channel(&mut self, topic: &Topic, sample: &[u8]) -> mcap::McapResult<(u16, bool)> {
@@ -778,11 +860,12 @@ impl WriterThread {
             return Ok(channel);
         }
         let Some(writer) = self.writer.as_mut() else { return Ok((0, false)) };
-        let wrapped = !sample.starts_with(b"{");
+        let encoding = self.shared.encoding;
+        let wrapped = !is_map(encoding, sample);
         let schema_id = match self.schemas.get(&(topic.type_name.clone(), wrapped)) {
             Some(&id) => id,
             None => {
-                let sample = serde_json::from_slice(sample).unwrap_or(serde_json::Value::Null);
+                let sample = encoding.decode(sample).unwrap_or(serde_json::Value::Null);
                 let sample =
                     if wrapped { serde_json::json!({ WRAP_FIELD: sample }) } else { sample };
                 let schema = infer_json_schema(&topic.type_name, &sample);
@@ -799,7 +882,7 @@ impl WriterThread {
         if wrapped {
             metadata.insert(WRAPPED_KEY.to_owned(), WRAP_FIELD.to_owned());
         }
-        let id = writer.add_channel(schema_id, &topic.name, "json", &metadata)?;
+        let id = writer.add_channel(schema_id, &topic.name, encoding.mcap_name(), &metadata)?;
         self.channels.insert(topic.id, (id, wrapped));
         Ok((id, wrapped))
     }

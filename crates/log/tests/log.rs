@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use strata_log::{LogCompression, LogError, LogInfo, LogReader, McapTap, McapTapOptions};
-use strata_runtime::{HostConfig, ThreadedHost, Time};
+use strata_runtime::{Encoding, HostConfig, ThreadedHost, Time};
 use support::{CONFIG, SEED, record_demo, scratch};
 
 #[test]
@@ -45,7 +45,7 @@ fn round_trip_keeps_every_package_in_order() {
 
     let filter = reader.topic("filter/estimate").expect("filter topic");
     assert_eq!(filter.type_name, std::any::type_name::<support::Estimate>());
-    assert_eq!(filter.message_encoding, "json");
+    assert_eq!(filter.message_encoding, "msgpack");
     assert_eq!(filter.schema_encoding.as_deref(), Some("jsonschema"));
     let source = reader.topic("source/reading").expect("source topic");
     assert_eq!(source.messages, 501);
@@ -260,50 +260,58 @@ fn a_file_that_is_not_mcap_is_an_error() {
 }
 
 #[test]
-fn every_message_is_a_json_object_with_an_object_schema_for_generic_tools() {
+fn every_message_is_an_object_with_an_object_schema_for_generic_tools() {
     let dir = scratch("generic");
-    let path = dir.join("demo.mcap");
-    let (_, _) = record_demo(&path, 0.5, McapTapOptions::default(), CONFIG);
-    // Add values that are not objects: they are wrapped in the file, unwrapped when read.
-    let scalars = dir.join("scalars.mcap");
-    let log = McapTap::create(&scalars, McapTapOptions::default()).expect("create");
-    log.record_value("game/score", Time::from_nanos(5), &(2u8, 1u8));
-    log.record_value("game/phase", Time::from_nanos(6), &"Playing");
-    log.record("game/clock", "f64", Time::from_nanos(7), &serde_json::json!(599.5));
-    log.finish().expect("finish");
+    for encoding in [Encoding::MessagePack, Encoding::Json] {
+        let options = McapTapOptions { encoding, ..McapTapOptions::default() };
+        let path = dir.join(format!("demo-{}.mcap", encoding.mcap_name()));
+        let (_, _) = record_demo(&path, 0.5, options.clone(), CONFIG);
+        // Add values that are not objects: they are wrapped in the file, unwrapped when read.
+        let scalars = dir.join(format!("scalars-{}.mcap", encoding.mcap_name()));
+        let log = McapTap::create(&scalars, options).expect("create");
+        log.record_value("game/score", Time::from_nanos(5), &(2u8, 1u8));
+        log.record_value("game/phase", Time::from_nanos(6), &"Playing");
+        log.record("game/clock", "f64", Time::from_nanos(7), &serde_json::json!(599.5));
+        log.finish().expect("finish");
 
-    for file in [&path, &scalars] {
-        // Read with the `mcap` crate alone, as a generic tool would.
-        let bytes = std::fs::read(file).expect("read");
-        let mut messages = 0;
-        for message in mcap::MessageStream::new(&bytes).expect("stream") {
-            let message = message.expect("message");
-            assert_eq!(message.channel.message_encoding, "json");
-            let schema = message.channel.schema.as_ref().expect("a schema");
-            assert_eq!(schema.encoding, "jsonschema");
-            let schema: serde_json::Value = serde_json::from_slice(&schema.data).expect("schema");
-            assert_eq!(schema["type"], "object", "{}", message.channel.topic);
-            assert_eq!(schema["title"], schema_name(&message), "{}", message.channel.topic);
-            let value: serde_json::Value = serde_json::from_slice(&message.data).expect("json");
-            assert!(value.is_object(), "{}: {value}", message.channel.topic);
-            messages += 1;
+        for file in [&path, &scalars] {
+            // Read with the `mcap` crate and a decoder of the channel's encoding alone, as a
+            // generic tool would.
+            let bytes = std::fs::read(file).expect("read");
+            let mut messages = 0;
+            for message in mcap::MessageStream::new(&bytes).expect("stream") {
+                let message = message.expect("message");
+                assert_eq!(message.channel.message_encoding, encoding.mcap_name());
+                let schema = message.channel.schema.as_ref().expect("a schema");
+                assert_eq!(schema.encoding, "jsonschema");
+                let schema: serde_json::Value =
+                    serde_json::from_slice(&schema.data).expect("schema");
+                assert_eq!(schema["type"], "object", "{}", message.channel.topic);
+                assert_eq!(schema["title"], schema_name(&message), "{}", message.channel.topic);
+                let value: serde_json::Value = match encoding {
+                    Encoding::Json => serde_json::from_slice(&message.data).expect("json"),
+                    Encoding::MessagePack => rmp_serde::from_slice(&message.data).expect("msgpack"),
+                };
+                assert!(value.is_object(), "{}: {value}", message.channel.topic);
+                messages += 1;
+            }
+            assert!(messages > 0);
         }
-        assert!(messages > 0);
+        let reader = LogReader::open(&scalars).expect("open");
+        let values: Vec<(String, String)> = reader
+            .messages()
+            .map(|m| m.expect("ok"))
+            .map(|m| (m.topic.to_string(), m.json().expect("decodes").to_string()))
+            .collect();
+        assert_eq!(
+            values,
+            [
+                ("game/score".to_owned(), "[2,1]".to_owned()),
+                ("game/phase".to_owned(), "\"Playing\"".to_owned()),
+                ("game/clock".to_owned(), "599.5".to_owned()),
+            ]
+        );
     }
-    let reader = LogReader::open(&scalars).expect("open");
-    let values: Vec<(String, String)> = reader
-        .messages()
-        .map(|m| m.expect("ok"))
-        .map(|m| (m.topic.to_string(), String::from_utf8_lossy(&m.data).into_owned()))
-        .collect();
-    assert_eq!(
-        values,
-        [
-            ("game/score".to_owned(), "[2,1]".to_owned()),
-            ("game/phase".to_owned(), "\"Playing\"".to_owned()),
-            ("game/clock".to_owned(), "599.5".to_owned()),
-        ]
-    );
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
 

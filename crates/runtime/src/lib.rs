@@ -14,6 +14,7 @@
 //!   what each connection overwrote, dropped or merged.
 
 mod connection;
+mod encoding;
 mod graph;
 mod host;
 mod lockstep;
@@ -30,6 +31,7 @@ mod time;
 mod wiring;
 
 pub use connection::{Arrival, CombineFn, Connection, ConnectionCounters, Policy, PolicyKind};
+pub use encoding::{Encoding, EncodingError};
 pub use graph::{
     ConnectionDescription, Graph, GraphBuilder, GraphDescription, GraphError, GraphErrors, Input,
     InputMode, InputRef, ModuleDescription, Output, OutputRef, PortDescription, Ports,

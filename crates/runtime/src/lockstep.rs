@@ -24,6 +24,7 @@ use std::time::{Duration, Instant};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::encoding::Encoding;
 use crate::graph::{Graph, Input, InputRef, Trigger};
 use crate::host::{HostConfig, HostError, panic_message};
 use crate::message::{ErasedPackage, Message};
@@ -257,18 +258,19 @@ impl LockstepHost {
         Ok(())
     }
 
-    /// Feeds a logged (JSON) package to an external input, now (replay).
-    pub fn inject_json(
+    /// Feeds a logged (encoded) package to an external input, now (replay).
+    pub fn inject_encoded(
         &mut self,
         input: InputRef,
-        json: &[u8],
+        encoding: Encoding,
+        bytes: &[u8],
         stamp: Time,
         seq: u64,
     ) -> Result<(), HostError> {
         self.check_external(input)?;
         let name = self.input_name(input);
         let slot = &self.modules[input.module.index()].parts.inputs[usize::from(input.port)].slot;
-        slot.push_json(json, stamp, seq, ModuleId(u32::MAX))
+        slot.push_encoded(encoding, bytes, stamp, seq, ModuleId(u32::MAX))
             .map_err(|e| HostError::Decode { input: name, error: e.to_string() })?;
         self.after_arrival(input, self.now);
         Ok(())

@@ -6,6 +6,7 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 
 use crate::connection::{Arrival, Connection, ConnectionCounters, Policy, PolicyKind};
+use crate::encoding::{Encoding, EncodingError};
 use crate::package::Package;
 use crate::time::Time;
 
@@ -20,8 +21,13 @@ impl<T> Message for T where T: Clone + Send + Serialize + DeserializeOwned + 'st
 pub trait ErasedPackage: Send {
     fn stamp(&self) -> Time;
     fn seq(&self) -> u64;
-    /// The value as JSON (the logs' encoding).
+    /// Appends the value, encoded.
+    fn encode(&self, encoding: Encoding, out: &mut Vec<u8>) -> Result<(), EncodingError>;
+    /// The value as JSON.
     fn write_json(&self, out: &mut Vec<u8>) -> Result<(), serde_json::Error>;
+    /// A copy of the package, for a tap that encodes it on another thread: cloning costs the
+    /// sending module far less than encoding.
+    fn clone_boxed(&self) -> Box<dyn ErasedPackage>;
     fn as_any(&self) -> &dyn Any;
     fn into_any(self: Box<Self>) -> Box<dyn Any + Send>;
 }
@@ -35,8 +41,16 @@ impl<T: Message> ErasedPackage for Package<T> {
         self.seq
     }
 
+    fn encode(&self, encoding: Encoding, out: &mut Vec<u8>) -> Result<(), EncodingError> {
+        encoding.encode(&self.value, out)
+    }
+
     fn write_json(&self, out: &mut Vec<u8>) -> Result<(), serde_json::Error> {
         serde_json::to_writer(out, &self.value)
+    }
+
+    fn clone_boxed(&self) -> Box<dyn ErasedPackage> {
+        Box::new(self.clone())
     }
 
     fn as_any(&self) -> &dyn Any {
@@ -55,13 +69,14 @@ pub(crate) trait ErasedInput: Send + Sync {
     /// Stores `package` (a `Box<Package<T>>`) without cloning.
     fn push_owned(&self, package: Box<dyn Any + Send>) -> Option<Arrival>;
     /// Decodes a logged value and stores it (replay).
-    fn push_json(
+    fn push_encoded(
         &self,
-        json: &[u8],
+        encoding: Encoding,
+        bytes: &[u8],
         stamp: Time,
         seq: u64,
         producer: crate::ModuleId,
-    ) -> Result<Arrival, serde_json::Error>;
+    ) -> Result<Arrival, EncodingError>;
     fn has_pending(&self) -> bool;
     fn counters(&self) -> ConnectionCounters;
     fn policy(&self) -> PolicyKind;
@@ -95,14 +110,15 @@ impl<T: Message> ErasedInput for InputSlot<T> {
         Some(self.lock().push(*package))
     }
 
-    fn push_json(
+    fn push_encoded(
         &self,
-        json: &[u8],
+        encoding: Encoding,
+        bytes: &[u8],
         stamp: Time,
         seq: u64,
         producer: crate::ModuleId,
-    ) -> Result<Arrival, serde_json::Error> {
-        let value: T = serde_json::from_slice(json)?;
+    ) -> Result<Arrival, EncodingError> {
+        let value: T = encoding.decode(bytes)?;
         Ok(self.lock().push(Package::new(value, stamp, seq, producer)))
     }
 

@@ -38,11 +38,13 @@ pub fn run(cmd: LogCommand) -> Result<()> {
         LogCommand::Info { file, json } => {
             let reader = LogReader::open(&file)?;
             let info = LogInfo::of(&reader);
-            if json {
-                println!("{}", serde_json::to_string_pretty(&info)?);
+            let text = if json {
+                format!("{}\n", serde_json::to_string_pretty(&info)?)
             } else {
-                print!("{info}");
-            }
+                info.to_string()
+            };
+            // A closed pipe (`| head`) ends the description, not with a panic.
+            let _ = std::io::stdout().lock().write_all(text.as_bytes());
             Ok(())
         }
         LogCommand::Cat { file, topics, limit } => {
@@ -69,7 +71,12 @@ pub fn run(cmd: LogCommand) -> Result<()> {
             for message in messages.take(limit.unwrap_or(usize::MAX)) {
                 let message = message?;
                 let value: serde_json::Value = message.json().with_context(|| {
-                    format!("message {} of `{}` is not valid JSON", message.seq, message.topic)
+                    format!(
+                        "message {} of `{}` is not valid {}",
+                        message.seq,
+                        message.topic,
+                        message.encoding.mcap_name()
+                    )
                 })?;
                 let line = serde_json::json!({
                     "topic": &*message.topic,

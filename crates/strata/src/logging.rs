@@ -10,11 +10,14 @@ use std::time::Duration;
 
 use anyhow::{Context as _, Result, bail};
 use serde::{Deserialize, Serialize};
-use strata_log::{ConfigFormat, LogSummary, McapTap, McapTapOptions, RunInfo, WhenFull};
-use strata_robot::control::reactive::ReactiveReport;
+use strata_log::{
+    ConfigFormat, LogCompression, LogSummary, McapTap, McapTapOptions, RunInfo, WhenFull,
+};
+use strata_robot::command::ResourceGroup;
+use strata_robot::control::reactive::{MuxReport, ReactiveReport};
 use strata_robot::platform::PlatformInfo;
 use strata_robot::world::WorldModelConfig;
-use strata_runtime::{ModuleId, Package, Tap, TapRecord, Time};
+use strata_runtime::{Encoding, ModuleId, Package, Tap, TapRecord, Time};
 use strata_sim::{GameTruth, GroundTruth, SimConfig};
 use strata_soccer::behaviors::{Decision, Output as DeliberativeOutput};
 use strata_soccer::field::TeamField;
@@ -109,12 +112,21 @@ pub struct LogSettings {
     /// World-state packages logged per second and robot; `None`: every package. The world state
     /// is the one large stream (`docs/logging.md`, "Overhead").
     pub world_state_hz: Option<f64>,
+    pub compression: LogCompression,
+    pub encoding: Encoding,
 }
 
 impl LogSettings {
-    /// Every package of every robot, nothing decimated.
+    /// Every package of every robot, nothing decimated, the default compression and encoding.
     pub fn full(path: impl Into<PathBuf>) -> LogSettings {
-        LogSettings { path: path.into(), robots: Vec::new(), world_state_hz: None }
+        let defaults = McapTapOptions::default();
+        LogSettings {
+            path: path.into(),
+            robots: Vec::new(),
+            world_state_hz: None,
+            compression: defaults.compression,
+            encoding: defaults.encoding,
+        }
     }
 }
 
@@ -171,6 +183,8 @@ impl MatchLog {
             // and gives the complete log replay needs. A real-time host must never wait.
             when_full: if game.config.realtime { WhenFull::Drop } else { WhenFull::Wait },
             modules,
+            compression: settings.compression,
+            encoding: settings.encoding,
             ..McapTapOptions::default()
         };
         let tap = Arc::new(
@@ -233,6 +247,25 @@ pub struct BehaviorPath {
     pub planning: String,
 }
 
+/// What a reactive report's active path is made of, per multiplexer (whole body, head, body):
+/// compared every reactive cycle, cheaply, instead of formatting the path text each time.
+type PathKey =
+    [(Option<Arc<str>>, Option<std::borrow::Cow<'static, str>>, Option<ResourceGroup>); 3];
+
+fn path_key(report: &ReactiveReport) -> PathKey {
+    let key = |r: &MuxReport| (r.selected_goal.clone(), r.primitive.clone(), r.inhibited_by);
+    [key(&report.whole_body), key(&report.head), key(&report.body)]
+}
+
+fn same_path(key: &PathKey, report: &ReactiveReport) -> bool {
+    let same =
+        |k: &(Option<Arc<str>>, Option<std::borrow::Cow<'static, str>>, Option<ResourceGroup>),
+         r: &MuxReport| {
+            k.0 == r.selected_goal && k.1 == r.primitive && k.2 == r.inhibited_by
+        };
+    same(&key[0], &report.whole_body) && same(&key[1], &report.head) && same(&key[2], &report.body)
+}
+
 struct PathRecord {
     topic: String,
     deliberative_module: String,
@@ -241,6 +274,8 @@ struct PathRecord {
     /// The newest path of each layer, and the last one written.
     path: BehaviorPath,
     written: BehaviorPath,
+    /// What the reactive path was made of when it was last formatted.
+    reactive_key: Option<PathKey>,
 }
 
 impl PathRecord {
@@ -252,6 +287,7 @@ impl PathRecord {
             reactive_module: format!("{robot}/reactive"),
             path: BehaviorPath::default(),
             written: BehaviorPath::default(),
+            reactive_key: None,
         }
     }
 }
@@ -323,9 +359,13 @@ impl LogFilter {
         {
             // Checked every reactive cycle, written when any layer's path changed: a path
             // holds until the next record (the reactive report of every cycle has it too).
-            let reactive = p.value.active_path();
-            if reactive != entry.path.reactive || entry.written != entry.path {
-                entry.path.reactive = reactive;
+            let reactive_changed =
+                entry.reactive_key.as_ref().is_none_or(|key| !same_path(key, &p.value));
+            if reactive_changed {
+                entry.reactive_key = Some(path_key(&p.value));
+                entry.path.reactive = p.value.active_path();
+            }
+            if entry.written != entry.path {
                 self.tap.record_value(&entry.topic, record.time, &entry.path);
                 entry.written.clone_from(&entry.path);
             }

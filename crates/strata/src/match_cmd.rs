@@ -10,6 +10,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use strata::logging::{LogSettings, MatchLog, parse_robots};
 use strata::matches::{Match, MatchConfig, MatchReport};
 use strata::view::{LiveTap, ViewServer};
+use strata_log::LogCompression;
+use strata_runtime::Encoding;
 use strata_sim::NoiseLevel;
 use strata_soccer::team::TeamConfig;
 
@@ -59,6 +61,13 @@ pub struct MatchArgs {
     /// modules that read the world state, and the world model's own outputs).
     #[arg(long, value_name = "HZ", default_value_t = 0.0, requires = "log")]
     pub log_world_hz: f64,
+    /// How the log's chunks are compressed: zstd (small files), lz4 or none (least work while
+    /// recording; docs/logging.md, "Overhead").
+    #[arg(long, value_name = "zstd|lz4|none", default_value = "zstd", requires = "log")]
+    pub log_compression: LogCompression,
+    /// How package values are encoded: msgpack (fast) or json (text, what Foxglove reads).
+    #[arg(long, value_name = "msgpack|json", default_value = "msgpack", requires = "log")]
+    pub log_encoding: Encoding,
     /// Show the match live in the web viewer (prints its address; docs/viewer.md).
     #[arg(long)]
     pub view: bool,
@@ -119,6 +128,8 @@ pub fn run(args: MatchArgs) -> Result<()> {
                     None => Vec::new(),
                 },
                 world_state_hz: (args.log_world_hz > 0.0).then_some(args.log_world_hz),
+                compression: args.log_compression,
+                encoding: args.log_encoding,
             };
             Some(MatchLog::attach(&mut game, &settings)?)
         }

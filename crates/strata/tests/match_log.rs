@@ -19,7 +19,7 @@ use strata_log::replay::{ReplayOptions, replay};
 use strata_runtime::{Tap, TapRecord};
 use view_support::{get, get_json, record_match, scratch};
 
-/// A delivered package: (topic, sequence, delivery time ns, stamp ns, JSON).
+/// A delivered package: (topic, sequence, delivery time ns, stamp ns, value as logged).
 type Delivered = (String, u64, u64, u64, Vec<u8>);
 
 /// Every package the host delivered, as the log should hold it.
@@ -30,14 +30,14 @@ struct Collect {
 
 impl Tap for Collect {
     fn package(&self, record: &TapRecord<'_>) {
-        let mut json = Vec::new();
-        record.package.write_json(&mut json).expect("serializable");
+        let mut value = Vec::new();
+        record.package.encode(LogSettings::full("").encoding, &mut value).expect("serializable");
         self.packages.lock().unwrap_or_else(PoisonError::into_inner).push((
             format!("{}/{}", record.module_name, record.output),
             record.package.seq(),
             record.time.as_nanos(),
             record.package.stamp().as_nanos(),
-            json,
+            value,
         ));
     }
 }
@@ -123,6 +123,7 @@ fn logged_robots_can_be_chosen_and_the_world_state_decimated() {
         path: path.clone(),
         robots: vec!["home/2".to_owned()],
         world_state_hz: Some(5.0),
+        ..LogSettings::full(&path)
     };
     record_match(&settings, 2, 4.0, 3, None);
     let reader = LogReader::open(&path).expect("open");

@@ -206,7 +206,8 @@ pub fn registry() -> ModuleRegistry {
     registry
 }
 
-/// One package as a tap saw it: topic, time, stamp, seq, JSON.
+/// One package as a tap saw it: topic, time, stamp, seq, value (in the logs' default
+/// encoding).
 pub type SeenPackage = (String, Time, Time, u64, Vec<u8>);
 pub type Seen = Arc<Mutex<Vec<SeenPackage>>>;
 pub type MonitorPorts = (Input<Reading>, Input<Estimate>, Output<Status>);
@@ -220,14 +221,17 @@ pub struct Tee {
 impl Tap for Tee {
     fn package(&self, record: &TapRecord<'_>) {
         self.log.package(record);
-        let mut json = Vec::new();
-        record.package.write_json(&mut json).expect("serializable");
+        let mut value = Vec::new();
+        record
+            .package
+            .encode(McapTapOptions::default().encoding, &mut value)
+            .expect("serializable");
         self.seen.lock().expect("not poisoned").push((
             format!("{}/{}", record.module_name, record.output),
             record.time,
             record.package.stamp(),
             record.package.seq(),
-            json,
+            value,
         ));
     }
 }

@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
-use strata_runtime::Time;
+use strata_runtime::{Encoding, Time};
 use strata_spl::field::{Field, Side};
 
 /// The spacing of the samples kept of the per-cycle streams of each robot.
@@ -560,30 +560,30 @@ impl ViewData {
         }
     }
 
-    /// Takes one package (its topic, log time and JSON value). Unreadable packages are counted,
-    /// never fatal: a viewer shows what it can.
-    pub fn ingest(&mut self, topic: &str, time: Time, json: &[u8]) {
+    /// Takes one package (its topic, log time and encoded value). Unreadable packages are
+    /// counted, never fatal: a viewer shows what it can.
+    pub fn ingest(&mut self, topic: &str, time: Time, encoding: Encoding, value: &[u8]) {
         if !self.wants(topic, time) {
             return;
         }
         let Some((robot, kind)) = classify(topic) else { return };
         let t = time.as_secs_f64();
         let ok = match (robot, kind) {
-            (None, _) => self.ingest_truth(t, json),
+            (None, _) => self.ingest_truth(t, encoding, value),
             (Some(robot), kind) => {
                 let index = self.robot_index(robot);
                 let series = &mut self.robots[index];
                 match kind {
-                    Kind::World => ingest_world(series, t, json),
-                    Kind::Report => ingest_report(series, t, json),
-                    Kind::Deliberative => match serde_json::from_slice::<DeliberativeIn>(json) {
+                    Kind::World => ingest_world(series, t, encoding, value),
+                    Kind::Report => ingest_report(series, t, encoding, value),
+                    Kind::Deliberative => match encoding.decode::<DeliberativeIn>(value) {
                         Ok(d) => {
                             series.deliberative.push(LayerSample { t, text: d.behavior_path });
                             true
                         }
                         Err(_) => false,
                     },
-                    Kind::Planning => match serde_json::from_slice::<DecisionIn>(json) {
+                    Kind::Planning => match encoding.decode::<DecisionIn>(value) {
                         Ok(d) => {
                             series.planning.push(PlanningSample {
                                 t,
@@ -603,8 +603,8 @@ impl ViewData {
         }
     }
 
-    fn ingest_truth(&mut self, t: f64, json: &[u8]) -> bool {
-        let Ok(truth) = serde_json::from_slice::<TruthIn>(json) else { return false };
+    fn ingest_truth(&mut self, t: f64, encoding: Encoding, value: &[u8]) -> bool {
+        let Ok(truth) = encoding.decode::<TruthIn>(value) else { return false };
         let mut robots = Vec::with_capacity(truth.robots.len());
         for r in truth.robots {
             let name = format!("{}/{}", if r.id.team == 0 { "home" } else { "away" }, r.id.player);
@@ -764,8 +764,8 @@ fn pose_to_field(p: Pose, attack_sign: f64) -> Pose {
     }
 }
 
-fn ingest_world(series: &mut RobotSeries, t: f64, json: &[u8]) -> bool {
-    let Ok(world) = serde_json::from_slice::<WorldIn>(json) else { return false };
+fn ingest_world(series: &mut RobotSeries, t: f64, encoding: Encoding, value: &[u8]) -> bool {
+    let Ok(world) = encoding.decode::<WorldIn>(value) else { return false };
     let ball = world
         .objects
         .iter()
@@ -785,8 +785,8 @@ fn ingest_world(series: &mut RobotSeries, t: f64, json: &[u8]) -> bool {
     true
 }
 
-fn ingest_report(series: &mut RobotSeries, t: f64, json: &[u8]) -> bool {
-    let Ok(report) = serde_json::from_slice::<ReportIn>(json) else { return false };
+fn ingest_report(series: &mut RobotSeries, t: f64, encoding: Encoding, value: &[u8]) -> bool {
+    let Ok(report) = encoding.decode::<ReportIn>(value) else { return false };
     let head = &report.head;
     let gaze = head
         .selected_goal
@@ -865,10 +865,11 @@ mod tests {
     fn bad_packages_are_counted_not_fatal() {
         let field = Field::preset("spl").unwrap_or_else(|e| panic!("{e}"));
         let mut data = ViewData::new("log", None, &field);
-        data.ingest("simulator/ground_truth", Time::ZERO, b"{not json");
-        data.ingest("home/1/world/world_state", Time::ZERO, b"[]");
+        data.ingest("simulator/ground_truth", Time::ZERO, Encoding::Json, b"{not json");
+        data.ingest("home/1/world/world_state", Time::ZERO, Encoding::Json, b"[]");
+        data.ingest("home/1/reactive/report", Time::ZERO, Encoding::MessagePack, b"\xc1");
         let info = data.info();
-        assert_eq!(info.warnings.len(), 2, "{:?}", info.warnings);
+        assert_eq!(info.warnings.len(), 3, "{:?}", info.warnings);
         let frame = data.frame(Some(1.0));
         assert!(frame.ball.is_none());
     }

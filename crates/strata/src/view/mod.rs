@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result};
 use strata_log::LogReader;
-use strata_runtime::{Tap, TapRecord, Time};
+use strata_runtime::{Encoding, Tap, TapRecord, Time};
 use strata_spl::field::Field;
 
 use crate::logging::RunConfig;
@@ -83,7 +83,7 @@ pub fn load_log(path: &Path) -> Result<Arc<RwLock<ViewData>>> {
                 }
                 let mut data = shared.write().unwrap_or_else(PoisonError::into_inner);
                 for m in &batch {
-                    data.ingest(&m.topic, m.log_time, &m.data);
+                    data.ingest(&m.topic, m.log_time, m.encoding, &m.data);
                 }
                 if let Some(e) = failure {
                     data.warn(format!("reading stopped early: {e}"));
@@ -181,13 +181,14 @@ impl Tap for LiveTap {
         let wanted =
             self.data.read().unwrap_or_else(PoisonError::into_inner).wants(&topic, record.time);
         if wanted {
-            // Serialized outside the lock: the server keeps answering meanwhile.
-            let mut json = Vec::with_capacity(1024);
-            if record.package.write_json(&mut json).is_ok() {
+            // Encoded outside the lock: the server keeps answering meanwhile.
+            let mut bytes = Vec::with_capacity(1024);
+            if record.package.encode(Encoding::MessagePack, &mut bytes).is_ok() {
                 self.data.write().unwrap_or_else(PoisonError::into_inner).ingest(
                     &topic,
                     record.time,
-                    &json,
+                    Encoding::MessagePack,
+                    &bytes,
                 );
             }
         }
