@@ -33,9 +33,9 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         let HeadGoal::ObserveTogether { objects } = &goal.goal else { return None };
         let world = input.world?;
         let found = head_goal_objects(world, &goal.goal);
-        let ids: Vec<_> = found.iter().map(|o| o.id).collect();
-        let together = ids.len() == objects.len()
-            && GazeCandidate::covering(world, &ids, self.fov * 0.8, "together").is_some();
+        let together = found.len() == objects.len()
+            && GazeCandidate::covering_direction(world, found.iter().map(|o| o.id), self.fov * 0.8)
+                .is_some();
         if together {
             return None;
         }

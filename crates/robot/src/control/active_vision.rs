@@ -115,20 +115,28 @@ impl GazeCandidate {
         usable_fov: f64,
         label: impl Into<String>,
     ) -> Option<GazeCandidate> {
-        let bearings: Vec<f64> =
-            ids.iter().filter_map(|id| world.get(*id)).map(|o| o.position.bearing()).collect();
-        if bearings.len() != ids.len() || bearings.is_empty() {
-            return None;
-        }
+        let direction = Self::covering_direction(world, ids.iter().copied(), usable_fov)?;
+        Some(GazeCandidate { label: label.into(), direction })
+    }
+
+    /// The direction [`GazeCandidate::covering`] would look along, without making a
+    /// candidate: the multiplexer asks every cycle whether objects still fit in one gaze.
+    pub fn covering_direction(
+        world: &WorldState,
+        ids: impl IntoIterator<Item = ObjectId>,
+        usable_fov: f64,
+    ) -> Option<f64> {
         // The smallest arc holding every bearing: measured around the first one.
-        let reference = bearings[0];
-        let offsets: Vec<f64> = bearings.iter().map(|b| normalize_angle(b - reference)).collect();
-        let (lo, hi) =
-            offsets.iter().fold((0.0f64, 0.0f64), |(lo, hi), o| (lo.min(*o), hi.max(*o)));
-        (hi - lo <= usable_fov).then(|| GazeCandidate {
-            label: label.into(),
-            direction: normalize_angle(reference + (lo + hi) / 2.0),
-        })
+        let mut reference = None;
+        let (mut lo, mut hi) = (0.0f64, 0.0f64);
+        for id in ids {
+            let bearing = world.get(id)?.position.bearing();
+            let offset = normalize_angle(bearing - *reference.get_or_insert(bearing));
+            lo = lo.min(offset);
+            hi = hi.max(offset);
+        }
+        let reference = reference?;
+        (hi - lo <= usable_fov).then(|| normalize_angle(reference + (lo + hi) / 2.0))
     }
 }
 

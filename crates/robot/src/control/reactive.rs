@@ -287,6 +287,15 @@ pub struct Selection<G> {
     label: std::sync::Arc<str>,
 }
 
+/// The best goal during an evaluation: an offered goal by reference, or (`None`) the goal a
+/// split made, kept aside.
+struct Candidate<'a, G> {
+    goal: Option<&'a GoalScore<G>>,
+    final_score: f64,
+    primitive: usize,
+    label: std::sync::Arc<str>,
+}
+
 /// Manages one resource group: holds the deliberative score vector, runs the activation
 /// function, activates one primitive behavior.
 pub struct Multiplexer<G, Cmd, W> {
@@ -390,7 +399,10 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
     /// The activation function: both stages and the selection, without executing anything.
     pub fn evaluate(&mut self, input: &ReactiveInput<'_, W>) -> Option<Selection<G>> {
         self.report.goals.clear();
-        let mut best: Option<(Selection<G>, f64)> = None;
+        // The best goal so far is remembered, not copied: goals own strings, and the ranking
+        // changes several times per cycle. Only the final choice is cloned.
+        let mut best: Option<(Candidate<'_, G>, f64)> = None;
+        let mut best_split: Option<GoalScore<G>> = None;
         let offered = self.reflexes.goals.iter().chain(self.scores.goals.iter());
         for (offered_index, offered_goal) in offered.enumerate() {
             let split = self.policy.split(offered_goal, input);
@@ -406,7 +418,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                     .filter(|name| !self.deactivated.contains(*name))
                     .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
                 let (label, objects) = match self.labels.get(offered_index) {
-                    Some((label, objects)) if goal.goal == offered_goal.goal => {
+                    Some((label, objects)) if split.is_none() || goal.goal == offered_goal.goal => {
                         (label.clone(), objects.clone())
                     }
                     _ => (
@@ -430,14 +442,30 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                 };
                 let ranked = final_score + bonus;
                 if best.as_ref().is_none_or(|(_, b)| ranked > *b) {
-                    best = Some((
-                        Selection { goal: goal.clone(), final_score, primitive, label },
-                        ranked,
-                    ));
+                    // A goal made by the split lives only in this iteration.
+                    let chosen = if split.is_some() {
+                        best_split = Some(goal.clone());
+                        None
+                    } else {
+                        best_split = None;
+                        Some(offered_goal)
+                    };
+                    best =
+                        Some((Candidate { goal: chosen, final_score, primitive, label }, ranked));
                 }
             }
         }
-        best.map(|(selection, _)| selection)
+        let (best, _) = best?;
+        let goal = match best.goal {
+            Some(goal) => goal.clone(),
+            None => best_split?,
+        };
+        Some(Selection {
+            goal,
+            final_score: best.final_score,
+            primitive: best.primitive,
+            label: best.label,
+        })
     }
 
     /// Activates the selected primitive (deactivating the previous one if it changes) and
@@ -482,8 +510,10 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
 
     /// The cycle's report, moved out (the next evaluation builds a new one).
     fn take_report(&mut self) -> MuxReport {
+        // The next cycle reports about as many goals: room for them at once, not by doubling.
         let fresh = MuxReport {
             group: Some(self.group),
+            goals: Vec::with_capacity(self.report.goals.len()),
             scores_received: self.report.scores_received,
             ..MuxReport::default()
         };

@@ -48,8 +48,8 @@ pub use object::{
 };
 pub use pose::{PoseFilter, pose_posterior_covariance};
 pub use state::{
-    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, OdometryErrorEstimate,
-    PoseEstimate, WorldDiagnostics, WorldState,
+    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectIndex,
+    OdometryErrorEstimate, PoseEstimate, WorldDiagnostics, WorldState,
 };
 pub use team::{
     Fused, FusionCandidate, SharedObject, Source, TeamError, TeamFusion, TeamObject,
