@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
 use crate::percept::ViewCone;
-use crate::world::{ExpectedBelief, ObjectId, WorldState};
+use crate::world::{ExpectedBelief, ObjectId, ObservationPrior, SensingCandidate, WorldState};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 /// How a sensing candidate is judged.
@@ -224,11 +224,14 @@ struct Derivatives {
 pub struct ActiveVision {
     pub config: ActiveVisionConfig,
     scratch: ExpectedBelief,
+    /// The objects' view-independent predictions, made once per evaluation.
+    priors: Vec<ObservationPrior>,
+    sensing: SensingCandidate,
 }
 
 impl ActiveVision {
     pub fn new(config: ActiveVisionConfig) -> ActiveVision {
-        ActiveVision { config, scratch: ExpectedBelief::default() }
+        ActiveVision { config, ..ActiveVision::default() }
     }
 
     fn derivatives(&self, world: &WorldState, vf: &dyn ValueFunction) -> Derivatives {
@@ -297,13 +300,20 @@ impl ActiveVision {
         let (prior_variance, prior_expected_value) =
             Self::moments(&d, &world.pose.covariance, prior_object);
         let (lo, hi) = self.config.yaw_limits;
+        world.observation_priors_into(&mut self.priors);
         let mut evaluations: Vec<GazeEvaluation> = candidates
             .iter()
             .map(|candidate| {
                 let direction = candidate.direction.clamp(lo.min(hi), hi.max(lo));
                 let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
-                let sensing = world.sensing_candidate(&view, self.config.min_visibility);
-                world.expected_update_into(&sensing, &mut self.scratch);
+                let sensing = &mut self.sensing;
+                world.sensing_candidate_into(
+                    &self.priors,
+                    &view,
+                    self.config.min_visibility,
+                    sensing,
+                );
+                world.expected_update_into(sensing, &mut self.scratch);
                 let scratch = &self.scratch;
                 let posterior_object =
                     |id: ObjectId| scratch.object(id).copied().or_else(|| prior_object(id));

@@ -37,8 +37,8 @@ pub use config::{
     SymmetryHint, TeamConfig, WorldModelConfig, validate_hint, validate_pose_prior,
 };
 pub use expected::{
-    ExpectedBelief, ExpectedObject, ExpectedObservation, PredictedObservation, SensingCandidate,
-    predicted_measurement,
+    ExpectedBelief, ExpectedObject, ExpectedObservation, ObservationPrior, PredictedObservation,
+    SensingCandidate, predicted_measurement,
 };
 pub use math::{Innovation, RangeBearing, chi2_2dof_quantile};
 pub use model::{WorldCommand, WorldModel};
