@@ -7,12 +7,12 @@ use std::sync::Arc;
 use strata_robot::control::active_vision::GazeCandidate;
 use strata_robot::control::reactive::{ActivationPolicy, ReactiveInput, Stability};
 use strata_robot::control::scores::GoalScore;
-use strata_robot::world::WorldState;
+use strata_robot::world::{ObjectEstimate, WorldState};
 
 use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
 use crate::primitives::{MotionModel, ball_crossing, kickable, names};
-use crate::situation::{ball, head_goal_objects, obstacle_ahead};
+use crate::situation::{GoalObjects, ball, head_goal_objects, obstacle_ahead};
 
 type Input<'a> = ReactiveInput<'a, WorldState>;
 
@@ -63,44 +63,68 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         if goal.goal == HeadGoal::Scan {
             return 0.5;
         }
-        let objects = head_goal_objects(world, &goal.goal);
-        if objects.is_empty() {
-            return match goal.goal {
-                HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
-                    1.0 - world.pose.confidence
-                }
-                _ => 1.0,
-            };
-        }
-        objects.iter().map(|o| 1.0 - o.confidence).fold(0.0, f64::max)
+        need_to_look(&goal.goal, world, &head_goal_objects(world, &goal.goal))
     }
 
     fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> &'static [&'static str] {
         let Some(world) = input.world else { return &[names::SEARCH_OBJECT_ELLIPSE] };
-        match goal {
-            HeadGoal::ObserveTogether { .. } => {
-                &[names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE]
-            }
-            HeadGoal::Scan => &[names::SEARCH_OBJECT_ELLIPSE],
-            HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. }
-                if !world.pose.lost =>
-            {
-                &[names::LOOK_AT_TARGET]
-            }
+        head_primitives(goal, world, || head_goal_objects(world, goal))
+    }
+
+    /// Both answers from one look-up of the goal's objects.
+    fn assess(
+        &self,
+        goal: &GoalScore<HeadGoal>,
+        input: &Input<'_>,
+    ) -> (f64, &'static [&'static str]) {
+        let Some(world) = input.world else { return (1.0, &[names::SEARCH_OBJECT_ELLIPSE]) };
+        if goal.goal == HeadGoal::Scan {
+            return (0.5, &[names::SEARCH_OBJECT_ELLIPSE]);
+        }
+        let objects = head_goal_objects(world, &goal.goal);
+        let need = need_to_look(&goal.goal, world, &objects);
+        (need, head_primitives(&goal.goal, world, || objects))
+    }
+}
+
+/// S_r of a head goal (not a scan) about `objects`.
+fn need_to_look(goal: &HeadGoal, world: &WorldState, objects: &[&ObjectEstimate]) -> f64 {
+    if objects.is_empty() {
+        return match goal {
             HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
-                &[names::SEARCH_OBJECT_ELLIPSE]
+                1.0 - world.pose.confidence
             }
-            _ => {
-                // Tracking needs a position worth pointing at: a known object, or a landmark
-                // predicted from a pose that is not lost.
-                let trackable = head_goal_objects(world, goal)
-                    .iter()
-                    .any(|o| o.known || (o.map_position.is_some() && !world.pose.lost));
-                if trackable {
-                    &[names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
-                } else {
-                    &[names::SEARCH_OBJECT_ELLIPSE]
-                }
+            _ => 1.0,
+        };
+    }
+    objects.iter().map(|o| 1.0 - o.confidence).fold(0.0, f64::max)
+}
+
+/// The head primitives that can pursue `goal`; `objects` gives the goal's objects when the
+/// choice depends on them.
+fn head_primitives<'a>(
+    goal: &HeadGoal,
+    world: &'a WorldState,
+    objects: impl FnOnce() -> GoalObjects<'a>,
+) -> &'static [&'static str] {
+    match goal {
+        HeadGoal::ObserveTogether { .. } => &[names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE],
+        HeadGoal::Scan => &[names::SEARCH_OBJECT_ELLIPSE],
+        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } if !world.pose.lost => {
+            &[names::LOOK_AT_TARGET]
+        }
+        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
+            &[names::SEARCH_OBJECT_ELLIPSE]
+        }
+        _ => {
+            // Tracking needs a position worth pointing at: a known object, or a landmark
+            // predicted from a pose that is not lost.
+            let trackable =
+                objects().iter().any(|o| o.known || (o.map_position.is_some() && !world.pose.lost));
+            if trackable {
+                &[names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
+            } else {
+                &[names::SEARCH_OBJECT_ELLIPSE]
             }
         }
     }

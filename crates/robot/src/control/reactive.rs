@@ -225,6 +225,18 @@ pub trait ActivationPolicy<G, W>: Send {
     /// first. Empty: the goal cannot be pursued now (e.g. a fall goal while stable). A static
     /// list: the choice among a fixed catalogue, made every cycle without allocating.
     fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> &'static [&'static str];
+
+    /// Stage 2 and the choice of primitives at once: what the multiplexer asks of every goal
+    /// each cycle. The default asks [`ActivationPolicy::reactive_score`] and
+    /// [`ActivationPolicy::primitives_for`]; a policy whose two answers read the same percepts
+    /// (the objects a goal is about) can read them once, with the same results.
+    fn assess(
+        &self,
+        goal: &GoalScore<G>,
+        input: &ReactiveInput<'_, W>,
+    ) -> (f64, &'static [&'static str]) {
+        (self.reactive_score(goal, input), self.primitives_for(&goal.goal, input))
+    }
 }
 
 /// One goal as the activation function scored it this cycle.
@@ -408,11 +420,10 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
             let split = self.policy.split(offered_goal, input);
             let goals = split.as_deref().unwrap_or(std::slice::from_ref(offered_goal));
             for goal in goals {
-                let reactive = self.policy.reactive_score(goal, input).clamp(0.0, 1.0);
+                let (reactive, primitives) = self.policy.assess(goal, input);
+                let reactive = reactive.clamp(0.0, 1.0);
                 let final_score = self.config.combination.combine(goal.deliberative, reactive);
-                let primitive = self
-                    .policy
-                    .primitives_for(&goal.goal, input)
+                let primitive = primitives
                     .iter()
                     .copied()
                     .filter(|name| !self.deactivated.contains(*name))
