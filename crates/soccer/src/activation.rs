@@ -240,3 +240,56 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_robot::control::reactive::{ActuationStatus, Stability};
+    use strata_robot::percept::Percepts;
+    use strata_robot::world::WorldModel;
+    use strata_runtime::Time;
+
+    use crate::goals::GoalSide;
+    use crate::world_config::{BALL, world_config};
+
+    /// The head's combined assessment answers as its two separate questions do.
+    #[test]
+    fn head_assessment_is_its_score_and_primitives() {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let model = WorldModel::new(world_config(&field)).expect("valid world config");
+        let mut world = model.state();
+        let names: Vec<String> = world.objects.iter().map(|o| o.name.to_string()).collect();
+        let mut goals = vec![
+            HeadGoal::ObserveBall,
+            HeadGoal::Scan,
+            HeadGoal::ObserveGoal { side: GoalSide::Own },
+            HeadGoal::ObserveGoal { side: GoalSide::Opponent },
+            HeadGoal::ObserveFieldLine { line: 1 },
+            HeadGoal::ObserveRival { player: 0 },
+            HeadGoal::ObserveLandmark { name: "nothing".into() },
+            HeadGoal::ObserveTogether { objects: vec![BALL.into(), names[3].clone()] },
+        ];
+        goals.extend(names.iter().map(|n| HeadGoal::ObserveLandmark { name: n.clone() }));
+        let head = HeadActivation { fov: 1.0 };
+        let percepts = Percepts::default();
+        let actuation = ActuationStatus::default();
+        for lost in [false, true] {
+            world.pose.lost = lost;
+            for world in [Some(&world), None] {
+                let input = ReactiveInput {
+                    now: Time::ZERO,
+                    percepts: &percepts,
+                    world,
+                    actuation: &actuation,
+                    stability: Stability::Stable,
+                };
+                for goal in &goals {
+                    let scored = GoalScore::new(goal.clone(), 0.7);
+                    let (score, primitives) = head.assess(&scored, &input);
+                    assert_eq!(score.to_bits(), head.reactive_score(&scored, &input).to_bits());
+                    assert_eq!(primitives, head.primitives_for(goal, &input), "{goal:?}");
+                }
+            }
+        }
+    }
+}
