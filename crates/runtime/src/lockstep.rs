@@ -113,6 +113,11 @@ pub struct LockstepHost {
     interrupt: Option<Arc<AtomicBool>>,
     wall_start: Instant,
     stopped: bool,
+    /// Buffers of one cycle's outputs and one delivery's arrivals, kept between events: a
+    /// match runs tens of thousands of cycles per simulated minute.
+    published: Vec<(u16, Box<dyn ErasedPackage>)>,
+    emptied: Vec<u16>,
+    arrivals: Vec<InputRef>,
 }
 
 #[derive(Clone, Copy)]
@@ -187,6 +192,9 @@ impl LockstepHost {
             interrupt: None,
             wall_start: Instant::now(),
             stopped: false,
+            published: Vec::new(),
+            emptied: Vec::new(),
+            arrivals: Vec::new(),
         };
         for m in 0..host.modules.len() {
             if let Trigger::Periodic { offset, .. } = host.modules[m].parts.trigger {
@@ -395,7 +403,7 @@ impl LockstepHost {
                 package: package.as_ref(),
             });
         }
-        let mut arrivals: Vec<InputRef> = Vec::with_capacity(output.readers.len());
+        let mut arrivals = std::mem::take(&mut self.arrivals);
         if let Some((last, others)) = output.readers.split_last() {
             for reader in others {
                 reader.slot.push_cloned(package.as_any());
@@ -408,9 +416,10 @@ impl LockstepHost {
                 arrivals.push(last.input);
             }
         }
-        for input in arrivals {
+        for input in arrivals.drain(..) {
             self.after_arrival(input, self.now);
         }
+        self.arrivals = arrivals;
     }
 
     fn after_arrival(&mut self, input: InputRef, at: Time) {
@@ -438,8 +447,8 @@ impl LockstepHost {
 
     fn run_cycle(&mut self, m: u32) -> Result<(), HostError> {
         let now = self.now;
-        let mut published = Vec::new();
-        let mut emptied = Vec::new();
+        let mut published = std::mem::take(&mut self.published);
+        let mut emptied = std::mem::take(&mut self.emptied);
         let state = &mut self.modules[m as usize];
         let result = {
             let mut backend = LockstepBackend {
@@ -496,10 +505,11 @@ impl LockstepHost {
                 });
             }
         }
-        for (port, package) in published {
+        for (port, package) in published.drain(..) {
             self.schedule(visible, priority, EventKind::Deliver { module: m, port, package });
         }
-        for port in emptied {
+        self.published = published;
+        for port in emptied.drain(..) {
             if let Some(Some((writer, true))) =
                 self.wiring.writers[m as usize].get(usize::from(port)).copied()
             {
@@ -511,6 +521,7 @@ impl LockstepHost {
                 );
             }
         }
+        self.emptied = emptied;
         if duration > Duration::ZERO {
             self.schedule(visible, priority, EventKind::Free(m));
         } else if self.modules[m as usize].pending {

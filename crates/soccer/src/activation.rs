@@ -7,12 +7,12 @@ use std::sync::Arc;
 use strata_robot::control::active_vision::GazeCandidate;
 use strata_robot::control::reactive::{ActivationPolicy, ReactiveInput, Stability};
 use strata_robot::control::scores::GoalScore;
-use strata_robot::world::WorldState;
+use strata_robot::world::{ObjectEstimate, WorldState};
 
 use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
 use crate::primitives::{MotionModel, ball_crossing, kickable, names};
-use crate::situation::{ball, head_goal_objects, obstacle_ahead};
+use crate::situation::{GoalObjects, ball, head_goal_objects, obstacle_ahead};
 
 type Input<'a> = ReactiveInput<'a, WorldState>;
 
@@ -33,9 +33,9 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         let HeadGoal::ObserveTogether { objects } = &goal.goal else { return None };
         let world = input.world?;
         let found = head_goal_objects(world, &goal.goal);
-        let ids: Vec<_> = found.iter().map(|o| o.id).collect();
-        let together = ids.len() == objects.len()
-            && GazeCandidate::covering(world, &ids, self.fov * 0.8, "together").is_some();
+        let together = found.len() == objects.len()
+            && GazeCandidate::covering_direction(world, found.iter().map(|o| o.id), self.fov * 0.8)
+                .is_some();
         if together {
             return None;
         }
@@ -63,44 +63,68 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         if goal.goal == HeadGoal::Scan {
             return 0.5;
         }
-        let objects = head_goal_objects(world, &goal.goal);
-        if objects.is_empty() {
-            return match goal.goal {
-                HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
-                    1.0 - world.pose.confidence
-                }
-                _ => 1.0,
-            };
-        }
-        objects.iter().map(|o| 1.0 - o.confidence).fold(0.0, f64::max)
+        need_to_look(&goal.goal, world, &head_goal_objects(world, &goal.goal))
     }
 
     fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> &'static [&'static str] {
         let Some(world) = input.world else { return &[names::SEARCH_OBJECT_ELLIPSE] };
-        match goal {
-            HeadGoal::ObserveTogether { .. } => {
-                &[names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE]
-            }
-            HeadGoal::Scan => &[names::SEARCH_OBJECT_ELLIPSE],
-            HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. }
-                if !world.pose.lost =>
-            {
-                &[names::LOOK_AT_TARGET]
-            }
+        head_primitives(goal, world, || head_goal_objects(world, goal))
+    }
+
+    /// Both answers from one look-up of the goal's objects.
+    fn assess(
+        &self,
+        goal: &GoalScore<HeadGoal>,
+        input: &Input<'_>,
+    ) -> (f64, &'static [&'static str]) {
+        let Some(world) = input.world else { return (1.0, &[names::SEARCH_OBJECT_ELLIPSE]) };
+        if goal.goal == HeadGoal::Scan {
+            return (0.5, &[names::SEARCH_OBJECT_ELLIPSE]);
+        }
+        let objects = head_goal_objects(world, &goal.goal);
+        let need = need_to_look(&goal.goal, world, &objects);
+        (need, head_primitives(&goal.goal, world, || objects))
+    }
+}
+
+/// S_r of a head goal (not a scan) about `objects`.
+fn need_to_look(goal: &HeadGoal, world: &WorldState, objects: &[&ObjectEstimate]) -> f64 {
+    if objects.is_empty() {
+        return match goal {
             HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
-                &[names::SEARCH_OBJECT_ELLIPSE]
+                1.0 - world.pose.confidence
             }
-            _ => {
-                // Tracking needs a position worth pointing at: a known object, or a landmark
-                // predicted from a pose that is not lost.
-                let trackable = head_goal_objects(world, goal)
-                    .iter()
-                    .any(|o| o.known || (o.map_position.is_some() && !world.pose.lost));
-                if trackable {
-                    &[names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
-                } else {
-                    &[names::SEARCH_OBJECT_ELLIPSE]
-                }
+            _ => 1.0,
+        };
+    }
+    objects.iter().map(|o| 1.0 - o.confidence).fold(0.0, f64::max)
+}
+
+/// The head primitives that can pursue `goal`; `objects` gives the goal's objects when the
+/// choice depends on them.
+fn head_primitives<'a>(
+    goal: &HeadGoal,
+    world: &'a WorldState,
+    objects: impl FnOnce() -> GoalObjects<'a>,
+) -> &'static [&'static str] {
+    match goal {
+        HeadGoal::ObserveTogether { .. } => &[names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE],
+        HeadGoal::Scan => &[names::SEARCH_OBJECT_ELLIPSE],
+        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } if !world.pose.lost => {
+            &[names::LOOK_AT_TARGET]
+        }
+        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
+            &[names::SEARCH_OBJECT_ELLIPSE]
+        }
+        _ => {
+            // Tracking needs a position worth pointing at: a known object, or a landmark
+            // predicted from a pose that is not lost.
+            let trackable =
+                objects().iter().any(|o| o.known || (o.map_position.is_some() && !world.pose.lost));
+            if trackable {
+                &[names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
+            } else {
+                &[names::SEARCH_OBJECT_ELLIPSE]
             }
         }
     }
@@ -213,6 +237,59 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
                 }
             }
             _ => &[],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_robot::control::reactive::{ActuationStatus, Stability};
+    use strata_robot::percept::Percepts;
+    use strata_robot::world::WorldModel;
+    use strata_runtime::Time;
+
+    use crate::goals::GoalSide;
+    use crate::world_config::{BALL, world_config};
+
+    /// The head's combined assessment answers as its two separate questions do.
+    #[test]
+    fn head_assessment_is_its_score_and_primitives() {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let model = WorldModel::new(world_config(&field)).expect("valid world config");
+        let mut world = model.state();
+        let names: Vec<String> = world.objects.iter().map(|o| o.name.to_string()).collect();
+        let mut goals = vec![
+            HeadGoal::ObserveBall,
+            HeadGoal::Scan,
+            HeadGoal::ObserveGoal { side: GoalSide::Own },
+            HeadGoal::ObserveGoal { side: GoalSide::Opponent },
+            HeadGoal::ObserveFieldLine { line: 1 },
+            HeadGoal::ObserveRival { player: 0 },
+            HeadGoal::ObserveLandmark { name: "nothing".into() },
+            HeadGoal::ObserveTogether { objects: vec![BALL.into(), names[3].clone()] },
+        ];
+        goals.extend(names.iter().map(|n| HeadGoal::ObserveLandmark { name: n.clone() }));
+        let head = HeadActivation { fov: 1.0 };
+        let percepts = Percepts::default();
+        let actuation = ActuationStatus::default();
+        for lost in [false, true] {
+            world.pose.lost = lost;
+            for world in [Some(&world), None] {
+                let input = ReactiveInput {
+                    now: Time::ZERO,
+                    percepts: &percepts,
+                    world,
+                    actuation: &actuation,
+                    stability: Stability::Stable,
+                };
+                for goal in &goals {
+                    let scored = GoalScore::new(goal.clone(), 0.7);
+                    let (score, primitives) = head.assess(&scored, &input);
+                    assert_eq!(score.to_bits(), head.reactive_score(&scored, &input).to_bits());
+                    assert_eq!(primitives, head.primitives_for(goal, &input), "{goal:?}");
+                }
+            }
         }
     }
 }

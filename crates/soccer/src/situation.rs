@@ -102,12 +102,36 @@ pub fn side_of(side: GoalSide) -> Side {
     }
 }
 
-/// The world-model objects a head goal is about. Usually one: it is asked for several times
-/// per reactive cycle, so the single object is not put in a `Vec`.
+/// How many objects of a head goal are held without a `Vec` (the ball and a landmark, say).
+const FEW: usize = 4;
+
+/// The world-model objects a head goal is about. Usually one, rarely more than a few: it is
+/// asked for several times per reactive cycle, so they are not put in a `Vec` unless many.
 #[derive(Debug)]
 pub enum GoalObjects<'a> {
     One(Option<&'a ObjectEstimate>),
+    /// The first `len` entries (the rest repeat the first).
+    Few([&'a ObjectEstimate; FEW], usize),
     Several(Vec<&'a ObjectEstimate>),
+}
+
+impl<'a> GoalObjects<'a> {
+    fn collect(mut objects: impl Iterator<Item = &'a ObjectEstimate>) -> GoalObjects<'a> {
+        let Some(first) = objects.next() else { return GoalObjects::Several(Vec::new()) };
+        let mut few = [first; FEW];
+        let mut len = 1;
+        for object in objects.by_ref() {
+            if len == FEW {
+                let mut several = few.to_vec();
+                several.push(object);
+                several.extend(objects);
+                return GoalObjects::Several(several);
+            }
+            few[len] = object;
+            len += 1;
+        }
+        GoalObjects::Few(few, len)
+    }
 }
 
 impl<'a> std::ops::Deref for GoalObjects<'a> {
@@ -116,6 +140,7 @@ impl<'a> std::ops::Deref for GoalObjects<'a> {
     fn deref(&self) -> &[&'a ObjectEstimate] {
         match self {
             GoalObjects::One(one) => one.as_slice(),
+            GoalObjects::Few(few, len) => &few[..*len],
             GoalObjects::Several(several) => several,
         }
     }
@@ -131,11 +156,8 @@ pub fn head_goal_objects<'a>(world: &'a WorldState, goal: &'a HeadGoal) -> GoalO
             world.object(name).or_else(|| best_instance(world, name))
         }
         HeadGoal::ObserveTogether { objects } => {
-            return GoalObjects::Several(
-                objects
-                    .iter()
-                    .filter_map(|n| world.object(n).or_else(|| best_instance(world, n)))
-                    .collect(),
+            return GoalObjects::collect(
+                objects.iter().filter_map(|n| world.object(n).or_else(|| best_instance(world, n))),
             );
         }
         HeadGoal::ObserveRival { player } => obstacles(world).nth(usize::from(*player)),

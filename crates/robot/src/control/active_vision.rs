@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
 use crate::percept::ViewCone;
-use crate::world::{ExpectedBelief, ObjectId, WorldState};
+use crate::world::{ExpectedBelief, ObjectId, ObservationPrior, SensingCandidate, WorldState};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 /// How a sensing candidate is judged.
@@ -115,20 +115,28 @@ impl GazeCandidate {
         usable_fov: f64,
         label: impl Into<String>,
     ) -> Option<GazeCandidate> {
-        let bearings: Vec<f64> =
-            ids.iter().filter_map(|id| world.get(*id)).map(|o| o.position.bearing()).collect();
-        if bearings.len() != ids.len() || bearings.is_empty() {
-            return None;
-        }
+        let direction = Self::covering_direction(world, ids.iter().copied(), usable_fov)?;
+        Some(GazeCandidate { label: label.into(), direction })
+    }
+
+    /// The direction [`GazeCandidate::covering`] would look along, without making a
+    /// candidate: the multiplexer asks every cycle whether objects still fit in one gaze.
+    pub fn covering_direction(
+        world: &WorldState,
+        ids: impl IntoIterator<Item = ObjectId>,
+        usable_fov: f64,
+    ) -> Option<f64> {
         // The smallest arc holding every bearing: measured around the first one.
-        let reference = bearings[0];
-        let offsets: Vec<f64> = bearings.iter().map(|b| normalize_angle(b - reference)).collect();
-        let (lo, hi) =
-            offsets.iter().fold((0.0f64, 0.0f64), |(lo, hi), o| (lo.min(*o), hi.max(*o)));
-        (hi - lo <= usable_fov).then(|| GazeCandidate {
-            label: label.into(),
-            direction: normalize_angle(reference + (lo + hi) / 2.0),
-        })
+        let mut reference = None;
+        let (mut lo, mut hi) = (0.0f64, 0.0f64);
+        for id in ids {
+            let bearing = world.get(id)?.position.bearing();
+            let offset = normalize_angle(bearing - *reference.get_or_insert(bearing));
+            lo = lo.min(offset);
+            hi = hi.max(offset);
+        }
+        let reference = reference?;
+        (hi - lo <= usable_fov).then(|| normalize_angle(reference + (lo + hi) / 2.0))
     }
 }
 
@@ -216,11 +224,14 @@ struct Derivatives {
 pub struct ActiveVision {
     pub config: ActiveVisionConfig,
     scratch: ExpectedBelief,
+    /// The objects' view-independent predictions, made once per evaluation.
+    priors: Vec<ObservationPrior>,
+    sensing: SensingCandidate,
 }
 
 impl ActiveVision {
     pub fn new(config: ActiveVisionConfig) -> ActiveVision {
-        ActiveVision { config, scratch: ExpectedBelief::default() }
+        ActiveVision { config, ..ActiveVision::default() }
     }
 
     fn derivatives(&self, world: &WorldState, vf: &dyn ValueFunction) -> Derivatives {
@@ -289,13 +300,20 @@ impl ActiveVision {
         let (prior_variance, prior_expected_value) =
             Self::moments(&d, &world.pose.covariance, prior_object);
         let (lo, hi) = self.config.yaw_limits;
+        world.observation_priors_into(&mut self.priors);
         let mut evaluations: Vec<GazeEvaluation> = candidates
             .iter()
             .map(|candidate| {
                 let direction = candidate.direction.clamp(lo.min(hi), hi.max(lo));
                 let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
-                let sensing = world.sensing_candidate(&view, self.config.min_visibility);
-                world.expected_update_into(&sensing, &mut self.scratch);
+                let sensing = &mut self.sensing;
+                world.sensing_candidate_into(
+                    &self.priors,
+                    &view,
+                    self.config.min_visibility,
+                    sensing,
+                );
+                world.expected_update_into(sensing, &mut self.scratch);
                 let scratch = &self.scratch;
                 let posterior_object =
                     |id: ObjectId| scratch.object(id).copied().or_else(|| prior_object(id));

@@ -225,6 +225,18 @@ pub trait ActivationPolicy<G, W>: Send {
     /// first. Empty: the goal cannot be pursued now (e.g. a fall goal while stable). A static
     /// list: the choice among a fixed catalogue, made every cycle without allocating.
     fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> &'static [&'static str];
+
+    /// Stage 2 and the choice of primitives at once: what the multiplexer asks of every goal
+    /// each cycle. The default asks [`ActivationPolicy::reactive_score`] and
+    /// [`ActivationPolicy::primitives_for`]; a policy whose two answers read the same percepts
+    /// (the objects a goal is about) can read them once, with the same results.
+    fn assess(
+        &self,
+        goal: &GoalScore<G>,
+        input: &ReactiveInput<'_, W>,
+    ) -> (f64, &'static [&'static str]) {
+        (self.reactive_score(goal, input), self.primitives_for(&goal.goal, input))
+    }
 }
 
 /// One goal as the activation function scored it this cycle.
@@ -283,6 +295,15 @@ struct Active<G> {
 pub struct Selection<G> {
     pub goal: GoalScore<G>,
     pub final_score: f64,
+    primitive: usize,
+    label: std::sync::Arc<str>,
+}
+
+/// The best goal during an evaluation: an offered goal by reference, or (`None`) the goal a
+/// split made, kept aside.
+struct Candidate<'a, G> {
+    goal: Option<&'a GoalScore<G>>,
+    final_score: f64,
     primitive: usize,
     label: std::sync::Arc<str>,
 }
@@ -390,23 +411,25 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
     /// The activation function: both stages and the selection, without executing anything.
     pub fn evaluate(&mut self, input: &ReactiveInput<'_, W>) -> Option<Selection<G>> {
         self.report.goals.clear();
-        let mut best: Option<(Selection<G>, f64)> = None;
+        // The best goal so far is remembered, not copied: goals own strings, and the ranking
+        // changes several times per cycle. Only the final choice is cloned.
+        let mut best: Option<(Candidate<'_, G>, f64)> = None;
+        let mut best_split: Option<GoalScore<G>> = None;
         let offered = self.reflexes.goals.iter().chain(self.scores.goals.iter());
         for (offered_index, offered_goal) in offered.enumerate() {
             let split = self.policy.split(offered_goal, input);
             let goals = split.as_deref().unwrap_or(std::slice::from_ref(offered_goal));
             for goal in goals {
-                let reactive = self.policy.reactive_score(goal, input).clamp(0.0, 1.0);
+                let (reactive, primitives) = self.policy.assess(goal, input);
+                let reactive = reactive.clamp(0.0, 1.0);
                 let final_score = self.config.combination.combine(goal.deliberative, reactive);
-                let primitive = self
-                    .policy
-                    .primitives_for(&goal.goal, input)
+                let primitive = primitives
                     .iter()
                     .copied()
                     .filter(|name| !self.deactivated.contains(*name))
                     .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
                 let (label, objects) = match self.labels.get(offered_index) {
-                    Some((label, objects)) if goal.goal == offered_goal.goal => {
+                    Some((label, objects)) if split.is_none() || goal.goal == offered_goal.goal => {
                         (label.clone(), objects.clone())
                     }
                     _ => (
@@ -430,14 +453,30 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                 };
                 let ranked = final_score + bonus;
                 if best.as_ref().is_none_or(|(_, b)| ranked > *b) {
-                    best = Some((
-                        Selection { goal: goal.clone(), final_score, primitive, label },
-                        ranked,
-                    ));
+                    // A goal made by the split lives only in this iteration.
+                    let chosen = if split.is_some() {
+                        best_split = Some(goal.clone());
+                        None
+                    } else {
+                        best_split = None;
+                        Some(offered_goal)
+                    };
+                    best =
+                        Some((Candidate { goal: chosen, final_score, primitive, label }, ranked));
                 }
             }
         }
-        best.map(|(selection, _)| selection)
+        let (best, _) = best?;
+        let goal = match best.goal {
+            Some(goal) => goal.clone(),
+            None => best_split?,
+        };
+        Some(Selection {
+            goal,
+            final_score: best.final_score,
+            primitive: best.primitive,
+            label: best.label,
+        })
     }
 
     /// Activates the selected primitive (deactivating the previous one if it changes) and
@@ -482,8 +521,10 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
 
     /// The cycle's report, moved out (the next evaluation builds a new one).
     fn take_report(&mut self) -> MuxReport {
+        // The next cycle reports about as many goals: room for them at once, not by doubling.
         let fresh = MuxReport {
             group: Some(self.group),
+            goals: Vec::with_capacity(self.report.goals.len()),
             scores_received: self.report.scores_received,
             ..MuxReport::default()
         };

@@ -68,6 +68,23 @@ pub struct PredictedObservation {
     pub in_view: bool,
 }
 
+/// What predicting one object's observation needs that does not depend on the view: its
+/// range and bearing, the camera's noise there and the estimate's spread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObservationPrior {
+    pub object: ObjectId,
+    pub range: f64,
+    /// Body-relative, rad.
+    pub bearing: f64,
+    pub range_sigma: f64,
+    pub bearing_sigma: f64,
+    /// Standard deviations of the estimate's range and bearing.
+    pub range_spread: f64,
+    pub bearing_spread: f64,
+    /// Distance of the estimated position (for the view cone's test).
+    pub distance: f64,
+}
+
 /// What the expected update needs to know about one object before the observation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ObjectPrior {
@@ -187,43 +204,88 @@ impl WorldState {
         object: ObjectId,
         view: &ViewCone,
     ) -> Option<PredictedObservation> {
+        let prior = self.observation_prior(object)?;
+        Some(PredictedObservation {
+            object,
+            range: prior.range,
+            bearing: prior.bearing,
+            range_sigma: prior.range_sigma,
+            bearing_sigma: prior.bearing_sigma,
+            visibility: self.visibility(&prior, view),
+            in_view: view.contains_polar(prior.distance, prior.bearing, self.view_margin),
+        })
+    }
+
+    /// The part of `object`'s predicted observation that does not depend on the view.
+    pub fn observation_prior(&self, object: ObjectId) -> Option<ObservationPrior> {
         let prior = self.object_prior(object)?;
         let (z, h) = polar(prior.position);
         let s = h * prior.covariance * h.transpose();
         let (range_sigma, bearing_sigma) = self.camera.sigmas(z.x);
-        let half = (view.fov / 2.0 - self.view_margin).max(0.0);
-        let angle = normalize_angle(z.y - view.direction);
-        let sb = (s[(1, 1)] + 1e-12).sqrt();
-        let sr = (s[(0, 0)] + 1e-12).sqrt();
-        let p_angle = normal_cdf((half - angle) / sb) - normal_cdf((-half - angle) / sb);
-        let p_range = normal_cdf((view.range - z.x) / sr);
-        let position = Point::<Robot>::new(prior.position.x, prior.position.y);
-        Some(PredictedObservation {
+        Some(ObservationPrior {
             object,
             range: z.x,
             bearing: z.y,
             range_sigma,
             bearing_sigma,
-            visibility: (p_angle * p_range).clamp(0.0, 1.0),
-            in_view: view.contains_polar(position.range(), z.y, self.view_margin),
+            range_spread: (s[(0, 0)] + 1e-12).sqrt(),
+            bearing_spread: (s[(1, 1)] + 1e-12).sqrt(),
+            distance: Point::<Robot>::new(prior.position.x, prior.position.y).range(),
         })
+    }
+
+    /// Probability that the object lies inside `view`, given its uncertainty.
+    fn visibility(&self, prior: &ObservationPrior, view: &ViewCone) -> f64 {
+        let half = (view.fov / 2.0 - self.view_margin).max(0.0);
+        let angle = normalize_angle(prior.bearing - view.direction);
+        let sb = prior.bearing_spread;
+        let p_angle = normal_cdf((half - angle) / sb) - normal_cdf((-half - angle) / sb);
+        let p_range = normal_cdf((view.range - prior.range) / prior.range_spread);
+        (p_angle * p_range).clamp(0.0, 1.0)
+    }
+
+    /// Every object's [`ObservationPrior`], in id order, into `out`: made once when several
+    /// views are compared (active vision), instead of once per view.
+    pub fn observation_priors_into(&self, out: &mut Vec<ObservationPrior>) {
+        out.clear();
+        out.extend(
+            (0..self.objects.len())
+                .filter_map(|i| u16::try_from(i).ok())
+                .filter_map(|i| self.observation_prior(ObjectId(i))),
+        );
     }
 
     /// The sensing candidate of looking along `view`: every object likely enough to be seen
     /// (visibility at least `min_visibility`), with the camera's predicted noise.
     pub fn sensing_candidate(&self, view: &ViewCone, min_visibility: f64) -> SensingCandidate {
-        let observations = (0..self.objects.len())
-            .filter_map(|i| u16::try_from(i).ok())
-            .filter_map(|i| self.predicted_observation(ObjectId(i), view))
-            .filter(|p| p.visibility >= min_visibility && p.visibility > 0.0)
-            .map(|p| ExpectedObservation {
-                object: p.object,
-                range_sigma: p.range_sigma,
-                bearing_sigma: p.bearing_sigma,
-                detection_probability: p.visibility * self.detection_probability,
-            })
-            .collect();
-        SensingCandidate { observations }
+        let mut priors = Vec::new();
+        self.observation_priors_into(&mut priors);
+        let mut candidate = SensingCandidate::default();
+        self.sensing_candidate_into(&priors, view, min_visibility, &mut candidate);
+        candidate
+    }
+
+    /// As [`WorldState::sensing_candidate`], from priors made by
+    /// [`WorldState::observation_priors_into`], reusing `out`'s storage.
+    pub fn sensing_candidate_into(
+        &self,
+        priors: &[ObservationPrior],
+        view: &ViewCone,
+        min_visibility: f64,
+        out: &mut SensingCandidate,
+    ) {
+        out.observations.clear();
+        for prior in priors {
+            let visibility = self.visibility(prior, view);
+            if visibility >= min_visibility && visibility > 0.0 {
+                out.observations.push(ExpectedObservation {
+                    object: prior.object,
+                    range_sigma: prior.range_sigma,
+                    bearing_sigma: prior.bearing_sigma,
+                    detection_probability: visibility * self.detection_probability,
+                });
+            }
+        }
     }
 }
 

@@ -37,8 +37,8 @@ pub use config::{
     SymmetryHint, TeamConfig, WorldModelConfig, validate_hint, validate_pose_prior,
 };
 pub use expected::{
-    ExpectedBelief, ExpectedObject, ExpectedObservation, PredictedObservation, SensingCandidate,
-    predicted_measurement,
+    ExpectedBelief, ExpectedObject, ExpectedObservation, ObservationPrior, PredictedObservation,
+    SensingCandidate, predicted_measurement,
 };
 pub use math::{Innovation, RangeBearing, chi2_2dof_quantile};
 pub use model::{WorldCommand, WorldModel};
@@ -48,8 +48,8 @@ pub use object::{
 };
 pub use pose::{PoseFilter, pose_posterior_covariance};
 pub use state::{
-    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, OdometryErrorEstimate,
-    PoseEstimate, WorldDiagnostics, WorldState,
+    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectIndex,
+    OdometryErrorEstimate, PoseEstimate, WorldDiagnostics, WorldState,
 };
 pub use team::{
     Fused, FusionCandidate, SharedObject, Source, TeamError, TeamFusion, TeamObject,

@@ -23,8 +23,8 @@ use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
 use super::pose::PoseFilter;
 use super::recovery::{MapInstance, RecoveryInput, RecoveryOutcome, Sighting, TeamCue, recover};
 use super::state::{
-    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectName, PoseEstimate,
-    WorldDiagnostics, WorldState,
+    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectIndex, ObjectName,
+    PoseEstimate, WorldDiagnostics, WorldState,
 };
 use super::team::{
     FusionCandidate, Source, TeamError, TeamFusion, TeamObject, TeammateEstimate, fuse,
@@ -175,6 +175,8 @@ pub struct WorldModel {
     gate: f64,
     groups: Vec<Group>,
     slots: Vec<Slot>,
+    /// The slots by name, shared with every published state.
+    index: ObjectIndex,
     pose: Option<PoseFilter>,
     lost: Option<LostReason>,
     last_pose_correction: Option<Time>,
@@ -297,6 +299,7 @@ impl WorldModel {
             odometry_error: OdometryErrorEstimator::new(config.pose.correct_odometry),
             team: TeamFusion::new(config.team),
             groups,
+            index: ObjectIndex::new(slots.iter().map(|s| &s.name)),
             slots,
             pose,
             lost,
@@ -1272,6 +1275,7 @@ impl WorldModel {
             view_margin: self.config.confidence.view_margin,
             unknown_threshold: threshold,
             diagnostics: self.diagnostics,
+            index: self.index.clone(),
         }
     }
 

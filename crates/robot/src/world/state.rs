@@ -129,6 +129,89 @@ fn same_text(a: &str, b: &str) -> bool {
     a.len() == b.len() && a.first() == b.first() && a.last() == b.last() && a == b
 }
 
+/// A multiply-rotate hash over eight bytes at a time (as rustc's FxHash): object names are
+/// short, and a name lookup runs several times per reactive cycle; SipHash, or hashing byte
+/// by byte, would cost as much as the scan the index replaces.
+#[derive(Clone, Copy, Debug, Default)]
+struct NameHasher(u64);
+
+impl NameHasher {
+    fn add(&mut self, word: u64) {
+        self.0 = (self.0.rotate_left(5) ^ word).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
+impl std::hash::Hasher for NameHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        let mut words = bytes.chunks_exact(8);
+        for word in &mut words {
+            let mut w = [0u8; 8];
+            w.copy_from_slice(word);
+            self.add(u64::from_le_bytes(w));
+        }
+        let rest = words.remainder();
+        if !rest.is_empty() {
+            let mut w = [0u8; 8];
+            w[..rest.len()].copy_from_slice(rest);
+            self.add(u64::from_le_bytes(w));
+        }
+    }
+
+    fn write_u8(&mut self, byte: u8) {
+        self.add(u64::from(byte));
+    }
+}
+
+/// Where each object of a world model's layout sits in [`WorldState::objects`], by name. The
+/// layout is fixed when the model is built, so the index is made once and shared by every
+/// published state; it only speeds up [`WorldState::object`], which checks each answer
+/// against the objects themselves and falls back to scanning them.
+#[derive(Clone, Debug, Default)]
+pub struct ObjectIndex(
+    std::sync::Arc<
+        std::collections::HashMap<ObjectName, ObjectId, std::hash::BuildHasherDefault<NameHasher>>,
+    >,
+    /// How many objects the layout has.
+    usize,
+);
+
+impl ObjectIndex {
+    /// The index of `names` in order; a name that appears twice keeps its first position, as
+    /// a scan would find it.
+    pub fn new<'a>(names: impl IntoIterator<Item = &'a ObjectName>) -> ObjectIndex {
+        let mut map = std::collections::HashMap::default();
+        let mut count = 0;
+        for (i, name) in names.into_iter().enumerate() {
+            count = i + 1;
+            let Ok(i) = u16::try_from(i) else { continue };
+            map.entry(name.clone()).or_insert(ObjectId(i));
+        }
+        ObjectIndex(std::sync::Arc::new(map), count)
+    }
+
+    /// The object named `name` if `objects` is the layout the index was built from: as long,
+    /// and holding at the indexed position the very name (the same shared text) the index
+    /// was built with. `None` means "scan": the name is unknown or the objects were replaced.
+    fn find<'a>(&self, objects: &'a [ObjectEstimate], name: &str) -> Option<&'a ObjectEstimate> {
+        if objects.len() != self.1 {
+            return None;
+        }
+        let (indexed, id) = self.0.get_key_value(name)?;
+        objects.get(id.index()).filter(|o| std::sync::Arc::ptr_eq(&o.name.0, &indexed.0))
+    }
+}
+
+/// Derived from the objects: two states with equal objects are equal whatever their indexes.
+impl PartialEq for ObjectIndex {
+    fn eq(&self, _: &ObjectIndex) -> bool {
+        true
+    }
+}
+
 /// The estimate of one object of interest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectEstimate {
@@ -267,6 +350,10 @@ pub struct WorldState {
     pub view_margin: f64,
     pub unknown_threshold: f64,
     pub diagnostics: WorldDiagnostics,
+    /// Name lookups without scanning `objects`; not part of the state (empty when read back
+    /// from a log: lookups then scan).
+    #[serde(skip)]
+    pub index: ObjectIndex,
 }
 
 impl WorldState {
@@ -276,6 +363,12 @@ impl WorldState {
 
     /// The object (or instance, `name#k`) with this name.
     pub fn object(&self, name: &str) -> Option<&ObjectEstimate> {
+        // The index answers for the layout it was built from: the object it names must carry
+        // that very name (the same shared text), or the objects were replaced and only a scan
+        // can tell.
+        if let Some(o) = self.index.find(&self.objects, name) {
+            return Some(o);
+        }
         self.objects.iter().find(|o| same_text(&o.name, name))
     }
 
