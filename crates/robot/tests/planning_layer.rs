@@ -75,7 +75,12 @@ impl PlanningPolicy for Soccerish {
         &self.catalog
     }
 
-    fn select_mission(&self, _: &OwnState, _: &[&TeammateRecord<Mission, Role>]) -> Mission {
+    fn select_mission(
+        &self,
+        _: &OwnState,
+        _: Option<(Mission, Role)>,
+        _: &[&TeammateRecord<Mission, Role>],
+    ) -> Mission {
         Mission::Attack
     }
 

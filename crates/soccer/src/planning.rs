@@ -105,6 +105,7 @@ impl PlanningPolicy for SoccerPlanning {
     fn select_mission(
         &self,
         own: &OwnState,
+        held: Option<(Mission, Role)>,
         teammates: &[&TeammateRecord<Mission, Role>],
     ) -> Mission {
         let ball = shared_ball(
@@ -115,13 +116,21 @@ impl PlanningPolicy for SoccerPlanning {
         // announces, so that the team agrees even when their ball estimates straddle the
         // defend line (each deciding alone, they would split between Attack and Defend and
         // leave the ball to nobody, or to two). Two claimants: the lower number leads, as ARS
-        // breaks ties.
+        // breaks ties; this robot is one of them when it holds the claim, and then leads from
+        // its own ball (following the other claimant, while the other follows it, the two
+        // would swap missions at every message and both keep going to the ball).
+        let claims = |mission: Mission, role: Role| {
+            matches!(role, Role::Striker | Role::ActiveDefender)
+                && matches!(mission, Mission::Attack | Mission::Defend)
+        };
         let leader = teammates
             .iter()
-            .filter(|t| matches!(t.message.role, Role::Striker | Role::ActiveDefender))
-            .filter(|t| matches!(t.message.mission, Mission::Attack | Mission::Defend))
+            .filter(|t| claims(t.message.mission, t.message.role))
             .min_by_key(|t| t.message.sender);
-        if let Some(leader) = leader {
+        let leading = held.is_some_and(|(m, r)| claims(m, r));
+        if let Some(leader) = leader
+            && !(leading && own.id < leader.message.sender)
+        {
             self.defending.set(leader.message.mission == Mission::Defend);
             return leader.message.mission;
         }
@@ -278,6 +287,41 @@ mod tests {
         planner.receive(Time::from_secs_f64(4.0), striker());
         planner.evaluate(Time::from_secs_f64(4.0), own(0.5));
         assert_eq!(planner.assignment().role, Role::Striker);
+    }
+
+    #[test]
+    fn two_robots_going_to_the_ball_follow_the_lower_numbered_one_s_mission() {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let policy = SoccerPlanning::new(field, SoccerPlanningConfig::default());
+        // The ball deep in the own half; robot 2 defends it as active defender, robot 6 still
+        // announces itself striker of the Attack mission.
+        let deep = |id: u8| OwnState {
+            id,
+            objects: vec![SharedObject { position: Point::new(-3.0, 0.0), ..ball()[0].clone() }],
+            ..own(0.0)
+        };
+        let record = |message: TeamMessage<Mission, Role>| TeammateRecord {
+            message,
+            last_heard: Time::from_secs_f64(0.0),
+            messages: 1,
+            unavailable: None,
+        };
+        let six = record(TeamMessage { sender: 6, objects: Vec::new(), ..striker() });
+        let two = record(TeamMessage {
+            sender: 2,
+            mission: Mission::Defend,
+            role: Role::ActiveDefender,
+            objects: Vec::new(),
+            ..striker()
+        });
+        // Each following the other, robot 2 would attack and robot 6 defend, both keeping
+        // their claim to the ball: robot 2 leads, robot 6 follows it.
+        let held = Some((Mission::Defend, Role::ActiveDefender));
+        assert_eq!(policy.select_mission(&deep(2), held, &[&six]), Mission::Defend);
+        let held = Some((Mission::Attack, Role::Striker));
+        assert_eq!(policy.select_mission(&deep(6), held, &[&two]), Mission::Defend);
+        // A robot not going to the ball follows whoever is.
+        assert_eq!(policy.select_mission(&deep(2), None, &[&six]), Mission::Attack);
     }
 
     #[test]

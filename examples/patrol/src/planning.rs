@@ -79,6 +79,7 @@ impl PlanningPolicy for PatrolPlanning {
     fn select_mission(
         &self,
         _own: &OwnState,
+        _held: Option<(Mission, Role)>,
         _teammates: &[&TeammateRecord<Mission, Role>],
     ) -> Mission {
         if read_board(&self.board).is_some() { Mission::Respond } else { Mission::Patrol }
@@ -343,10 +344,10 @@ mod tests {
             pose_confidence: 1.0,
             objects: Vec::new(),
         };
-        assert_eq!(policy.select_mission(&own, &[]), Mission::Patrol);
+        assert_eq!(policy.select_mission(&own, None, &[]), Mission::Patrol);
         *board.lock().expect("board") =
             Some(crate::console::Alarm { id: 1, point: Point::new(-4.0, 2.5) });
-        assert_eq!(policy.select_mission(&own, &[]), Mission::Respond);
+        assert_eq!(policy.select_mission(&own, None, &[]), Mission::Respond);
         let north = Candidate { id: 1, pose: Pose::new(4.0, 2.0, 0.0), objects: &[] };
         // Closer as the crow flies, but on the other side of the dividing wall.
         let south = Candidate { id: 2, pose: Pose::new(-4.0, -1.0, 0.0), objects: &[] };

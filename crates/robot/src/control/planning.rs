@@ -12,7 +12,10 @@
 //!   (the budget allows one every few seconds), so a robot holding a single-robot role gives it
 //!   up only to a teammate that claims it (or whose data is fresh), and two claimants settle on
 //!   the utilities they announced, which both know alike: the lower one (the higher number on
-//!   a tie) yields. The first to detect a double claim sends an instant message.
+//!   a tie) yields. The first to detect a double claim sends an instant message. A robot's
+//!   claim is the one it announced: it takes the first role over from a teammate, or gives it
+//!   up to nobody in particular, only when it can say so at once (a role changed unheard leaves
+//!   the ball to two robots or to none until the next message, seconds away on the budget).
 //! - Communication lives only here: a periodic message, plus an instant message when this
 //!   robot's status changes (falls, stands up, loses or finds the ball), its role changes or a
 //!   role conflict is detected, always within the message budget; part of the budget is kept
@@ -186,10 +189,14 @@ pub trait PlanningPolicy: Send {
 
     fn catalog(&self) -> &MissionCatalog<Self::Mission, Self::Role>;
 
-    /// MAMS: the mission for the team, from this robot and its available teammates.
+    /// MAMS: the mission for the team, from this robot and its available teammates. `held` is
+    /// this robot's mission and role while they still stand as its claim (not after it was
+    /// out): teammates know it as announced, and a mission led by whoever holds a role must
+    /// count this robot among the holders, or two holders each follow the other.
     fn select_mission(
         &self,
         own: &OwnState,
+        held: Option<(Self::Mission, Self::Role)>,
         teammates: &[&TeammateRecord<Self::Mission, Self::Role>],
     ) -> Self::Mission;
 
@@ -364,7 +371,7 @@ pub struct Planner<P: PlanningPolicy> {
     relinquished: bool,
     /// The role, utility and time of this robot's last message: what teammates know of its
     /// claim.
-    announced: Option<(P::Role, f64, Time)>,
+    announced: Option<(P::Mission, P::Role, f64, Time)>,
     last_sent: Option<Time>,
     /// Token bucket of the message budget: refilled at the sustainable rate.
     tokens: f64,
@@ -549,8 +556,38 @@ impl<P: PlanningPolicy> Planner<P> {
                 self.policy.role_utility(&candidate, catalog.default_role, catalog.default_mission);
             (catalog.default_mission, catalog.default_role, utility)
         } else {
-            let mission = self.policy.select_mission(&own, &available);
+            let held =
+                (!self.relinquished).then_some((self.assignment.mission, self.assignment.role));
+            let mission = self.policy.select_mission(&own, held, &available);
             let (role, utility) = self.assign_role(now, mission, &own, &available);
+            (mission, role, utility)
+        };
+        // A claim to the mission's first role, taken or given up, holds for the team only once
+        // teammates hear of it: a robot taking it over unheard makes two going to the ball
+        // (the holder keeps it), a holder giving it up unheard leaves the ball to nobody
+        // (everyone still counts on it). With no message possible now (the budget's tokens, the
+        // spacing), the claim teammates last heard stands until one is; but giving it up to a
+        // teammate that announced its own claim needs no word (both settle on what they
+        // announced, and this robot takes it back if that says so), nor does taking it when
+        // no teammate claims it, and once the budget is spent for the game there is no
+        // waiting for a message.
+        let (mission, role, utility) = if !out
+            && !alone
+            && Self::leads(catalog, mission, role) != self.heard_claiming()
+            && self.budget.can_send(true)
+            && !self.can_announce(now)
+        {
+            let teammate_claims =
+                available.iter().any(|r| Self::leads(catalog, r.message.mission, r.message.role));
+            let unheard_ok = if self.heard_claiming() { teammate_claims } else { !teammate_claims };
+            if unheard_ok {
+                (mission, role, utility)
+            } else {
+                let (mission, role) = (self.assignment.mission, self.assignment.role);
+                let candidate = Candidate { id: own.id, pose: own.pose, objects: &own.objects };
+                (mission, role, self.policy.role_utility(&candidate, role, mission))
+            }
+        } else {
             (mission, role, utility)
         };
         self.own_utility = utility;
@@ -587,6 +624,28 @@ impl<P: PlanningPolicy> Planner<P> {
             return Some(next);
         }
         None
+    }
+
+    /// Whether teammates count on this robot for its mission's first role: what it last
+    /// announced, whatever it has done since.
+    fn heard_claiming(&self) -> bool {
+        self.announced
+            .is_some_and(|(mission, role, _, _)| Self::leads(self.policy.catalog(), mission, role))
+    }
+
+    /// Whether an urgent message could go out now (the reserve is its).
+    fn can_announce(&self, now: Time) -> bool {
+        let burst = self.config.message_burst.max(1.0);
+        let rate = self.budget.sustainable_rate();
+        let tokens = match self.last_refill {
+            None => burst,
+            Some(_) if rate.is_infinite() => burst,
+            Some(t) => (self.tokens + rate * (now - t).as_secs_f64()).min(burst),
+        };
+        let spacing = self.config.min_message_spacing.max(0.0);
+        tokens >= 1.0
+            && self.budget.can_send(true)
+            && self.last_sent.is_none_or(|t| (now - t).as_secs_f64() >= spacing)
     }
 
     /// Whether `role` is the first role of `mission` (the one its roles are assigned around).
@@ -643,10 +702,17 @@ impl<P: PlanningPolicy> Planner<P> {
         let mut unassigned: Vec<usize> = (0..contenders.len()).collect();
         let mut fallback = None;
         for role_spec in spec.roles.iter().filter(|r| r.designated.is_none()) {
+            // This robot's claim is also the one it announced: teammates count on it until it
+            // says otherwise (it may have given the role up unheard), and settling two claims
+            // on it keeps everyone's answer alike.
+            let announced_claim = self
+                .announced
+                .filter(|(_, held, _, _)| self.policy.same_claim(*held, role_spec.role));
             let holds = |i: usize| {
                 contenders[i]
                     .holding
                     .is_some_and(|held| self.policy.same_claim(held, role_spec.role))
+                    || (i == 0 && announced_claim.is_some())
             };
             // (candidate, utility as ranked, the candidate's own utility for the role)
             let mut ranked: Vec<(usize, f64, f64)> = unassigned
@@ -668,9 +734,7 @@ impl<P: PlanningPolicy> Planner<P> {
             // fresh data and the other on its last message, both could keep the role, or both
             // yield it. The losing claims leave the ranking.
             if role_spec.max_robots == Some(1)
-                && holds(0)
-                && let Some((announced_role, announced_utility, announced_at)) = self.announced
-                && self.policy.same_claim(announced_role, role_spec.role)
+                && let Some((_, _, announced_utility, announced_at)) = announced_claim
             {
                 let aged = |utility: f64, age: f64| {
                     utility + self.policy.claim_progress(role_spec.role, age.max(0.0))
@@ -702,13 +766,23 @@ impl<P: PlanningPolicy> Planner<P> {
                 }
             }
             // A single-robot role is released only to a teammate that has announced its claim,
-            // or whose data is fresh: the teammate that looks better on this robot's older data
-            // may, on its own, not find itself best, and the role would be nobody's.
+            // or whose data is fresh and who will take it: the teammate that looks better on
+            // this robot's older data may, on its own, not find itself best, and the role would
+            // be nobody's. A fresh teammate weighs this robot as announced, with the holder's
+            // bonus and credit for the walking since: it takes the role only if it beats that.
+            let to_beat = announced_claim.map(|(_, _, utility, at)| {
+                utility
+                    + self.config.role_hysteresis
+                    + self.policy.claim_progress(role_spec.role, (now - at).as_secs_f64().max(0.0))
+            });
+            let takes_over = |i: usize, utility: f64| {
+                holds(i)
+                    || (contenders[i].age < self.config.release_age
+                        && to_beat.is_none_or(|claim| utility > claim))
+            };
             if role_spec.max_robots == Some(1)
                 && holds(0)
-                && !ranked[..take]
-                    .iter()
-                    .any(|&(i, _, _)| holds(i) || contenders[i].age < self.config.release_age)
+                && !ranked[..take].iter().any(|&(i, _, utility)| takes_over(i, utility))
                 && let Some(&(_, _, utility)) = ranked.iter().find(|(i, _, _)| *i == 0)
             {
                 return (role_spec.role, utility);
@@ -787,6 +861,7 @@ impl<P: PlanningPolicy> Planner<P> {
         self.last_sent = Some(now);
         // A claim made while unable to play is no claim.
         self.announced = (own.status == StandingStatus::Stable && !own.penalized).then_some((
+            self.assignment.mission,
             self.assignment.role,
             self.own_utility,
             now,
@@ -847,7 +922,12 @@ mod tests {
             &self.0
         }
 
-        fn select_mission(&self, _: &OwnState, _: &[&TeammateRecord<Mission, Role>]) -> Mission {
+        fn select_mission(
+            &self,
+            _: &OwnState,
+            _: Option<(Mission, Role)>,
+            _: &[&TeammateRecord<Mission, Role>],
+        ) -> Mission {
             Mission::Attack
         }
 
@@ -933,6 +1013,67 @@ mod tests {
         // The announced claims decide, alike for both.
         assert_eq!(a.assignment().role, Role::Striker);
         assert_eq!(b.assignment().role, Role::StrikerCover);
+    }
+
+    #[test]
+    fn a_holder_gives_the_role_only_to_a_teammate_that_will_take_it() {
+        let mut p = planner();
+        p.receive(t(0.0), message(3, -3.0, Role::StrikerCover, 0.0));
+        p.evaluate(t(0.0), own(2, 0.0));
+        assert_eq!(p.assignment().role, Role::Striker);
+        // Robot 2 announces it is 1 m from the ball.
+        p.compose(t(0.0), MessageKind::Periodic);
+        // Pushed back to 4 m, it hears robot 3 fresh at 0.5 m: better than robot 2 with the
+        // holder's bonus. But robot 3 weighs robot 2 as announced (1 m, with the bonus) and
+        // does not take the role: robot 2 keeps it rather than leave it to nobody.
+        p.receive(t(2.0), message(3, 0.5, Role::StrikerCover, 0.0));
+        p.evaluate(t(2.0), own(2, -3.0));
+        assert_eq!(p.assignment().role, Role::Striker);
+    }
+
+    #[test]
+    fn a_takeover_waits_until_it_can_be_announced() {
+        let mut p = Planner::new(
+            Nearest::new(),
+            PlanningConfig { message_burst: 1.0, ..PlanningConfig::default() },
+        );
+        // Seven robots sharing 1200 messages over 1200 s: a token every 7 s.
+        p.budget = MessageBudget { team_remaining: 1200, robots: 7, time_left: 1200.0, reserve: 3 };
+        p.receive(t(0.0), message(3, -3.0, Role::Striker, -4.0));
+        p.evaluate(t(0.0), own(2, -3.5));
+        assert_eq!(p.assignment().role, Role::StrikerCover);
+        let kind = p.message_due(t(0.0)).expect("the new role goes out");
+        p.compose(t(0.0), kind);
+        // Robot 2 is now far better than the striker, but has no token to say it takes over:
+        // taking it unheard, the striker (which keeps it) and robot 2 would both go.
+        p.receive(t(1.0), message(3, -3.0, Role::Striker, -4.0));
+        p.evaluate(t(1.0), own(2, 0.9));
+        assert_eq!(p.assignment().role, Role::StrikerCover);
+        assert_eq!(p.message_due(t(1.0)), None);
+        // A token later, it takes over and says so at once.
+        p.receive(t(8.0), message(3, -3.0, Role::Striker, -4.0));
+        p.evaluate(t(8.0), own(2, 0.9));
+        assert_eq!(p.assignment().role, Role::Striker);
+        assert_eq!(p.message_due(t(8.0)), Some(MessageKind::Instant));
+    }
+
+    #[test]
+    fn a_claim_given_up_unheard_is_taken_back_when_the_announced_claims_say_so() {
+        let mut p = planner();
+        // Robot 5, alone, attacks and announces its claim (9 m from the ball).
+        p.evaluate(t(0.0), own(5, -8.0));
+        p.compose(t(0.0), MessageKind::Periodic);
+        // Robot 3 claims it, nearer: robot 5 yields before it may speak again (the message
+        // spacing), which needs no word: robot 3 keeps the role on the same announced claims.
+        p.receive(t(0.1), message(3, -7.7, Role::Striker, -8.7));
+        p.evaluate(t(0.1), own(5, -8.0));
+        assert_eq!(p.assignment().role, Role::StrikerCover);
+        // Robot 3's next message announces it much farther (on its own ball estimate), though
+        // its pose still looks near on robot 5's: on the announced claims robot 3 yields to
+        // robot 5, whose claim teammates still hold, so robot 5 must take the role back.
+        p.receive(t(0.3), message(3, -7.0, Role::Striker, -15.5));
+        p.evaluate(t(0.3), own(5, -8.0));
+        assert_eq!(p.assignment().role, Role::Striker);
     }
 
     #[test]
