@@ -33,3 +33,21 @@ impl std::fmt::Debug for TapRecord<'_> {
 pub trait Tap: Send + Sync {
     fn package(&self, record: &TapRecord<'_>);
 }
+
+/// Several taps on one host (a host holds one): each sees every record, in order.
+#[derive(Clone, Default)]
+pub struct Taps(pub Vec<std::sync::Arc<dyn Tap>>);
+
+impl std::fmt::Debug for Taps {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Taps").field("count", &self.0.len()).finish()
+    }
+}
+
+impl Tap for Taps {
+    fn package(&self, record: &TapRecord<'_>) {
+        for tap in &self.0 {
+            tap.package(record);
+        }
+    }
+}

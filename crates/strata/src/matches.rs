@@ -9,7 +9,7 @@ use anyhow::{Context as _, Result, bail};
 use serde::{Deserialize, Serialize};
 use strata_robot::assembly::RobotModules;
 use strata_runtime::{
-    HostConfig, HostStats, LockstepHost, Package, Tap, TapRecord, ThreadedHost, Time,
+    HostConfig, HostStats, LockstepHost, Package, Tap, TapRecord, Taps, ThreadedHost, Time,
 };
 use strata_sim::{EventKind, RobotId};
 use strata_sim::{GameState, NoiseLevel, SimConfig, SimHandle, Simulation, add_simulator};
@@ -177,16 +177,6 @@ impl std::fmt::Debug for Match {
 }
 
 /// Fans one tap out to several.
-struct Taps(Vec<Arc<dyn Tap>>);
-
-impl Tap for Taps {
-    fn package(&self, record: &TapRecord<'_>) {
-        for tap in &self.0 {
-            tap.package(record);
-        }
-    }
-}
-
 /// The module-name prefix of a robot: `home/3`, `away/1`.
 pub fn robot_name(id: RobotId) -> String {
     format!("{}/{}", if id.team == 0 { "home" } else { "away" }, id.player)

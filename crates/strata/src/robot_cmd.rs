@@ -25,6 +25,7 @@ use clap::{Args, ValueEnum};
 use serde::Serialize;
 use strata::links::{self, Counted, LinkCounters, LinkStats, NetConfig, Prefetched};
 use strata::matches::LayerRate;
+use strata_log::{ConfigFormat, LogCompression, McapTap, McapTapOptions, RunInfo, WhenFull};
 use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
 use strata_robot::assembly::RobotModules;
 use strata_robot::platform::{
@@ -32,8 +33,8 @@ use strata_robot::platform::{
     ReceivedPacket, SensorFrame, SharedPlatform, TeamLink,
 };
 use strata_runtime::{
-    Clock, GraphBuilder, HostConfig, HostError, HostStats, MonotonicClock, Package, Tap, TapRecord,
-    ThreadedHost, Time,
+    Clock, Encoding, GraphBuilder, HostConfig, HostError, HostStats, MonotonicClock, Package, Tap,
+    TapRecord, Taps, ThreadedHost, Time,
 };
 use strata_soccer::behaviors::Decision;
 use strata_soccer::field::TeamField;
@@ -145,6 +146,17 @@ pub struct RobotArgs {
     /// Print JSON lines (start, game-state changes, status, final report) instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Record every package of this robot into this MCAP file, with its graph, seed and team
+    /// configuration (docs/logging.md). A module never waits for the disk: what the writer
+    /// cannot keep up with is dropped, counted and reported.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub log: Option<PathBuf>,
+    /// How the log's chunks are compressed: zstd, lz4 or none.
+    #[arg(long, value_name = "zstd|lz4|none", default_value = "zstd", requires = "log")]
+    pub log_compression: LogCompression,
+    /// How package values are encoded: msgpack or json.
+    #[arg(long, value_name = "msgpack|json", default_value = "msgpack", requires = "log")]
+    pub log_encoding: Encoding,
 }
 
 fn parse_sign(text: &str) -> Result<f64, String> {
@@ -252,8 +264,14 @@ pub fn run(args: RobotArgs) -> Result<()> {
         real_time_priority: (args.real_time_priority > 0).then_some(args.real_time_priority),
         ..HostConfig::with_seed(seed)
     };
+    let log = match &args.log {
+        Some(path) => Some(open_log(path, &args, seed, &config, &graph)?),
+        None => None,
+    };
     let mut host = ThreadedHost::new(graph, host_config);
-    host.set_tap(Arc::clone(&watch) as Arc<dyn Tap>);
+    let mut taps: Vec<Arc<dyn Tap>> = vec![Arc::clone(&watch) as Arc<dyn Tap>];
+    taps.extend(log.iter().map(|log| Arc::clone(log) as Arc<dyn Tap>));
+    host.set_tap(Arc::new(Taps(taps)));
 
     out.start(&StartInfo {
         team: args.team,
@@ -341,6 +359,18 @@ pub fn run(args: RobotArgs) -> Result<()> {
     if let Some(nao) = &platform.nao {
         sit_down(nao, &out);
     }
+    if let Some(log) = &log {
+        match log.finish() {
+            Ok(summary) => out.note(&format!(
+                "log: {} ({} messages, {} dropped, {:.1} MB)",
+                log.path().display(),
+                summary.messages,
+                summary.dropped,
+                summary.bytes as f64 / 1e6
+            )),
+            Err(error) => out.note(&format!("log: {error}")),
+        }
+    }
 
     let planned_end = end.lock().unwrap_or_else(PoisonError::into_inner).clone();
     let (stats, ended, failure) = match result {
@@ -375,6 +405,31 @@ pub fn run(args: RobotArgs) -> Result<()> {
         Some(error) => Err(error).context("a module of the robot failed"),
         None => Ok(()),
     }
+}
+
+/// Creates the robot's log and writes what a reader needs besides the packages: the run (seed,
+/// command line, the team configuration with defaults filled in) and the graph.
+fn open_log(
+    path: &std::path::Path,
+    args: &RobotArgs,
+    seed: u64,
+    config: &TeamConfig,
+    graph: &strata_runtime::Graph,
+) -> Result<Arc<McapTap>> {
+    let options = McapTapOptions {
+        // A real-time host: a module never waits for the disk.
+        when_full: WhenFull::Drop,
+        compression: args.log_compression,
+        encoding: args.log_encoding,
+        ..McapTapOptions::default()
+    };
+    let tap = McapTap::create(path, options)
+        .with_context(|| format!("creating the log {}", path.display()))?;
+    let config =
+        serde_json::to_string_pretty(config).context("serializing the team configuration")?;
+    tap.write_run_info(&RunInfo::current(seed).with_config(ConfigFormat::Json, config))?;
+    tap.write_graph("", &graph.describe())?;
+    Ok(Arc::new(tap))
 }
 
 fn validate(args: &RobotArgs) -> Result<()> {
@@ -413,6 +468,9 @@ fn validate(args: &RobotArgs) -> Result<()> {
                 bail!("--controller test runs against the simulator server only");
             }
         }
+    }
+    if args.controller == ControllerKind::Test && args.log.is_some() {
+        bail!("--log records the modules of the full architecture: not with --controller test");
     }
     if args.platform == PlatformKind::Sim && args.lola_config.is_some() {
         bail!("--lola-config is for --platform nao");

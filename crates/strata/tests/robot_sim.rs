@@ -128,3 +128,57 @@ fn a_robot_ends_cleanly_when_the_server_stops() {
         "{report}"
     );
 }
+
+/// `strata robot --log`: Ctrl-C finishes the file, which holds the robot's packages, its graph
+/// and its run.
+#[test]
+fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
+    let dir = std::env::temp_dir().join(format!("strata-robot-log-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("robot.mcap");
+    let (mut server, addr) = start_server(&[]);
+    let mut robot = Process::spawn(
+        "robot 10/3 (logging)",
+        strata().args(["robot", "--server", &addr, "--json", "--status-interval", "1"]).args([
+            "--team",
+            "10",
+            "--player",
+            "3",
+            "--seed",
+            "77",
+            "--duration",
+            "900",
+            "--log",
+            path.to_str().expect("utf-8 path"),
+        ]),
+    );
+    robot.wait_for("camera frames", |p| {
+        p.json_of("status").iter().any(|s| count(s, "camera_frames") > 0).then_some(())
+    });
+    let status = robot.interrupt();
+    assert!(status.success(), "{} exited with {status}: {}", robot.name, robot.stderr());
+    assert_eq!(server.interrupt().code(), Some(0));
+    let note =
+        robot.json_of("note").into_iter().find_map(|n| n["text"].as_str().map(str::to_owned));
+    assert!(note.as_deref().is_some_and(|n| n.starts_with("log: ")), "{note:?}");
+
+    let reader = strata_log::LogReader::open(&path).expect("the log opens");
+    assert!(reader.is_complete(), "Ctrl-C finishes the file");
+    for topic in ["t10/3/perception/percepts", "t10/3/world/world_state", "t10/3/reactive/report"] {
+        let info = reader.topic(topic).unwrap_or_else(|| panic!("no topic {topic}"));
+        assert!(info.messages > 0, "{topic}");
+        assert_eq!(info.message_encoding, "msgpack");
+    }
+    let world = reader
+        .messages_on(["t10/3/world/world_state"])
+        .next()
+        .expect("a world state")
+        .expect("readable");
+    assert!(world.json().expect("decodes")["objects"].is_array());
+    assert_eq!(reader.run_info().expect("run info").map(|r| r.seed), Some(77));
+    let graphs = reader.graphs().expect("graphs");
+    assert_eq!(graphs.len(), 1);
+    assert_eq!(graphs[0].description.modules.len(), 6);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
