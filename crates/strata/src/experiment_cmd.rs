@@ -31,6 +31,10 @@ pub struct ExperimentArgs {
     /// Runs executed at once [default: every core].
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Record the first run (first condition, run 0) into this MCAP file: every package, with
+    /// the graph, seed and scenario; the team experiment's runs are match logs (docs/logging.md).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub log: Option<PathBuf>,
 }
 
 pub fn run(args: ExperimentArgs) -> Result<()> {
@@ -41,8 +45,12 @@ pub fn run(args: ExperimentArgs) -> Result<()> {
         scenario: args.scenario.clone(),
         progress: !args.json,
         strata_exe: std::env::current_exe().ok(),
+        log: args.log.clone(),
         ..Options::default()
     };
+    if args.name == "all" && args.log.is_some() {
+        anyhow::bail!("--log records one run of one experiment: name the experiment, not `all`");
+    }
     if let Some(threads) = args.threads {
         options.threads = threads.max(1);
     }

@@ -420,3 +420,57 @@ fn every_built_in_scenario_loads() {
     let error = experiments::run("no-such", &Options::default()).expect_err("unknown experiment");
     assert!(error.to_string().contains("goal-covering"), "{error}");
 }
+
+/// `--log`: the first run of an experiment is recorded, complete, with its graph and seed; the
+/// team experiment's is a match log (robots, ground truth, game state).
+#[test]
+fn an_experiments_first_run_can_be_logged() {
+    let dir = temp_dir("log");
+    let scenario = write(&dir, "scenario.toml", GOAL_COVERING);
+    let log = dir.join("goal-covering.mcap");
+    let output = Command::new(env!("CARGO_BIN_EXE_strata"))
+        .args(["experiment", "goal-covering", "--json", "--seed", "3"])
+        .arg("--scenario")
+        .arg(&scenario)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .arg("--log")
+        .arg(&log)
+        .output()
+        .expect("strata runs");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let reader = strata_log::LogReader::open(&log).expect("the log opens");
+    assert!(reader.is_complete());
+    assert_eq!(reader.run_info().expect("run info").map(|r| r.seed), Some(3));
+    let world = reader.topic("home/1/world/world_state").expect("the keeper's world state");
+    assert!(world.messages > 0);
+
+    let team = write(
+        &dir,
+        "team.toml",
+        r#"
+field = "spl"
+noise = "default"
+half_duration = 5.0
+runs = 1
+players = [2]
+reference = "full"
+baselines = ["no-coordination"]
+
+[loss]
+levels = []
+players = [2]
+runs = 1
+team = "full"
+"#,
+    );
+    let match_log = dir.join("team.mcap");
+    let options = Options { log: Some(match_log.clone()), ..options(&dir.join("team"), &team) };
+    experiments::run("team", &options).expect("runs");
+    let reader = strata_log::LogReader::open(&match_log).expect("the match log opens");
+    assert!(reader.is_complete());
+    for topic in ["simulator/ground_truth", "game/state", "away/2/planning/decision"] {
+        assert!(reader.topic(topic).is_some_and(|t| t.messages > 0), "{topic}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}

@@ -30,7 +30,9 @@ use strata_soccer::team::TeamConfig;
 use super::plot::{Bars, Panel, Series, Stack};
 use super::report::{Markdown, num, pct, verdict, write_csv};
 use super::stats::{Estimate, percentile};
-use super::{Check, Ctx, HostKind, ScenarioError, Scene, SceneRobot, Validate, parallel};
+use super::{
+    Check, Ctx, ExperimentLog, HostKind, ScenarioError, Scene, SceneRobot, Validate, parallel,
+};
 
 pub const NAME: &str = "fall";
 pub const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/fall.toml");
@@ -356,7 +358,12 @@ fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
     if hi > lo { rng.random_range(lo..hi) } else { lo }
 }
 
-fn run_one(scenario: &Scenario, job: &Job, tick: &dyn Fn(u64)) -> Result<RunResult> {
+fn run_one(
+    scenario: &Scenario,
+    job: &Job,
+    log: Option<ExperimentLog>,
+    tick: &dyn Fn(u64),
+) -> Result<RunResult> {
     let walking = matches!(job.kind, JobKind::Walking);
     let (player, team, start, path, speed) = if walking {
         let w = &scenario.walking;
@@ -386,6 +393,7 @@ fn run_one(scenario: &Scenario, job: &Job, tick: &dyn Fn(u64)) -> Result<RunResu
             start: Pose::new(start[0], start[1], start[2]),
         }],
     )?;
+    scene.log = log;
     let (robot, modules) = scene.robots[0].clone();
     let field = Arc::clone(&scene.field);
     let mut waypoints: Vec<Point<FieldFrame>> =
@@ -643,7 +651,10 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         HostKind::Threaded => scenario.concurrent,
         HostKind::Lockstep => ctx.options.threads,
     };
-    let results = parallel(&jobs, threads, |_, job| run_one(scenario, job, &|n| bar.inc(n)))?;
+    let log = ExperimentLog::for_job(ctx, 0);
+    let results = parallel(&jobs, threads, |i, job| {
+        run_one(scenario, job, log.clone().filter(|_| i == 0), &|n| bar.inc(n))
+    })?;
     bar.finish_and_clear();
 
     let fall_runs: Vec<&RunResult> = jobs

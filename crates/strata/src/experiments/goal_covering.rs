@@ -35,7 +35,9 @@ use strata_soccer::world_config::BALL;
 use super::plot::{Bars, FieldPaths, Panel, Series, Stack};
 use super::report::{Markdown, num, pct, verdict, write_csv};
 use super::stats::{Estimate, fraction_true, mean, percentile};
-use super::{Check, Ctx, HostKind, ScenarioError, Scene, SceneRobot, Validate, parallel};
+use super::{
+    Check, Ctx, ExperimentLog, HostKind, ScenarioError, Scene, SceneRobot, Validate, parallel,
+};
 
 pub const NAME: &str = "goal-covering";
 pub const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/goal-covering.toml");
@@ -342,7 +344,12 @@ fn team_point(field: &TeamField, p: Point<FieldFrame>) -> Point<FieldFrame> {
     field.to_team(p.x, p.y)
 }
 
-fn run_one(scenario: &Scenario, job: &Job, tick: &dyn Fn(u64)) -> Result<RunResult> {
+fn run_one(
+    scenario: &Scenario,
+    job: &Job,
+    log: Option<ExperimentLog>,
+    tick: &dyn Fn(u64),
+) -> Result<RunResult> {
     let mut team = scenario.resolved[job.method].clone();
     team.timing.deliberative.rate_hz = Some(scenario.deliberative_hz[job.rate]);
     team.timing.perception.rate_hz = Some(scenario.reactive_hz);
@@ -354,6 +361,7 @@ fn run_one(scenario: &Scenario, job: &Job, tick: &dyn Fn(u64)) -> Result<RunResu
         job.seed,
         &[SceneRobot { player: 1, team: team.clone(), start: Pose::new(x, y, theta) }],
     )?;
+    scene.log = log;
     let (keeper, modules) = scene.robots[0].clone();
     let field = Arc::clone(&scene.field);
     // The script is in the simulator's field frame; the trajectory in the keeper's team frame.
@@ -509,8 +517,10 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         .sum::<f64>()
         / scenario.trajectories.len() as f64;
     let bar = ctx.progress((per_job * jobs.len() as f64).ceil() as u64, "simulated s");
-    let results =
-        parallel(&jobs, ctx.options.threads, |_, job| run_one(scenario, job, &|n| bar.inc(n)))?;
+    let log = ExperimentLog::for_job(ctx, 0);
+    let results = parallel(&jobs, ctx.options.threads, |i, job| {
+        run_one(scenario, job, log.clone().filter(|_| i == 0), &|n| bar.inc(n))
+    })?;
     bar.finish_and_clear();
 
     // Aggregate per (method, rate) over trajectories and runs.

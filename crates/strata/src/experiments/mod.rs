@@ -34,13 +34,14 @@ use serde::de::DeserializeOwned;
 use strata_robot::assembly::RobotModules;
 use strata_robot::geometry::Pose;
 use strata_runtime::{
-    Graph, GraphBuilder, HostConfig, HostStats, LockstepHost, RunningHost, Tap, ThreadedHost,
+    Graph, GraphBuilder, HostConfig, HostStats, LockstepHost, RunningHost, Tap, Taps, ThreadedHost,
 };
 use strata_sim::{GameState, NoiseLevel, RobotId, SimConfig, SimHandle, Simulation, add_simulator};
 use strata_soccer::field::TeamField;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
 
 use crate::matches::robot_name;
+use strata_log::{ConfigFormat, McapTap, McapTapOptions, RunInfo, WhenFull};
 
 /// Every experiment, in the order `strata experiment all` runs them.
 pub const EXPERIMENTS: [&str; 4] = [goal_covering::NAME, rates::NAME, fall::NAME, team::NAME];
@@ -62,6 +63,8 @@ pub struct Options {
     pub threads: usize,
     /// The `strata` executable, for experiments that start robot processes (`rates` over TCP).
     pub strata_exe: Option<PathBuf>,
+    /// Record the experiment's first run (first condition, run 0) into this MCAP file.
+    pub log: Option<PathBuf>,
 }
 
 impl Default for Options {
@@ -72,6 +75,7 @@ impl Default for Options {
             out: None,
             scenario: None,
             progress: false,
+            log: None,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             strata_exe: None,
         }
@@ -536,6 +540,56 @@ pub struct Scene {
     pub graph: Option<Graph>,
     pub robots: Vec<(RobotId, RobotModules)>,
     pub field: Arc<TeamField>,
+    /// Where to record the run, if it is the one `--log` asked for.
+    pub log: Option<ExperimentLog>,
+}
+
+/// `--log` of an experiment: the file, and the scenario (TOML) stored with the run.
+#[derive(Clone, Debug)]
+pub struct ExperimentLog {
+    pub path: PathBuf,
+    pub scenario_text: String,
+}
+
+impl ExperimentLog {
+    /// The log for job `index` of a run of `ctx`: only the first job is recorded.
+    pub fn for_job(ctx: &Ctx<'_>, index: usize) -> Option<ExperimentLog> {
+        let path = ctx.options.log.as_ref().filter(|_| index == 0)?;
+        Some(ExperimentLog { path: path.clone(), scenario_text: ctx.scenario_text.clone() })
+    }
+
+    /// Creates the file with the run (seed, command line, scenario) and the graph.
+    fn create(&self, graph: &Graph, kind: HostKind, seed: u64) -> Result<Arc<McapTap>> {
+        let options = McapTapOptions {
+            // Simulated time waits for the disk (a complete log); real time never does.
+            when_full: match kind {
+                HostKind::Lockstep => WhenFull::Wait,
+                HostKind::Threaded => WhenFull::Drop,
+            },
+            ..McapTapOptions::default()
+        };
+        let tap = McapTap::create(&self.path, options)
+            .with_context(|| format!("creating the log {}", self.path.display()))?;
+        tap.write_run_info(
+            &RunInfo::current(seed).with_config(ConfigFormat::Toml, self.scenario_text.clone()),
+        )?;
+        tap.write_graph("", &graph.describe())?;
+        Ok(Arc::new(tap))
+    }
+}
+
+/// Finishes an experiment's log and says so on stderr (the report goes to its own files).
+pub fn finish_log(log: &McapTap) {
+    match log.finish() {
+        Ok(summary) => eprintln!(
+            "log: {} ({} messages, {} dropped, {:.1} MB)",
+            log.path().display(),
+            summary.messages,
+            summary.dropped,
+            summary.bytes as f64 / 1e6
+        ),
+        Err(error) => eprintln!("log: {error:#}"),
+    }
 }
 
 impl std::fmt::Debug for Scene {
@@ -588,13 +642,23 @@ impl Scene {
             added.push((id, modules));
         }
         let graph = graph.build().context("wiring the experiment")?;
-        Ok(Scene { sim, graph: Some(graph), robots: added, field: team_field })
+        Ok(Scene { sim, graph: Some(graph), robots: added, field: team_field, log: None })
     }
 
     /// Starts a host over the scene's graph.
     pub fn host(&mut self, kind: HostKind, seed: u64, tap: Arc<dyn Tap>) -> Result<Host> {
         let graph = self.graph.take().context("the scene's graph was already taken")?;
-        Host::start(graph, kind, seed, tap)
+        let log = match &self.log {
+            Some(log) => Some(log.create(&graph, kind, seed)?),
+            None => None,
+        };
+        let tap: Arc<dyn Tap> = match &log {
+            Some(log) => Arc::new(Taps(vec![tap, Arc::clone(log) as Arc<dyn Tap>])),
+            None => tap,
+        };
+        let mut host = Host::start(graph, kind, seed, tap)?;
+        host.log = log;
+        Ok(host)
     }
 }
 
@@ -608,44 +672,51 @@ pub enum HostKind {
     Lockstep,
 }
 
-/// A running host the experiment drives in steps.
-pub enum Host {
+/// A running host the experiment drives in steps, and its log if the run is recorded.
+#[derive(Debug)]
+pub struct Host {
+    running: Running,
+    log: Option<Arc<McapTap>>,
+}
+
+enum Running {
     Lockstep(Box<LockstepHost>),
     Threaded { host: RunningHost, started: Instant, elapsed: Duration },
 }
 
-impl std::fmt::Debug for Host {
+impl std::fmt::Debug for Running {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
-            Host::Lockstep(_) => "Host::Lockstep",
-            Host::Threaded { .. } => "Host::Threaded",
+            Running::Lockstep(_) => "Lockstep",
+            Running::Threaded { .. } => "Threaded",
         })
     }
 }
 
 impl Host {
     pub fn start(graph: Graph, kind: HostKind, seed: u64, tap: Arc<dyn Tap>) -> Result<Host> {
-        Ok(match kind {
+        let running = match kind {
             HostKind::Lockstep => {
                 let mut host = LockstepHost::new(graph, HostConfig::with_seed(seed));
                 host.set_tap(tap);
-                Host::Lockstep(Box::new(host))
+                Running::Lockstep(Box::new(host))
             }
             HostKind::Threaded => {
                 let mut host = ThreadedHost::new(graph, HostConfig::with_seed(seed));
                 host.set_tap(tap);
                 let host = host.start().context("starting the module threads")?;
-                Host::Threaded { host, started: Instant::now(), elapsed: Duration::ZERO }
+                Running::Threaded { host, started: Instant::now(), elapsed: Duration::ZERO }
             }
-        })
+        };
+        Ok(Host { running, log: None })
     }
 
     /// Lets `dt` of host time pass: simulated on the lockstep host, real (on a fixed schedule,
     /// so sampling does not drift) on the threaded one.
     pub fn advance(&mut self, dt: Duration) -> Result<()> {
-        match self {
-            Host::Lockstep(host) => host.run_for(dt).map_err(|e| anyhow!("{e}")),
-            Host::Threaded { started, elapsed, .. } => {
+        match &mut self.running {
+            Running::Lockstep(host) => host.run_for(dt).map_err(|e| anyhow!("{e}")),
+            Running::Threaded { started, elapsed, .. } => {
                 *elapsed += dt;
                 let target = *started + *elapsed;
                 let now = Instant::now();
@@ -658,12 +729,16 @@ impl Host {
     }
 
     pub fn finish(self) -> Result<HostStats> {
-        match self {
-            Host::Lockstep(mut host) => {
+        let stats = match self.running {
+            Running::Lockstep(mut host) => {
                 host.stop();
                 Ok(host.stats())
             }
-            Host::Threaded { host, .. } => host.stop().map_err(|e| anyhow!("{e}")),
+            Running::Threaded { host, .. } => host.stop().map_err(|e| anyhow!("{e}")),
+        };
+        if let Some(log) = &self.log {
+            finish_log(log);
         }
+        stats
     }
 }

@@ -30,7 +30,7 @@ use strata_soccer::team::TeamConfig;
 use super::plot::Bars;
 use super::report::{Markdown, num, verdict, write_csv};
 use super::stats::Estimate;
-use super::{Check, Ctx, HostKind, ScenarioError, Scene, SceneRobot, Validate};
+use super::{Check, Ctx, ExperimentLog, HostKind, ScenarioError, Scene, SceneRobot, Validate};
 
 pub const NAME: &str = "rates";
 pub const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/rates.toml");
@@ -284,6 +284,7 @@ fn run_in_process(
     scenario: &Scenario,
     load: f64,
     seed: u64,
+    log: Option<ExperimentLog>,
     tick: &dyn Fn(u64),
 ) -> Result<RunOutcome> {
     let team = team_with_load(scenario, load);
@@ -298,6 +299,7 @@ fn run_in_process(
         .collect();
     let mut scene =
         Scene::new(&scenario.field, scenario.noise_level.unwrap_or_default(), seed, &robots)?;
+    scene.log = log;
     let modules: Vec<RobotModules> = scene.robots.iter().map(|(_, m)| m.clone()).collect();
     let tap: Arc<dyn strata_runtime::Tap> = Arc::new(NoTap);
     let mut host = scene.host(HostKind::Threaded, seed, tap)?;
@@ -549,6 +551,13 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
     let total = (scenario.duration * (runs * scenario.loads.len()) as f64).ceil() as u64;
     let bar = ctx.progress(total, "real s");
     let mut results = Vec::new();
+    let mut log = ExperimentLog::for_job(ctx, 0);
+    if log.is_some() && scenario.transport == Transport::Tcp && exe.is_some() {
+        eprintln!(
+            "note: --log records in-process runs; over TCP each robot is a `strata robot` \
+             process, which takes --log itself"
+        );
+    }
     // One condition at a time: real-time runs side by side would compete for the cores and
     // measure the machine, not the architecture.
     for run in 0..runs {
@@ -559,7 +568,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
                 (Transport::Tcp, Some(exe)) => {
                     run_tcp(scenario, &ctx.out_dir, exe, *load, seed, &|n| bar.inc(n))?
                 }
-                _ => run_in_process(scenario, *load, seed, &|n| bar.inc(n))?,
+                _ => run_in_process(scenario, *load, seed, log.take(), &|n| bar.inc(n))?,
             };
             results.push(RunResult {
                 load: *load,

@@ -14,7 +14,8 @@ use strata_soccer::team::TeamConfig;
 use super::plot::{Bars, distribution_bars};
 use super::report::{Markdown, num, write_csv};
 use super::stats::Estimate;
-use super::{Check, Ctx, ScenarioError, Validate, parallel};
+use super::{Check, Ctx, ScenarioError, Validate, finish_log, parallel};
+use crate::logging::{LogSettings, MatchLog};
 use crate::matches::{Match, MatchConfig, MatchReport, TeamReport};
 
 pub const NAME: &str = "team";
@@ -165,7 +166,12 @@ struct RunResult {
     report: MatchReport,
 }
 
-fn play(scenario: &Scenario, job: &Job, tick: &dyn Fn(u64)) -> Result<RunResult> {
+fn play(
+    scenario: &Scenario,
+    job: &Job,
+    log: Option<&Path>,
+    tick: &dyn Fn(u64),
+) -> Result<RunResult> {
     let (home, away, players, seed, loss) = match job {
         Job::Versus { baseline, players, seed, home, .. } => {
             let reference = scenario.resolved_reference.clone().unwrap_or_default();
@@ -192,7 +198,12 @@ fn play(scenario: &Scenario, job: &Job, tick: &dyn Fn(u64)) -> Result<RunResult>
         realtime: false,
         sim: None,
     };
-    let game = Match::new(config)?;
+    let mut game = Match::new(config)?;
+    // A match log, as `strata match --log` writes it: replay and the viewer read it.
+    let log = match log {
+        Some(path) => Some(MatchLog::attach(&mut game, &LogSettings::full(path))?),
+        None => None,
+    };
     let mut done = 0.0f64;
     let total = match_seconds(scenario);
     let report = game.play(&mut |fraction, _| {
@@ -204,6 +215,9 @@ fn play(scenario: &Scenario, job: &Job, tick: &dyn Fn(u64)) -> Result<RunResult>
     })?;
     if total > done {
         tick((total - done) as u64);
+    }
+    if let Some(log) = &log {
+        finish_log(log.tap());
     }
     Ok(RunResult { report })
 }
@@ -288,8 +302,10 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         }
     }
     let bar = ctx.progress((match_seconds(scenario) * jobs.len() as f64) as u64, "simulated s");
-    let results =
-        parallel(&jobs, ctx.options.threads, |_, job| play(scenario, job, &|n| bar.inc(n)))?;
+    let log = ctx.options.log.clone();
+    let results = parallel(&jobs, ctx.options.threads, |i, job| {
+        play(scenario, job, log.as_deref().filter(|_| i == 0), &|n| bar.inc(n))
+    })?;
     bar.finish_and_clear();
 
     let mut versus = Vec::new();
