@@ -227,6 +227,8 @@ struct Shared {
     accepting: AtomicBool,
     when_full: WhenFull,
     encoding: Encoding,
+    /// Records the queue holds.
+    capacity: usize,
     /// Module-name prefixes to log (empty: all).
     modules: Vec<String>,
     /// Records offered to the queue: what was not written of them was dropped. Counting
@@ -296,8 +298,22 @@ impl Shared {
 
     fn tap_package(&self, topics: &TopicCache, record: &TapRecord<'_>) {
         let Some(topic) = topics.get(self, record) else { return };
-        let package = record.package.clone_boxed();
-        self.submit(&topic, record.time, package.stamp(), package.seq(), Payload::Package(package));
+        let (stamp, seq) = (record.package.stamp(), record.package.seq());
+        // A sender that may wait for the writer anyway (simulated time) shares its work once
+        // the writer falls behind: it encodes, the writer only compresses and writes. The
+        // bytes are the same either way. A real-time sender never does: it only clones.
+        let payload = if self.when_full == WhenFull::Wait && self.sender.len() >= self.capacity / 2
+        {
+            let mut bytes = Vec::with_capacity(1024);
+            if record.package.encode(self.encoding, &mut bytes).is_err() {
+                self.serialize_errors.fetch_add(1, Ordering::Relaxed);
+                return;
+            }
+            Payload::Encoded(bytes)
+        } else {
+            Payload::Package(record.package.clone_boxed())
+        };
+        self.submit(&topic, record.time, stamp, seq, payload);
     }
 
     /// A value that could not be encoded: an error, not a drop.
@@ -453,6 +469,7 @@ impl McapTap {
             accepting: AtomicBool::new(true),
             when_full,
             encoding: options.encoding,
+            capacity: options.capacity.max(1),
             modules: options.modules.clone(),
             offered: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
