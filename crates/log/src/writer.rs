@@ -1030,6 +1030,46 @@ mod tests {
     }
 
     #[test]
+    fn a_waiting_sender_encodes_once_the_writer_falls_behind() {
+        use strata_runtime::{ModuleId, Package};
+        let dir = std::env::temp_dir().join(format!("strata-log-share-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap_or_default();
+        let path = dir.join("share.mcap");
+        let options =
+            McapTapOptions { capacity: 8, when_full: WhenFull::Wait, ..McapTapOptions::default() };
+        let tap = McapTap::create(&path, options).expect("create");
+        // The writer takes the first record and stops: the queue fills past half, and the
+        // later packages are encoded here.
+        tap.gate().set_closed(true);
+        let values: Vec<(u32, String)> = (0..7).map(|i| (i, format!("v{i}"))).collect();
+        for (i, value) in values.iter().enumerate() {
+            let package = Package::new(
+                value.clone(),
+                Time::from_nanos(i as u64 * 1_000_000),
+                i as u64,
+                ModuleId(0),
+            );
+            tap.package(&TapRecord {
+                time: Time::from_nanos(i as u64 * 1_000_000),
+                module: ModuleId(0),
+                module_name: "m",
+                output: "out",
+                type_name: "(u32, String)",
+                package: &package,
+            });
+        }
+        assert!(tap.shared.sender.len() >= 4, "the queue is past half full");
+        tap.gate().set_closed(false);
+        let summary = tap.finish().expect("finish");
+        assert_eq!((summary.messages, summary.dropped), (7, 0));
+        let reader = crate::LogReader::open(&path).expect("open");
+        let read: Vec<(u32, String)> =
+            reader.messages().map(|m| m.expect("ok").decode().expect("decodes")).collect();
+        assert_eq!(read, values);
+        std::fs::remove_dir_all(&dir).unwrap_or_default();
+    }
+
+    #[test]
     fn wait_mode_loses_nothing_through_a_tiny_queue() {
         let dir = std::env::temp_dir().join(format!("strata-log-wait-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap_or_default();
