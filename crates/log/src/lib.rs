@@ -2,8 +2,9 @@
 //!
 //! - [`McapTap`] is a [`strata_runtime::Tap`] that records every package a host delivers into
 //!   an [MCAP](https://mcap.dev) file: one channel per connection writer (`"{module}/{output}"`),
-//!   JSON messages with a JSON Schema per Rust type, so generic tools (Foxglove, the `mcap`
-//!   CLI) open the logs. A bounded background thread writes the file; a full queue drops and
+//!   MessagePack (or JSON) messages with a JSON Schema per Rust type, so generic tools
+//!   (Foxglove, the `mcap` CLI) open the logs. The sending module only clones a package; the
+//!   writer thread encodes it. A bounded background thread writes the file; a full queue drops and
 //!   counts (by default), it never blocks a real-time layer; simulated-time runs can ask it to
 //!   wait instead, for a complete log. The graph description and the run's metadata
 //!   (seed, command line, configuration, version) travel in the file, so a module can be
@@ -46,7 +47,7 @@ pub const CONFIG_ATTACHMENT_PREFIX: &str = "config.";
 /// the package's stamp (when its data was measured), not when it was sent.
 pub const PUBLISH_TIME_KEY: &str = "strata.publish_time";
 
-/// Channel metadata key present on channels whose values are not JSON objects: each message
+/// Channel metadata key present on channels whose values are not maps (objects): each message
 /// is then `{"value": <the value>}` (generic tools expect objects); the key's value names the
 /// field. [`LogReader`] unwraps them.
 pub const WRAPPED_KEY: &str = "strata.wrapped";

@@ -247,22 +247,26 @@ pub struct BehaviorPath {
     pub planning: String,
 }
 
-/// What a reactive report's active path is made of, per multiplexer (whole body, head, body):
-/// compared every reactive cycle, cheaply, instead of formatting the path text each time.
-type PathKey =
-    [(Option<Arc<str>>, Option<std::borrow::Cow<'static, str>>, Option<ResourceGroup>); 3];
+/// What a multiplexer's part of the active path is made of: selected goal, primitive behavior,
+/// inhibiting multiplexer.
+type MuxPathKey = (Option<Arc<str>>, Option<std::borrow::Cow<'static, str>>, Option<ResourceGroup>);
+
+/// The whole body's, the head's and the body's parts: compared every reactive cycle, cheaply,
+/// instead of formatting the path text each time.
+type PathKey = [MuxPathKey; 3];
+
+fn mux_path_key(r: &MuxReport) -> MuxPathKey {
+    (r.selected_goal.clone(), r.primitive.clone(), r.inhibited_by)
+}
 
 fn path_key(report: &ReactiveReport) -> PathKey {
-    let key = |r: &MuxReport| (r.selected_goal.clone(), r.primitive.clone(), r.inhibited_by);
-    [key(&report.whole_body), key(&report.head), key(&report.body)]
+    [mux_path_key(&report.whole_body), mux_path_key(&report.head), mux_path_key(&report.body)]
 }
 
 fn same_path(key: &PathKey, report: &ReactiveReport) -> bool {
-    let same =
-        |k: &(Option<Arc<str>>, Option<std::borrow::Cow<'static, str>>, Option<ResourceGroup>),
-         r: &MuxReport| {
-            k.0 == r.selected_goal && k.1 == r.primitive && k.2 == r.inhibited_by
-        };
+    let same = |k: &MuxPathKey, r: &MuxReport| {
+        k.0 == r.selected_goal && k.1 == r.primitive && k.2 == r.inhibited_by
+    };
     same(&key[0], &report.whole_body) && same(&key[1], &report.head) && same(&key[2], &report.body)
 }
 
