@@ -27,14 +27,7 @@ fn round_trip_keeps_every_package_in_order() {
     assert_eq!(reader.message_count(), summary.messages);
     assert_eq!(reader.file_bytes(), summary.bytes);
 
-    let packages: Vec<_> = reader
-        .messages()
-        .map(|m| m.expect("readable"))
-        .filter(|m| &*m.topic != "sim/ground_truth")
-        .map(|m| (m.topic.to_string(), m.log_time, m.stamp, m.seq, m.data))
-        .collect();
-    assert_eq!(packages.len(), seen.len());
-    assert!(packages == seen, "the log differs from what the tap saw");
+    assert_holds_what_the_tap_saw(&reader, &seen);
 
     let truth: Vec<_> =
         reader.messages_on(["sim/ground_truth"]).map(|m| m.expect("readable")).collect();
@@ -349,6 +342,13 @@ fn packages_encoded_by_a_waiting_sender_read_back_the_same() {
     let (seen, summary) = record_demo(&path, 2.0, options, CONFIG);
     assert_eq!((summary.dropped, summary.serialize_errors), (0, 0));
     let reader = LogReader::open(&path).expect("open");
+    assert_holds_what_the_tap_saw(&reader, &seen);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+/// The log's packages (everything but the ground-truth records) are exactly what the tap saw,
+/// in order.
+fn assert_holds_what_the_tap_saw(reader: &LogReader, seen: &[support::SeenPackage]) {
     let packages: Vec<_> = reader
         .messages()
         .map(|m| m.expect("readable"))
@@ -357,5 +357,4 @@ fn packages_encoded_by_a_waiting_sender_read_back_the_same() {
         .collect();
     assert_eq!(packages.len(), seen.len());
     assert!(packages == seen, "the log differs from what the tap saw");
-    std::fs::remove_dir_all(&dir).unwrap_or_default();
 }

@@ -17,7 +17,7 @@ use strata_robot::command::ResourceGroup;
 use strata_robot::control::reactive::{MuxReport, ReactiveReport};
 use strata_robot::platform::PlatformInfo;
 use strata_robot::world::WorldModelConfig;
-use strata_runtime::{Encoding, ModuleId, Package, Tap, TapRecord, Time};
+use strata_runtime::{Encoding, GraphDescription, ModuleId, Package, Tap, TapRecord, Time};
 use strata_sim::{GameTruth, GroundTruth, SimConfig};
 use strata_soccer::behaviors::{Decision, Output as DeliberativeOutput};
 use strata_soccer::field::TeamField;
@@ -152,6 +152,21 @@ pub fn parse_robots(text: &str, players: u8) -> Result<Vec<String>> {
     Ok(robots)
 }
 
+/// Creates a log and writes what a reader needs besides the packages: the run (seed, command
+/// line, configuration) and the graph. What matches, robots and experiments share.
+pub fn open_run_log(
+    path: &Path,
+    options: McapTapOptions,
+    run: &RunInfo,
+    graph: &GraphDescription,
+) -> Result<Arc<McapTap>> {
+    let tap = McapTap::create(path, options)
+        .with_context(|| format!("creating the log {}", path.display()))?;
+    tap.write_run_info(run)?;
+    tap.write_graph("", graph)?;
+    Ok(Arc::new(tap))
+}
+
 /// A match's log: an [`McapTap`] and the tap in front of it.
 pub struct MatchLog {
     tap: Arc<McapTap>,
@@ -187,16 +202,10 @@ impl MatchLog {
             encoding: settings.encoding,
             ..McapTapOptions::default()
         };
-        let tap = Arc::new(
-            McapTap::create(&settings.path, options)
-                .with_context(|| format!("creating the log {}", settings.path.display()))?,
-        );
         let config = serde_json::to_string_pretty(&RunConfig::of(game))
             .context("serializing the match configuration")?;
-        tap.write_run_info(
-            &RunInfo::current(game.config.seed).with_config(ConfigFormat::Json, config),
-        )?;
-        tap.write_graph("", &graph)?;
+        let run = RunInfo::current(game.config.seed).with_config(ConfigFormat::Json, config);
+        let tap = open_run_log(&settings.path, options, &run, &graph)?;
         let robots: Vec<String> = game.robots.iter().map(|(id, _)| robot_name(*id)).collect();
         let chosen =
             |name: &str| settings.robots.is_empty() || settings.robots.iter().any(|r| r == name);

@@ -24,6 +24,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::{Args, ValueEnum};
 use serde::Serialize;
 use strata::links::{self, Counted, LinkCounters, LinkStats, NetConfig, Prefetched};
+use strata::logging::open_run_log;
 use strata::matches::LayerRate;
 use strata_log::{ConfigFormat, LogCompression, McapTap, McapTapOptions, RunInfo, WhenFull};
 use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
@@ -423,13 +424,10 @@ fn open_log(
         encoding: args.log_encoding,
         ..McapTapOptions::default()
     };
-    let tap = McapTap::create(path, options)
-        .with_context(|| format!("creating the log {}", path.display()))?;
     let config =
         serde_json::to_string_pretty(config).context("serializing the team configuration")?;
-    tap.write_run_info(&RunInfo::current(seed).with_config(ConfigFormat::Json, config))?;
-    tap.write_graph("", &graph.describe())?;
-    Ok(Arc::new(tap))
+    let run = RunInfo::current(seed).with_config(ConfigFormat::Json, config);
+    open_run_log(path, options, &run, &graph.describe())
 }
 
 fn validate(args: &RobotArgs) -> Result<()> {

@@ -40,6 +40,7 @@ use strata_sim::{GameState, NoiseLevel, RobotId, SimConfig, SimHandle, Simulatio
 use strata_soccer::field::TeamField;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
 
+use crate::logging::open_run_log;
 use crate::matches::robot_name;
 use strata_log::{ConfigFormat, McapTap, McapTapOptions, RunInfo, WhenFull};
 
@@ -568,13 +569,9 @@ impl ExperimentLog {
             },
             ..McapTapOptions::default()
         };
-        let tap = McapTap::create(&self.path, options)
-            .with_context(|| format!("creating the log {}", self.path.display()))?;
-        tap.write_run_info(
-            &RunInfo::current(seed).with_config(ConfigFormat::Toml, self.scenario_text.clone()),
-        )?;
-        tap.write_graph("", &graph.describe())?;
-        Ok(Arc::new(tap))
+        let run =
+            RunInfo::current(seed).with_config(ConfigFormat::Toml, self.scenario_text.clone());
+        open_run_log(&self.path, options, &run, &graph.describe())
     }
 }
 
