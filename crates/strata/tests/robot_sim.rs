@@ -180,5 +180,20 @@ fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
     let graphs = reader.graphs().expect("graphs");
     assert_eq!(graphs.len(), 1);
     assert_eq!(graphs[0].description.modules.len(), 6);
+
+    // The viewer shows a robot's log too: no ground truth, the robot where it believes it is.
+    let view = strata::view::load_log(&path).expect("the viewer opens the log");
+    let info = loop {
+        let info = view.read().unwrap_or_else(std::sync::PoisonError::into_inner).info();
+        if !info.growing {
+            break info;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    assert_eq!(info.robots, vec!["t10/3".to_owned()], "{:?}", info.warnings);
+    assert!(info.end > info.start, "a timeline: {} .. {}", info.start, info.end);
+    assert!(!info.warnings.iter().any(|w| w.contains("could not be read")), "{:?}", info.warnings);
+    let frame = view.read().unwrap_or_else(std::sync::PoisonError::into_inner).frame(None);
+    assert!(frame.robots[0].estimate.is_some(), "the robot's estimated pose is drawn");
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }

@@ -44,11 +44,13 @@ fn classify(topic: &str) -> Option<(Option<&str>, Kind)> {
     Some((Some(robot), kind))
 }
 
-/// `home/3/world/world_state` -> (`home/3`, `world/world_state`).
+/// `home/3/world/world_state` -> (`home/3`, `world/world_state`). A robot's own log (`strata
+/// robot --log`) names its modules by team number: `t10/3/world/world_state`.
 fn split_robot(topic: &str) -> Option<(&str, &str)> {
     let team_end = topic.find('/')?;
     let team = &topic[..team_end];
-    if team != "home" && team != "away" {
+    let team_number = team.strip_prefix('t').is_some_and(|n| n.parse::<u8>().is_ok());
+    if team != "home" && team != "away" && !team_number {
         return None;
     }
     let player_end = team_end + 1 + topic[team_end + 1..].find('/')?;
@@ -464,6 +466,9 @@ pub struct ViewData {
     info: ViewInfo,
     truth: Vec<TruthSample>,
     robots: Vec<RobotSeries>,
+    /// The times of the robots' own packages: the timeline of a log without ground truth (a
+    /// robot's own log).
+    estimates_span: Option<(f64, f64)>,
     /// Packages that could not be read, by topic.
     unreadable: BTreeMap<String, u64>,
 }
@@ -487,6 +492,7 @@ impl ViewData {
             },
             truth: Vec::new(),
             robots: Vec::new(),
+            estimates_span: None,
             unreadable: BTreeMap::new(),
         }
     }
@@ -600,6 +606,12 @@ impl ViewData {
         };
         if !ok {
             *self.unreadable.entry(topic.to_owned()).or_default() += 1;
+        } else if robot.is_some() {
+            let (start, end) = self.estimates_span.get_or_insert((t, t));
+            (*start, *end) = (start.min(t), end.max(t));
+            if self.truth.is_empty() {
+                (self.info.start, self.info.end) = (*start, *end);
+            }
         }
     }
 
@@ -622,6 +634,7 @@ impl ViewData {
         }
         if self.truth.is_empty() {
             self.info.start = t;
+            self.info.end = t;
         }
         self.info.end = self.info.end.max(t);
         self.truth.push(TruthSample { t, game: truth.game, ball: truth.ball.position, robots });
@@ -851,6 +864,38 @@ mod tests {
         assert_eq!(classify("visitors/3/world/world_state"), None);
         assert_eq!(classify("home/x/world/world_state"), None);
         assert_eq!(classify("home"), None);
+        assert_eq!(classify("t10/3/world/world_state"), Some((Some("t10/3"), Kind::World)));
+        assert_eq!(classify("t/3/world/world_state"), None);
+        assert_eq!(classify("tx/3/world/world_state"), None);
+    }
+
+    /// A robot's own log has no ground truth: the timeline follows the robot's packages and the
+    /// robot is drawn where it believes it is.
+    #[test]
+    fn a_robot_log_without_ground_truth_is_shown_from_its_estimates() {
+        let field = Field::preset("spl").unwrap_or_else(|e| panic!("{e}"));
+        let mut data = ViewData::new("log", None, &field);
+        for (t, x) in [(2.0, -1.0), (3.5, 0.5)] {
+            let world = serde_json::json!({
+                "pose": { "pose": { "x": x, "y": 1.0, "theta": 0.0 }, "confidence": 0.8, "lost": false },
+                "objects": [{ "name": "ball", "group": "ball", "field_position": { "x": 2.0, "y": 0.0 },
+                              "confidence": 0.9, "known": true }],
+                "team": [],
+            });
+            let bytes = serde_json::to_vec(&world).unwrap_or_else(|e| panic!("{e}"));
+            data.ingest("t10/3/world/world_state", Time::from_secs_f64(t), Encoding::Json, &bytes);
+        }
+        let info = data.info();
+        assert!(info.warnings.is_empty(), "{:?}", info.warnings);
+        assert_eq!((info.start, info.end), (2.0, 3.5));
+        assert_eq!(info.robots, vec!["t10/3".to_owned()]);
+        let frame = data.frame(Some(3.0));
+        let robot = &frame.robots[0];
+        assert!(robot.pose.is_none(), "no ground truth");
+        assert_eq!(robot.estimate.map(|p| (p.x, p.y)), Some((-1.0, 1.0)));
+        assert_eq!(robot.ball.map(|b| (b.x, b.y)), Some((2.0, 0.0)));
+        let later = data.frame(None);
+        assert_eq!(later.robots[0].estimate.map(|p| p.x), Some(0.5));
     }
 
     #[test]

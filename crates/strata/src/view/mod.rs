@@ -49,7 +49,8 @@ pub fn load_log(path: &Path) -> Result<Arc<RwLock<ViewData>>> {
             data.set_camera(run.platform.camera_fov, run.platform.camera_range);
         }
         None => data.warn(
-            "the log holds no match configuration: the SPL field and default camera are shown"
+            "the log holds no match configuration (a robot's own log has none): the SPL field \
+             and the default camera are shown, robots where they believe they are"
                 .to_owned(),
         ),
     }
