@@ -61,6 +61,25 @@ pub struct RunConfig {
     pub attack_sign: [f64; 2],
 }
 
+/// The configuration a robot's own log (`strata robot --log`) holds: what its replayable
+/// modules are rebuilt from (`strata replay FILE --robot t10/3`), as [`RunConfig`] is for a
+/// match's log.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RobotRunConfig {
+    /// The robot's module prefix, `t<team number>/<player>`.
+    pub robot: String,
+    /// The team configuration, defaults filled in.
+    pub team: TeamConfig,
+    /// The world model's configuration, as the robot built it from its field.
+    pub world: WorldModelConfig,
+    pub field: FieldDimensions,
+    /// +1 when the robot's team attacked +x (from the GameController, `--attack-sign` or the
+    /// default).
+    pub attack_sign: f64,
+    /// What the robot's platform reported (camera field of view and range, head limits).
+    pub platform: PlatformInfo,
+}
+
 /// One world-model configuration per team.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TeamWorldConfigs {

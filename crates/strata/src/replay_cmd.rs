@@ -34,6 +34,10 @@ pub struct ReplayArgs {
     /// How many differences to describe.
     #[arg(long, default_value_t = 10)]
     pub max_differences: usize,
+    /// Do not compare publication times (values, stamps and sequence numbers still are). On by
+    /// itself for a robot's own log, which was recorded in real time.
+    #[arg(long)]
+    pub ignore_time: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -54,6 +58,14 @@ pub fn run(args: ReplayArgs, registry: &ModuleRegistry) -> Result<()> {
             recovery.messages
         );
     }
+    // `strata robot --log` stores the robot's configuration under `robot`; a match's does not.
+    let real_time_log = reader.config().ok().flatten().is_some_and(|c| c.get("robot").is_some());
+    if real_time_log && !args.ignore_time {
+        eprintln!(
+            "note: a robot's log was recorded in real time: publication times are not compared \
+             (values, stamps and sequence numbers are)"
+        );
+    }
     let options = ReplayOptions {
         robot: args.robot,
         modules: args.modules,
@@ -61,6 +73,7 @@ pub fn run(args: ReplayArgs, registry: &ModuleRegistry) -> Result<()> {
         seed: args.seed,
         until: args.until.map(Time::from_secs_f64),
         max_differences: args.max_differences,
+        ignore_time: args.ignore_time || real_time_log,
     };
     let report = replay(&reader, registry, &options)?;
     if args.json {

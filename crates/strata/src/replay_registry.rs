@@ -1,6 +1,7 @@
 //! The soccer robot's modules for `strata replay`: how to rebuild each replayable module of a
-//! logged match from the run's configuration (`logging::RunConfig`, stored in the log, with the
-//! `--set` overrides applied).
+//! logged match or robot from the run's configuration (`logging::RunConfig` of a match,
+//! `logging::RobotRunConfig` of `strata robot --log`, stored in the log, with the `--set`
+//! overrides applied).
 //!
 //! | module | replayable | why |
 //! |---|---|---|
@@ -58,7 +59,7 @@ pub fn soccer() -> ModuleRegistry {
     let mut registry = ModuleRegistry::new();
     registry.register("world", |graph, spec| {
         let robot = Robot::of(spec)?;
-        let world: WorldModelConfig = robot.get(&["world", robot.team])?;
+        let world = robot.world_config()?;
         let timing = robot.timing()?;
         add_world_module(graph, spec.name, world)?;
         graph.set_processing_time(spec.name, processing(&timing.world));
@@ -148,29 +149,50 @@ fn period(timing: &LayerTiming, default_hz: f64) -> Duration {
 /// The robot a module belongs to, and the run configuration it is rebuilt from.
 struct Robot<'a> {
     name: &'a str,
-    /// `home` or `away`.
-    team: &'static str,
+    layout: Layout,
     player: u8,
     config: &'a Value,
 }
 
+/// Where a robot's configuration sits in the logged one.
+#[derive(Clone, Copy)]
+enum Layout {
+    /// A match's log ([`RunConfig`]): per team, `home` or `away`.
+    Match { team: &'static str },
+    /// A robot's own log ([`crate::logging::RobotRunConfig`]).
+    Robot,
+}
+
 impl<'a> Robot<'a> {
     fn of(spec: &ModuleSpec<'a>) -> Result<Robot<'a>, BuildError> {
+        const NAMES: &str = "expected home/N or away/N (a match's log) or tT/N (a robot's log)";
         let name = spec.robot.ok_or("give the robot whose module to replay (--robot home/3)")?;
-        let team = RunConfig::team_of(name)
-            .ok_or_else(|| format!("robot `{name}`: expected home/N or away/N"))?;
         let player = name
             .rsplit('/')
             .next()
             .and_then(|p| p.parse().ok())
-            .ok_or_else(|| format!("robot `{name}`: expected home/N or away/N"))?;
+            .ok_or_else(|| format!("robot `{name}`: {NAMES}"))?;
         if spec.config.as_object().is_none_or(|c| c.is_empty()) {
-            return Err(
-                "the log holds no match configuration (it was not written by `strata match --log`)"
-                    .into(),
-            );
+            return Err("the log holds no configuration to rebuild the robot's modules from \
+                        (it was not written by `strata match --log` or `strata robot --log`)"
+                .into());
         }
-        Ok(Robot { name, team, player, config: spec.config })
+        let layout = match RunConfig::team_of(name) {
+            Some(team) => Layout::Match { team },
+            None if name.starts_with('t') => {
+                let logged: Option<&str> = spec.config.get("robot").and_then(Value::as_str);
+                if logged != Some(name) {
+                    return Err(format!(
+                        "robot `{name}` is not in this log (it is {})",
+                        logged.map_or("a match's log".to_owned(), |r| format!("robot {r}'s log"))
+                    )
+                    .into());
+                }
+                Layout::Robot
+            }
+            None => return Err(format!("robot `{name}`: {NAMES}").into()),
+        };
+        Ok(Robot { name, layout, player, config: spec.config })
     }
 
     /// The value at `path` of the run configuration.
@@ -187,9 +209,20 @@ impl<'a> Robot<'a> {
     }
 
     fn team_config(&self) -> Result<TeamConfig, BuildError> {
-        let config: TeamConfig = self.get(&[self.team])?;
-        config.validate(&format!("the logged team `{}` of {}", self.team, self.name))?;
+        let (path, team) = match self.layout {
+            Layout::Match { team } => (team, team),
+            Layout::Robot => ("team", "of the robot"),
+        };
+        let config: TeamConfig = self.get(&[path])?;
+        config.validate(&format!("the logged team `{team}` of {}", self.name))?;
         Ok(config)
+    }
+
+    fn world_config(&self) -> Result<WorldModelConfig, BuildError> {
+        match self.layout {
+            Layout::Match { team } => self.get(&["world", team]),
+            Layout::Robot => self.get(&["world"]),
+        }
     }
 
     fn timing(&self) -> Result<RobotTiming, BuildError> {
@@ -200,8 +233,13 @@ impl<'a> Robot<'a> {
     fn team_field(&self) -> Result<Arc<TeamField>, BuildError> {
         let dimensions: FieldDimensions = self.get(&["field"])?;
         let field = Field::new(dimensions, "the logged field")?;
-        let signs: [f64; 2] = self.get(&["attack_sign"])?;
-        let sign = if self.team == "home" { signs[0] } else { signs[1] };
+        let sign = match self.layout {
+            Layout::Match { team } => {
+                let signs: [f64; 2] = self.get(&["attack_sign"])?;
+                if team == "home" { signs[0] } else { signs[1] }
+            }
+            Layout::Robot => self.get(&["attack_sign"])?,
+        };
         Ok(Arc::new(TeamField::new(field, sign)))
     }
 }

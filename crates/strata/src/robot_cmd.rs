@@ -24,7 +24,7 @@ use anyhow::{Context as _, Result, bail};
 use clap::{Args, ValueEnum};
 use serde::Serialize;
 use strata::links::{self, Counted, LinkCounters, LinkStats, NetConfig, Prefetched};
-use strata::logging::open_run_log;
+use strata::logging::{RobotRunConfig, open_run_log};
 use strata::matches::LayerRate;
 use strata_log::{ConfigFormat, LogCompression, McapTap, McapTapOptions, RunInfo, WhenFull};
 use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
@@ -41,6 +41,7 @@ use strata_soccer::behaviors::Decision;
 use strata_soccer::field::TeamField;
 use strata_soccer::game::GameDirective;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
+use strata_soccer::world_config::world_config;
 use strata_spl::Field;
 use strata_spl::gamecontroller::GameControlData;
 
@@ -250,7 +251,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
         name: format!("t{}/{}", args.team, args.player),
         team_number: args.team,
         player: args.player,
-        field: team_field,
+        field: Arc::clone(&team_field),
         platform: Arc::clone(&platform.shared),
         team_link: Some(team_link),
         game_controller: Some(gc_link),
@@ -266,7 +267,17 @@ pub fn run(args: RobotArgs) -> Result<()> {
         ..HostConfig::with_seed(seed)
     };
     let log = match &args.log {
-        Some(path) => Some(open_log(path, &args, seed, &config, &graph)?),
+        Some(path) => {
+            let run_config = RobotRunConfig {
+                robot: format!("t{}/{}", args.team, args.player),
+                team: config.clone(),
+                world: world_config(&team_field),
+                field: team_field.field.dimensions().clone(),
+                attack_sign,
+                platform: info.clone(),
+            };
+            Some(open_log(path, &args, seed, &run_config, &graph)?)
+        }
         None => None,
     };
     let mut host = ThreadedHost::new(graph, host_config);
@@ -409,12 +420,12 @@ pub fn run(args: RobotArgs) -> Result<()> {
 }
 
 /// Creates the robot's log and writes what a reader needs besides the packages: the run (seed,
-/// command line, the team configuration with defaults filled in) and the graph.
+/// command line, the configuration its modules are rebuilt from) and the graph.
 fn open_log(
     path: &std::path::Path,
     args: &RobotArgs,
     seed: u64,
-    config: &TeamConfig,
+    config: &RobotRunConfig,
     graph: &strata_runtime::Graph,
 ) -> Result<Arc<McapTap>> {
     let options = McapTapOptions {
@@ -425,7 +436,7 @@ fn open_log(
         ..McapTapOptions::default()
     };
     let config =
-        serde_json::to_string_pretty(config).context("serializing the team configuration")?;
+        serde_json::to_string_pretty(config).context("serializing the robot's configuration")?;
     let run = RunInfo::current(seed).with_config(ConfigFormat::Json, config);
     open_run_log(path, options, &run, &graph.describe())
 }

@@ -195,5 +195,26 @@ fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
     assert!(!info.warnings.iter().any(|w| w.contains("could not be read")), "{:?}", info.warnings);
     let frame = view.read().unwrap_or_else(std::sync::PoisonError::into_inner).frame(None);
     assert!(frame.robots[0].estimate.is_some(), "the robot's estimated pose is drawn");
+
+    // Replay rebuilds the robot's world model from the configuration in its log. How cycles
+    // batched percepts in real time decides how many packages match, so only that the
+    // comparison ran, without publication times, is asserted here.
+    let options = strata_log::replay::ReplayOptions {
+        robot: Some("t10/3".to_owned()),
+        modules: vec!["world".to_owned()],
+        max_differences: 5,
+        ignore_time: true,
+        ..strata_log::replay::ReplayOptions::default()
+    };
+    let report = strata_log::replay::replay(&reader, &strata::replay_registry::soccer(), &options)
+        .expect("the robot's world model replays from its log");
+    let world = &report.outputs[0];
+    assert_eq!(world.topic, "t10/3/world/world_state");
+    assert!(world.logged > 0 && world.replayed > 0, "{world:?}");
+    assert!(
+        report.differences.iter().all(|d| d.details.iter().all(|x| !x.starts_with("time:"))),
+        "{:?}",
+        report.differences
+    );
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
