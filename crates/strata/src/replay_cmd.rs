@@ -58,11 +58,14 @@ pub fn run(args: ReplayArgs, registry: &ModuleRegistry) -> Result<()> {
             recovery.messages
         );
     }
-    // `strata robot --log` stores the robot's configuration under `robot`; a match's does not.
-    let real_time_log = reader.config().ok().flatten().is_some_and(|c| c.get("robot").is_some());
+    // `strata robot --log` stores the robot's configuration under `robot`, an experiment the
+    // host it ran on; a match runs on the lockstep host.
+    let real_time_log = reader.config().ok().flatten().is_some_and(|c| {
+        c.get("robot").is_some() || c.get("host").and_then(|h| h.as_str()) == Some("threaded")
+    });
     if real_time_log && !args.ignore_time {
         eprintln!(
-            "note: a robot's log was recorded in real time: publication times are not compared \
+            "note: the log was recorded in real time: publication times are not compared \
              (values, stamps and sequence numbers are)"
         );
     }

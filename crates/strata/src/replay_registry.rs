@@ -1,7 +1,7 @@
 //! The soccer robot's modules for `strata replay`: how to rebuild each replayable module of a
-//! logged match or robot from the run's configuration (`logging::RunConfig` of a match,
-//! `logging::RobotRunConfig` of `strata robot --log`, stored in the log, with the `--set`
-//! overrides applied).
+//! logged match, robot or experiment from the run's configuration (`logging::RunConfig` of a
+//! match, `logging::RobotRunConfig` of `strata robot --log`, one per robot in
+//! `experiments::ExperimentRunConfig`; stored in the log, with the `--set` overrides applied).
 //!
 //! | module | replayable | why |
 //! |---|---|---|
@@ -159,7 +159,8 @@ struct Robot<'a> {
 enum Layout {
     /// A match's log ([`RunConfig`]): per team, `home` or `away`.
     Match { team: &'static str },
-    /// A robot's own log ([`crate::logging::RobotRunConfig`]).
+    /// A robot's own log ([`crate::logging::RobotRunConfig`]), or one robot's entry in an
+    /// experiment's log.
     Robot,
 }
 
@@ -176,6 +177,18 @@ impl<'a> Robot<'a> {
             return Err("the log holds no configuration to rebuild the robot's modules from \
                         (it was not written by `strata match --log` or `strata robot --log`)"
                 .into());
+        }
+        // An experiment's log keeps each robot's configuration under `robots`, laid out as a
+        // robot's own log keeps its one.
+        if let Some(robots) = spec.config.get("robots").and_then(Value::as_object) {
+            let config = robots.get(name).ok_or_else(|| {
+                let names: Vec<&str> = robots.keys().map(String::as_str).collect();
+                format!(
+                    "robot `{name}` is not in this experiment's log; it has {}",
+                    names.join(", ")
+                )
+            })?;
+            return Ok(Robot { name, layout: Layout::Robot, player, config });
         }
         let layout = match RunConfig::team_of(name) {
             Some(team) => Layout::Match { team },

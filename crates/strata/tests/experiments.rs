@@ -444,6 +444,28 @@ fn an_experiments_first_run_can_be_logged() {
     assert_eq!(reader.run_info().expect("run info").map(|r| r.seed), Some(3));
     let world = reader.topic("home/1/world/world_state").expect("the keeper's world state");
     assert!(world.messages > 0);
+    // The log holds what the keeper was built from: its layers replay exactly (lockstep).
+    let registry = strata::replay_registry::soccer();
+    for module in ["world", "deliberative", "reactive"] {
+        let replay = strata_log::replay::ReplayOptions {
+            robot: Some("home/1".to_owned()),
+            modules: vec![module.to_owned()],
+            max_differences: 3,
+            ..strata_log::replay::ReplayOptions::default()
+        };
+        let report = strata_log::replay::replay(&reader, &registry, &replay)
+            .unwrap_or_else(|e| panic!("{module} replays: {e}"));
+        assert!(report.identical(), "{module}: {report}");
+        assert!(report.outputs.iter().all(|o| o.logged > 0), "{module}: {:?}", report.outputs);
+    }
+    let absent = strata_log::replay::ReplayOptions {
+        robot: Some("home/4".to_owned()),
+        modules: vec!["world".to_owned()],
+        ..strata_log::replay::ReplayOptions::default()
+    };
+    let error =
+        strata_log::replay::replay(&reader, &registry, &absent).err().map(|e| e.to_string());
+    assert!(error.as_deref().is_some_and(|e| e.contains("home/4")), "{error:?}");
 
     let team = write(
         &dir,

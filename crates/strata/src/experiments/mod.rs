@@ -22,6 +22,7 @@ pub mod report;
 pub mod stats;
 pub mod team;
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -39,8 +40,9 @@ use strata_runtime::{
 use strata_sim::{GameState, NoiseLevel, RobotId, SimConfig, SimHandle, Simulation, add_simulator};
 use strata_soccer::field::TeamField;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
+use strata_soccer::world_config::world_config;
 
-use crate::logging::open_run_log;
+use crate::logging::{RobotRunConfig, open_run_log};
 use crate::matches::robot_name;
 use strata_log::{ConfigFormat, McapTap, McapTapOptions, RunInfo, WhenFull};
 
@@ -543,6 +545,8 @@ pub struct Scene {
     pub field: Arc<TeamField>,
     /// Where to record the run, if it is the one `--log` asked for.
     pub log: Option<ExperimentLog>,
+    /// What each robot was built from, by name: stored in the log for replay.
+    robot_configs: BTreeMap<String, RobotRunConfig>,
 }
 
 /// `--log` of an experiment: the file, and the scenario (TOML) stored with the run.
@@ -552,6 +556,18 @@ pub struct ExperimentLog {
     pub scenario_text: String,
 }
 
+/// The configuration an experiment's log holds (JSON): the scenario as it was given, and what
+/// each robot's modules were built from, so that `strata replay` can rebuild them.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct ExperimentRunConfig {
+    /// The scenario file's text (TOML).
+    pub scenario: String,
+    /// The host the run was on: a threaded run's publication times are the CPU's.
+    pub host: HostKind,
+    /// By robot name (`home/1`).
+    pub robots: BTreeMap<String, RobotRunConfig>,
+}
+
 impl ExperimentLog {
     /// The log for job `index` of a run of `ctx`: only the first job is recorded.
     pub fn for_job(ctx: &Ctx<'_>, index: usize) -> Option<ExperimentLog> {
@@ -559,8 +575,14 @@ impl ExperimentLog {
         Some(ExperimentLog { path: path.clone(), scenario_text: ctx.scenario_text.clone() })
     }
 
-    /// Creates the file with the run (seed, command line, scenario) and the graph.
-    fn create(&self, graph: &Graph, kind: HostKind, seed: u64) -> Result<Arc<McapTap>> {
+    /// Creates the file with the run (seed, command line, scenario and robots) and the graph.
+    fn create(
+        &self,
+        graph: &Graph,
+        kind: HostKind,
+        seed: u64,
+        robots: &BTreeMap<String, RobotRunConfig>,
+    ) -> Result<Arc<McapTap>> {
         let options = McapTapOptions {
             // Simulated time waits for the disk (a complete log); real time never does.
             when_full: match kind {
@@ -569,8 +591,14 @@ impl ExperimentLog {
             },
             ..McapTapOptions::default()
         };
-        let run =
-            RunInfo::current(seed).with_config(ConfigFormat::Toml, self.scenario_text.clone());
+        let config = ExperimentRunConfig {
+            scenario: self.scenario_text.clone(),
+            host: kind,
+            robots: robots.clone(),
+        };
+        let config = serde_json::to_string_pretty(&config)
+            .context("serializing the experiment's configuration")?;
+        let run = RunInfo::current(seed).with_config(ConfigFormat::Json, config);
         open_run_log(&self.path, options, &run, &graph.describe())
     }
 }
@@ -622,8 +650,21 @@ impl Scene {
         let mut graph = GraphBuilder::new();
         add_simulator(&mut graph, sim.clone());
         let mut added = Vec::new();
+        let mut robot_configs = BTreeMap::new();
+        let platform = sim.lock().platform_info();
         for robot in robots {
             let id = RobotId::new(0, robot.player);
+            robot_configs.insert(
+                robot_name(id),
+                RobotRunConfig {
+                    robot: robot_name(id),
+                    team: robot.team.clone(),
+                    world: world_config(&team_field),
+                    field: team_field.field.dimensions().clone(),
+                    attack_sign,
+                    platform: platform.clone(),
+                },
+            );
             let spec = SoccerRobotSpec {
                 name: robot_name(id),
                 team_number,
@@ -639,14 +680,21 @@ impl Scene {
             added.push((id, modules));
         }
         let graph = graph.build().context("wiring the experiment")?;
-        Ok(Scene { sim, graph: Some(graph), robots: added, field: team_field, log: None })
+        Ok(Scene {
+            sim,
+            graph: Some(graph),
+            robots: added,
+            field: team_field,
+            log: None,
+            robot_configs,
+        })
     }
 
     /// Starts a host over the scene's graph.
     pub fn host(&mut self, kind: HostKind, seed: u64, tap: Arc<dyn Tap>) -> Result<Host> {
         let graph = self.graph.take().context("the scene's graph was already taken")?;
         let log = match &self.log {
-            Some(log) => Some(log.create(&graph, kind, seed)?),
+            Some(log) => Some(log.create(&graph, kind, seed, &self.robot_configs)?),
             None => None,
         };
         let tap: Arc<dyn Tap> = match &log {
