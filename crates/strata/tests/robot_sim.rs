@@ -191,6 +191,11 @@ fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
         std::thread::sleep(std::time::Duration::from_millis(20));
     };
     assert_eq!(info.robots, vec!["t10/3".to_owned()], "{:?}", info.warnings);
+    assert!(
+        info.warnings.is_empty(),
+        "the field and camera come from the log: {:?}",
+        info.warnings
+    );
     assert!(info.end > info.start, "a timeline: {} .. {}", info.start, info.end);
     assert!(!info.warnings.iter().any(|w| w.contains("could not be read")), "{:?}", info.warnings);
     let frame = view.read().unwrap_or_else(std::sync::PoisonError::into_inner).frame(None);

@@ -21,7 +21,7 @@ use strata_log::LogReader;
 use strata_runtime::{Encoding, Tap, TapRecord, Time};
 use strata_spl::field::Field;
 
-use crate::logging::RunConfig;
+use crate::logging::{RobotRunConfig, RunConfig};
 use crate::matches::Match;
 use data::ViewData;
 pub use server::ViewServer;
@@ -35,22 +35,37 @@ const LOAD_BATCH: usize = 2000;
 pub fn load_log(path: &Path) -> Result<Arc<RwLock<ViewData>>> {
     let reader = LogReader::open(path).with_context(|| format!("opening {}", path.display()))?;
     let config = reader.config().ok().flatten();
+    // A robot's own log holds one robot's configuration, an experiment's one per robot: either
+    // gives the field and the camera a match's configuration would.
+    let robot: Option<RobotRunConfig> = config.as_ref().and_then(|c| {
+        let one = c.get("robots").and_then(|r| r.as_object()?.values().next()).unwrap_or(c);
+        serde_json::from_value(one.clone()).ok()
+    });
     let run: Option<RunConfig> = config.and_then(|c| serde_json::from_value(c).ok());
-    let field = match &run {
-        Some(run) => Field::new(run.field.clone(), "the logged field")
-            .context("the log's field cannot be used")?,
+    let dimensions = match (&run, &robot) {
+        (Some(run), _) => Some(run.field.clone()),
+        (None, Some(robot)) => Some(robot.field.clone()),
+        (None, None) => None,
+    };
+    let field = match dimensions {
+        Some(dimensions) => {
+            Field::new(dimensions, "the logged field").context("the log's field cannot be used")?
+        }
         None => Field::preset("spl").context("the built-in SPL field")?,
     };
     let mut data = ViewData::new("log", Some(path.display().to_string()), &field);
     data.set_seed(reader.run_info().ok().flatten().map(|r| r.seed));
-    match &run {
-        Some(run) => {
+    match (&run, &robot) {
+        (Some(run), _) => {
             data.set_teams([run.home.name.clone(), run.away.name.clone()]);
             data.set_camera(run.platform.camera_fov, run.platform.camera_range);
         }
-        None => data.warn(
-            "the log holds no match configuration (a robot's own log has none): the SPL field \
-             and the default camera are shown, robots where they believe they are"
+        (None, Some(robot)) => {
+            data.set_teams([robot.team.name.clone(), String::new()]);
+            data.set_camera(robot.platform.camera_fov, robot.platform.camera_range);
+        }
+        (None, None) => data.warn(
+            "the log holds no configuration: the SPL field and the default camera are shown"
                 .to_owned(),
         ),
     }
