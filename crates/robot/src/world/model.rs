@@ -14,11 +14,9 @@ use super::config::{
 };
 use super::expected::{BeliefView, ExpectedBelief, ObjectPrior, SensingCandidate};
 use super::math::{
-    Innovation, RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius, symmetrize2,
+    RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius, symmetrize2,
 };
-use super::object::{
-    GainedInformation, MotionModel, ObjectFilter, cartesian_innovation, innovation_at,
-};
+use super::object::{GainedInformation, MotionModel, ObjectFilter, innovation_at};
 use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
 use super::pose::PoseFilter;
 use super::recovery::{MapInstance, RecoveryInput, RecoveryOutcome, Sighting, TeamCue, recover};
@@ -124,10 +122,27 @@ enum Assignment {
 /// A position estimate (robot frame) and its covariance.
 type Gaussian2 = (Vector2<f64>, Matrix2<f64>);
 
+/// One observation of an image, ready for association: the group that accepts it, and the
+/// measured point with its noise in the robot frame. Converted from range and bearing once per
+/// image: gating, the update, a new track and the pose filter all use the same conversion
+/// (each costs a sine and cosine of the bearing).
+#[derive(Clone, Copy, Debug)]
+struct Measured {
+    group: usize,
+    position: Vector2<f64>,
+    noise: Matrix2<f64>,
+}
+
+impl Measured {
+    fn gained(&self) -> GainedInformation {
+        GainedInformation { position: self.position, covariance: self.noise }
+    }
+}
+
 /// Buffers reused from frame to frame (no allocation in the steady state).
 #[derive(Clone, Debug, Default)]
 struct Scratch {
-    measurements: Vec<Option<(RangeBearing, usize)>>,
+    measurements: Vec<Option<Measured>>,
     /// (cost, observation, slot) of every gated candidate.
     pairs: Vec<(f64, usize, usize)>,
     observation_done: Vec<Assignment>,
@@ -548,8 +563,8 @@ impl WorldModel {
                 scratch.measurements.push(None);
                 continue;
             };
-            scratch.measurements.push(Some((z, group)));
             let (measured, noise) = (z.cartesian(), z.cartesian_noise());
+            scratch.measurements.push(Some(Measured { group, position: measured, noise }));
             for g in self.groups.iter().filter(|g| g.accepts(obs)) {
                 for slot in g.slots.clone() {
                     let prior = *scratch.priors[slot]
@@ -587,34 +602,33 @@ impl WorldModel {
             }
             scratch.observation_done[i] = Assignment::Taken;
             scratch.slot_taken[slot] = true;
-            if let Some((z, _)) = scratch.measurements[i] {
-                self.associate(slot, &z, now);
+            if let Some(m) = scratch.measurements[i] {
+                self.associate(slot, &m, now);
             }
         }
         for (i, m) in scratch.measurements.iter().enumerate() {
-            let Some((z, group)) = m else { continue };
+            let Some(m) = m else { continue };
             match scratch.observation_done[i] {
                 Assignment::Taken => {}
                 Assignment::Ambiguous(g) => {
                     self.diagnostics.ambiguous += 1;
-                    self.reject(g, z, now);
+                    self.reject(g, m, now);
                 }
-                Assignment::Open => self.reject(*group, z, now),
+                Assignment::Open => self.reject(m.group, m, now),
             }
         }
         self.scratch = scratch;
     }
 
-    fn associate(&mut self, slot: usize, z: &RangeBearing, now: Time) {
+    fn associate(&mut self, slot: usize, m: &Measured, now: Time) {
         let group = &self.groups[self.slots[slot].group];
         let (model, velocity_sigma, landmark) =
             (group.model, group.velocity_sigma, group.category == ObjectCategory::Landmark);
         let k = self.config.confidence;
         match &mut self.slots[slot].track {
             Some(track) => {
-                // Converted once for the gate, the update and the pose filter.
-                let (measured, noise) = (z.cartesian(), z.cartesian_noise());
-                let gained = GainedInformation { position: measured, covariance: noise };
+                let (measured, noise) = (m.position, m.noise);
+                let gained = m.gained();
                 let Some(innovation) = innovation_at(
                     track.filter.position_vector(),
                     &track.filter.position_covariance(),
@@ -657,16 +671,9 @@ impl WorldModel {
                 }
             }
             None => {
-                self.start_track(slot, z, now, model, velocity_sigma);
+                self.start_track(slot, m, now, model, velocity_sigma);
                 if landmark {
-                    self.frame_gains.push(FrameGain {
-                        slot,
-                        gained: GainedInformation {
-                            position: z.cartesian(),
-                            covariance: z.cartesian_noise(),
-                        },
-                        prior: None,
-                    });
+                    self.frame_gains.push(FrameGain { slot, gained: m.gained(), prior: None });
                 }
             }
         }
@@ -676,13 +683,13 @@ impl WorldModel {
     fn start_track(
         &mut self,
         slot: usize,
-        z: &RangeBearing,
+        m: &Measured,
         now: Time,
         model: MotionModel,
         velocity_sigma: f64,
     ) {
         self.slots[slot].track = Some(Track {
-            filter: ObjectFilter::from_observation(z, velocity_sigma, model),
+            filter: ObjectFilter::from_converted(m.position, m.noise, velocity_sigma, model),
             lag: Lag::default(),
             existence: self.config.confidence.initial_existence,
             last_seen: now,
@@ -696,9 +703,9 @@ impl WorldModel {
         })
     }
 
-    fn reject(&mut self, g: usize, z: &RangeBearing, now: Time) {
+    fn reject(&mut self, g: usize, m: &Measured, now: Time) {
         self.diagnostics.rejected += 1;
-        let position = z.cartesian();
+        let position = m.position;
         let group = &self.groups[g];
         let (model, velocity_sigma, category) = (group.model, group.velocity_sigma, group.category);
         // A mobile object or obstacle nobody follows starts at once (a false positive dies of
@@ -707,7 +714,7 @@ impl WorldModel {
         if category != ObjectCategory::Landmark
             && let Some(free) = group.slots.clone().find(|&s| self.slots[s].track.is_none())
         {
-            self.start_track(free, z, now, model, velocity_sigma);
+            self.start_track(free, m, now, model, velocity_sigma);
             self.diagnostics.reinitialized += 1;
             return;
         }
@@ -723,7 +730,7 @@ impl WorldModel {
             return;
         }
         group.pending.retain(|p| (p.position - position).norm() > radius);
-        let Some(slot) = self.reinit_slot(g, z, now, since) else {
+        let Some(slot) = self.reinit_slot(g, m, now, since) else {
             if category == ObjectCategory::Landmark && self.pose_usable().is_some() {
                 // Consistent observations of a landmark where the map and the pose put none:
                 // a persistent false positive, or the robot is not where it believes.
@@ -737,20 +744,16 @@ impl WorldModel {
         self.slots[slot].track = None;
         self.diagnostics.reinitialized += 1;
         self.diagnostics.associated += 1;
-        self.start_track(slot, z, now, model, velocity_sigma);
+        self.start_track(slot, m, now, model, velocity_sigma);
         if category == ObjectCategory::Landmark {
-            self.frame_gains.push(FrameGain {
-                slot,
-                gained: GainedInformation { position, covariance: z.cartesian_noise() },
-                prior: None,
-            });
+            self.frame_gains.push(FrameGain { slot, gained: m.gained(), prior: None });
         }
     }
 
     /// Which filter a cluster of consistent rejected observations, the oldest made at `since`,
     /// restarts. A mobile object or obstacle confirmed since then is really elsewhere: the
     /// cluster was clutter.
-    fn reinit_slot(&self, g: usize, z: &RangeBearing, now: Time, since: Time) -> Option<usize> {
+    fn reinit_slot(&self, g: usize, m: &Measured, now: Time, since: Time) -> Option<usize> {
         let group = &self.groups[g];
         let unconfirmed =
             |s: usize| self.slots[s].track.as_ref().is_none_or(|t| t.last_seen < since);
@@ -768,7 +771,7 @@ impl WorldModel {
                     eligible
                         .filter_map(|s| {
                             let (l, cov) = self.map_prediction(s)?;
-                            let i = gaussian_innovation(l, &cov, z)?;
+                            let i = innovation_at(l, &cov, m.position, &m.noise)?;
                             (i.nis <= self.gate).then_some((s, i.cost()))
                         })
                         .min_by(|a, b| a.1.total_cmp(&b.1))
@@ -1140,8 +1143,11 @@ impl WorldModel {
         let now = self.time.unwrap_or(track.last_seen);
         let age = (now - track.last_seen).as_secs_f64();
         let sigma = sigma_radius(&track.filter.position_covariance());
-        let value = track.existence * (-age / c.half_life * std::f64::consts::LN_2).exp()
-            / (1.0 + (sigma / c.sigma_half).powi(2));
+        // An object seen in this very frame has not aged: exp(-0) is exactly 1, without the
+        // call (most of the filters a frame updates are asked right after).
+        let decay =
+            if age == 0.0 { 1.0 } else { (-age / c.half_life * std::f64::consts::LN_2).exp() };
+        let value = track.existence * decay / (1.0 + (sigma / c.sigma_half).powi(2));
         if value.is_finite() { value.clamp(0.0, 1.0) } else { 0.0 }
     }
 
@@ -1330,15 +1336,6 @@ impl BeliefView for WorldModel {
             |p| p.covariance(),
         )
     }
-}
-
-/// The innovation of an observation against a Gaussian position estimate.
-fn gaussian_innovation(
-    l: Vector2<f64>,
-    cov: &Matrix2<f64>,
-    z: &RangeBearing,
-) -> Option<Innovation> {
-    cartesian_innovation(l, cov, z)
 }
 
 /// A robot-frame estimate placed on the field, with the pose's uncertainty added.

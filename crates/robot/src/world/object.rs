@@ -81,10 +81,20 @@ impl ObjectFilter {
         velocity_sigma: f64,
         model: MotionModel,
     ) -> ObjectFilter {
-        let c = z.cartesian();
+        ObjectFilter::from_converted(z.cartesian(), z.cartesian_noise(), velocity_sigma, model)
+    }
+
+    /// [`ObjectFilter::from_observation`] with the observation already converted to the robot
+    /// frame (`measured`, with covariance `noise`).
+    pub(crate) fn from_converted(
+        measured: Vector2<f64>,
+        noise: Matrix2<f64>,
+        velocity_sigma: f64,
+        model: MotionModel,
+    ) -> ObjectFilter {
         ObjectFilter::new(
-            Point::new(c.x, c.y),
-            z.cartesian_noise(),
+            Point::new(measured.x, measured.y),
+            noise,
             Vector::new(0.0, 0.0),
             Matrix2::identity() * velocity_sigma.powi(2),
             model,

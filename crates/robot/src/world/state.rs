@@ -31,39 +31,84 @@ pub enum ObjectCategory {
     Obstacle,
 }
 
-/// The name of an object of interest: shared, never copied. A world state is published tens
-/// of times a second with every object's name; sharing them keeps that free of allocations.
-/// Compares with `&str` and `String` like a string does.
-#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(transparent)]
-pub struct ObjectName(std::sync::Arc<str>);
+/// The name of an object of interest, interned: every name with the same text is the same
+/// `&'static str`. A world state is published tens of times a second with every object's name
+/// (twice: instance and group), and read by several layers; copying an interned name copies a
+/// pointer, where a shared (reference-counted) name paid an atomic increment and decrement per
+/// copy. Equal names are the same pointer, so comparing two names is one comparison.
+///
+/// Names come from world-model layouts and from logs read back: a few hundred distinct texts in
+/// a process, each kept for its whole life (see [`ObjectName::new`]). Compares with `&str` and
+/// `String` like a string does.
+#[derive(Clone, Debug, Eq, PartialOrd, Ord)]
+pub struct ObjectName(&'static str);
 
 impl ObjectName {
+    /// The name with this text. The first use of a text stores it for the rest of the process:
+    /// names are a small fixed vocabulary (a layout's objects), not data that grows.
     pub fn new(name: &str) -> ObjectName {
-        ObjectName(std::sync::Arc::from(name))
+        static NAMES: std::sync::LazyLock<
+            std::sync::Mutex<std::collections::HashSet<&'static str>>,
+        > = std::sync::LazyLock::new(Default::default);
+        // A panic elsewhere while the set was locked leaves it consistent (insertion is the only
+        // change), so a poisoned lock is still usable.
+        let mut names = NAMES.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some(&interned) = names.get(name) {
+            return ObjectName(interned);
+        }
+        let interned: &'static str = Box::leak(Box::from(name));
+        names.insert(interned);
+        ObjectName(interned)
     }
 
-    pub fn as_str(&self) -> &str {
-        &self.0
+    pub fn as_str(&self) -> &'static str {
+        self.0
+    }
+}
+
+/// Interned: the same text is the same pointer (and a pointer holds one text).
+impl PartialEq for ObjectName {
+    fn eq(&self, other: &ObjectName) -> bool {
+        std::ptr::eq(self.0, other.0)
+    }
+}
+
+/// By the text, as `str` hashes (maps keyed by names are looked up with `&str`).
+impl std::hash::Hash for ObjectName {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.0.hash(state);
+    }
+}
+
+impl Serialize for ObjectName {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.0)
+    }
+}
+
+impl<'de> Deserialize<'de> for ObjectName {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<ObjectName, D::Error> {
+        let text = std::borrow::Cow::<'de, str>::deserialize(deserializer)?;
+        Ok(ObjectName::new(&text))
     }
 }
 
 impl std::ops::Deref for ObjectName {
     type Target = str;
     fn deref(&self) -> &str {
-        &self.0
+        self.0
     }
 }
 
 impl std::fmt::Display for ObjectName {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
+        f.write_str(self.0)
     }
 }
 
 impl std::borrow::Borrow<str> for ObjectName {
     fn borrow(&self) -> &str {
-        &self.0
+        self.0
     }
 }
 
@@ -75,49 +120,49 @@ impl From<&str> for ObjectName {
 
 impl From<String> for ObjectName {
     fn from(name: String) -> ObjectName {
-        ObjectName(std::sync::Arc::from(name))
+        ObjectName::new(&name)
     }
 }
 
 impl From<ObjectName> for String {
     fn from(name: ObjectName) -> String {
-        name.0.to_string()
+        name.0.to_owned()
     }
 }
 
 impl PartialEq<str> for ObjectName {
     fn eq(&self, other: &str) -> bool {
-        &*self.0 == other
+        self.0 == other
     }
 }
 
 impl PartialEq<&str> for ObjectName {
     fn eq(&self, other: &&str) -> bool {
-        &*self.0 == *other
+        self.0 == *other
     }
 }
 
 impl PartialEq<String> for ObjectName {
     fn eq(&self, other: &String) -> bool {
-        &*self.0 == other.as_str()
+        self.0 == other.as_str()
     }
 }
 
 impl PartialEq<ObjectName> for str {
     fn eq(&self, other: &ObjectName) -> bool {
-        self == &*other.0
+        self == other.0
     }
 }
 
 impl PartialEq<ObjectName> for &str {
     fn eq(&self, other: &ObjectName) -> bool {
-        *self == &*other.0
+        *self == other.0
     }
 }
 
 impl PartialEq<ObjectName> for String {
     fn eq(&self, other: &ObjectName) -> bool {
-        self.as_str() == &*other.0
+        self.as_str() == other.0
     }
 }
 
@@ -201,7 +246,7 @@ impl ObjectIndex {
             return None;
         }
         let (indexed, id) = self.0.get_key_value(name)?;
-        objects.get(id.index()).filter(|o| std::sync::Arc::ptr_eq(&o.name.0, &indexed.0))
+        objects.get(id.index()).filter(|o| o.name == *indexed)
     }
 }
 
@@ -431,5 +476,39 @@ impl WorldState {
             pose_confidence: self.pose.confidence,
             objects,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_with_the_same_text_are_one_interned_name() {
+        let made = ObjectName::new("goal_post#2");
+        let from_string = ObjectName::from(String::from("goal_post#2"));
+        assert_eq!(made, from_string);
+        assert!(std::ptr::eq(made.as_str(), from_string.as_str()));
+        assert_ne!(made, ObjectName::new("goal_post#3"));
+        assert_eq!(made, "goal_post#2");
+        assert_eq!(String::from(made.clone()), "goal_post#2");
+    }
+
+    #[test]
+    fn a_name_read_back_from_json_is_the_interned_name() {
+        let name = ObjectName::new("ball");
+        let text = serde_json::to_string(&name).expect("a name serializes");
+        assert_eq!(text, "\"ball\"");
+        let read: ObjectName = serde_json::from_str(&text).expect("a name deserializes");
+        assert!(std::ptr::eq(read.as_str(), name.as_str()));
+    }
+
+    #[test]
+    fn maps_keyed_by_names_are_looked_up_with_text() {
+        let mut ids = std::collections::HashMap::new();
+        ids.insert(ObjectName::new("penalty_mark#1"), ObjectId(7));
+        assert_eq!(ids.get("penalty_mark#1"), Some(&ObjectId(7)));
+        let index = ObjectIndex::new([&ObjectName::new("ball"), &ObjectName::new("robot#1")]);
+        assert_eq!(index.1, 2);
     }
 }
