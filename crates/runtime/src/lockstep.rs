@@ -266,7 +266,8 @@ pub struct LockstepHost {
     /// match runs tens of thousands of cycles per simulated minute.
     published: Vec<(u16, Box<dyn ErasedPackage>)>,
     emptied: Vec<u16>,
-    arrivals: Vec<InputRef>,
+    /// Each triggering input a package arrived on, and whether it was stored there.
+    arrivals: Vec<(InputRef, bool)>,
 }
 
 #[derive(Clone, Copy)]
@@ -445,7 +446,7 @@ impl LockstepHost {
         let slot = &self.modules[input.module.index()].parts.inputs[usize::from(input.port)].slot;
         slot.push_encoded(encoding, bytes, stamp, seq, ModuleId(u32::MAX))
             .map_err(|e| HostError::Decode { input: name, error: e.to_string() })?;
-        self.after_arrival(input, self.now);
+        self.after_arrival(input, true);
         Ok(())
     }
 
@@ -547,8 +548,8 @@ impl LockstepHost {
                 self.injections.release(index);
                 let slot =
                     &self.modules[input.module.index()].parts.inputs[usize::from(input.port)].slot;
-                let _ = slot.push_owned(package);
-                self.after_arrival(input, self.now);
+                let stored = slot.push_owned(package).is_some();
+                self.after_arrival(input, stored);
             }
         }
         Ok(true)
@@ -602,25 +603,26 @@ impl LockstepHost {
         let mut arrivals = std::mem::take(&mut self.arrivals);
         if let Some((last, others)) = output.readers.split_last() {
             for reader in others {
-                reader.slot.push_cloned(package.as_any());
+                let stored = reader.slot.push_cloned(package.as_any()).is_some();
                 if reader.triggers {
-                    arrivals.push(reader.input);
+                    arrivals.push((reader.input, stored));
                 }
             }
-            last.slot.push_owned(package.into_any());
+            let stored = last.slot.push_owned(package.into_any()).is_some();
             if last.triggers {
-                arrivals.push(last.input);
+                arrivals.push((last.input, stored));
             }
         }
-        for input in arrivals.drain(..) {
-            self.after_arrival(input, self.now);
+        for (input, stored) in arrivals.drain(..) {
+            self.after_arrival(input, stored);
         }
         self.arrivals = arrivals;
     }
 
-    fn after_arrival(&mut self, input: InputRef, at: Time) {
-        if self.modules[input.module.index()].parts.triggered_by_arrival(input.port) {
-            self.request_cycle(input.module.0, Wake::Input(input.port), at);
+    /// A package arrived on `input` now (`stored`: and is pending there).
+    fn after_arrival(&mut self, input: InputRef, stored: bool) {
+        if self.modules[input.module.index()].parts.triggered_by_arrival(input.port, stored) {
+            self.request_cycle(input.module.0, Wake::Input(input.port), self.now);
         }
     }
 

@@ -77,7 +77,8 @@ impl Durations {
 /// Collects one module's statistics as its cycles run.
 #[derive(Debug, Clone)]
 pub struct StatsCollector {
-    window: Duration,
+    /// The rate window in nanoseconds: cycles compare and subtract times as integers.
+    window_ns: u64,
     cycles: u64,
     first_start: Option<Time>,
     last_start: Option<Time>,
@@ -98,7 +99,7 @@ impl StatsCollector {
     /// from whole intervals.
     pub fn new(window: Duration) -> StatsCollector {
         StatsCollector {
-            window,
+            window_ns: u64::try_from(window.as_nanos()).unwrap_or(u64::MAX),
             cycles: 0,
             first_start: None,
             last_start: None,
@@ -124,15 +125,16 @@ impl StatsCollector {
     pub fn record_cycle(&mut self, start: Time, compute: Duration, latency: Option<Duration>) {
         self.cycles += 1;
         if let Some(last) = self.last_start {
-            let interval = start - last;
-            self.period.record(clamp_ns(interval));
+            let interval_ns = start.as_nanos().saturating_sub(last.as_nanos());
+            self.period.record(interval_ns.clamp(1, HISTOGRAM_MAX_NS));
             self.window_intervals += 1;
         }
         self.first_start.get_or_insert(start);
         self.last_start = Some(start);
         let window_first = *self.window_first.get_or_insert(start);
-        let elapsed = start - window_first;
-        if elapsed >= self.window && self.window_intervals > 0 {
+        let elapsed_ns = start.as_nanos().saturating_sub(window_first.as_nanos());
+        if elapsed_ns >= self.window_ns && self.window_intervals > 0 {
+            let elapsed = start - window_first;
             let rate = self.window_intervals as f64 / elapsed.as_secs_f64();
             self.min_rate = Some(self.min_rate.map_or(rate, |m| m.min(rate)));
             self.max_rate = Some(self.max_rate.map_or(rate, |m| m.max(rate)));
