@@ -36,20 +36,34 @@ use crate::tap::{Tap, TapRecord};
 use crate::time::Time;
 use crate::wiring::{ModuleParts, Wiring, split};
 
-enum EventKind {
+/// What a queued event does. Packages wait in the host's slabs, so the queue moves small
+/// copies: a match pops millions of events, and pushing and popping 56-byte entries that
+/// carried the packages was a third of the host's own instructions.
+#[derive(Clone, Copy, Debug)]
+enum Event {
     Tick(u32),
     Cycle(u32),
     Free(u32),
-    Deliver { module: u32, port: u16, package: Box<dyn ErasedPackage> },
-    Ready { module: u32, port: u16 },
-    Inject { input: InputRef, package: Box<dyn Any + Send> },
+    /// The next package a cycle sent becomes visible to its readers (the index of the cycle's
+    /// [`Outputs`] in `LockstepHost::deliveries`). A cycle's packages have consecutive sequence
+    /// numbers, so one event stands for them all: the first, then the next one, and so on.
+    Deliver(u32),
+    Ready {
+        module: u32,
+        port: u16,
+    },
+    /// An external package arrives (its index in `LockstepHost::injections`).
+    Inject(u32),
 }
 
+/// An event and its place in the order: `time`, then `order`, which holds the rank of the
+/// module priority above the sequence number (see [`EventOrder`]), so that comparing two
+/// events is comparing two integers.
+#[derive(Clone, Copy, Debug)]
 struct Scheduled {
     time: Time,
-    priority: i32,
-    seq: u64,
-    kind: EventKind,
+    order: u64,
+    event: Event,
 }
 
 impl PartialEq for Scheduled {
@@ -66,8 +80,132 @@ impl PartialOrd for Scheduled {
 impl Ord for Scheduled {
     /// Reversed, so the max-heap pops the earliest event.
     fn cmp(&self, other: &Self) -> CmpOrdering {
-        (other.time, other.priority, other.seq).cmp(&(self.time, self.priority, self.seq))
+        (other.time, other.order).cmp(&(self.time, self.order))
     }
+}
+
+/// Packs (priority, sequence number) into one `u64` that sorts the same way: the priority's
+/// rank among the graph's distinct priorities in the high bits, the sequence number below.
+/// The priorities are known when the host is built (each module's, and `i32::MIN` for injected
+/// packages), so a few bits hold the rank and the sequence number keeps the rest (56 bits or
+/// more below 256 distinct priorities: centuries of simulated matches).
+#[derive(Clone, Debug)]
+struct EventOrder {
+    /// The distinct priorities, ascending.
+    priorities: Vec<i32>,
+    seq_bits: u32,
+}
+
+impl EventOrder {
+    fn new(module_priorities: impl IntoIterator<Item = i32>) -> EventOrder {
+        let mut priorities: Vec<i32> =
+            module_priorities.into_iter().chain([INJECT_PRIORITY]).collect();
+        priorities.sort_unstable();
+        priorities.dedup();
+        let rank_bits = usize::BITS - (priorities.len() - 1).leading_zeros();
+        EventOrder { priorities, seq_bits: u64::BITS - rank_bits.max(1) }
+    }
+
+    /// The high bits of the order of every event at `priority`.
+    fn base(&self, priority: i32) -> u64 {
+        let rank = self.priorities.binary_search(&priority).unwrap_or_else(|_| {
+            unreachable!("every priority a host schedules at is among its modules'")
+        });
+        (rank as u64) << self.seq_bits
+    }
+
+    /// The first sequence number that would spill into the rank bits.
+    fn seq_limit(&self) -> u64 {
+        1 << self.seq_bits
+    }
+}
+
+/// The priority of injected packages: the lowest there is, so they arrive before every other
+/// event at the same instant.
+const INJECT_PRIORITY: i32 = i32::MIN;
+
+/// The queued events. Those due at the current instant wait apart from the later ones: most
+/// cycles of a robot's layers are triggered by a package and scheduled at the instant it
+/// arrives, and such an event, the earliest of all, would climb the whole heap of later events
+/// only to be popped straight away. Popping takes the earlier of the two heads, so the order is
+/// that of one queue.
+struct EventQueue {
+    /// Events at `LockstepHost::now` (a handful at most).
+    instant: BinaryHeap<Scheduled>,
+    later: BinaryHeap<Scheduled>,
+}
+
+impl EventQueue {
+    fn new() -> EventQueue {
+        EventQueue { instant: BinaryHeap::new(), later: BinaryHeap::new() }
+    }
+
+    fn push(&mut self, now: Time, event: Scheduled) {
+        debug_assert!(event.time >= now, "an event in the past");
+        if event.time == now { self.instant.push(event) } else { self.later.push(event) }
+    }
+
+    /// The earliest event: the earlier of the two heads.
+    fn peek(&self) -> Option<&Scheduled> {
+        match (self.instant.peek(), self.later.peek()) {
+            (Some(instant), Some(later)) => Some(if later > instant { later } else { instant }),
+            (instant, later) => instant.or(later),
+        }
+    }
+
+    fn pop(&mut self) -> Option<Scheduled> {
+        match (self.instant.peek(), self.later.peek()) {
+            (Some(instant), Some(later)) if later > instant => self.later.pop(),
+            (Some(_), _) => self.instant.pop(),
+            (None, _) => self.later.pop(),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.instant.len() + self.later.len()
+    }
+}
+
+/// Payloads of queued events, by index. A released entry keeps its allocations for the next
+/// payload, so a long run allocates only as many entries as are ever queued at once.
+struct Slab<T> {
+    entries: Vec<T>,
+    vacant: Vec<u32>,
+}
+
+impl<T: Default> Slab<T> {
+    fn new() -> Slab<T> {
+        Slab { entries: Vec::new(), vacant: Vec::new() }
+    }
+
+    /// An entry to fill: a released one (as its last user left it) or a new default one.
+    fn vacant_entry(&mut self) -> (u32, &mut T) {
+        let index = match self.vacant.pop() {
+            Some(index) => index,
+            None => {
+                self.entries.push(T::default());
+                u32::try_from(self.entries.len() - 1)
+                    .unwrap_or_else(|_| panic!("more than 2^32 payloads queued at once"))
+            }
+        };
+        (index, &mut self.entries[index as usize])
+    }
+
+    fn get_mut(&mut self, index: u32) -> &mut T {
+        &mut self.entries[index as usize]
+    }
+
+    fn release(&mut self, index: u32) {
+        self.vacant.push(index);
+    }
+}
+
+/// The packages one cycle sent, becoming visible to their readers in the order they were sent.
+#[derive(Default)]
+struct Outputs {
+    module: u32,
+    /// Reversed: the next package to deliver is the last.
+    packages: Vec<(u16, Box<dyn ErasedPackage>)>,
 }
 
 /// One entry of a lockstep trace: what ran, when.
@@ -88,15 +226,17 @@ pub enum TraceEvent {
 
 struct ModuleState {
     parts: ModuleParts,
+    /// The high bits of the order of this module's events (its priority's rank).
+    order_base: u64,
     rng: ChaCha8Rng,
     timing_rng: ChaCha8Rng,
     busy_until: Time,
     cycle_scheduled: bool,
     pending: bool,
-    /// The event that frees the module at `busy_until`, not yet in the queue: its place in the
-    /// order (time, priority, sequence number) is fixed when the cycle ends, but it is queued
-    /// only once a trigger waits for it. Most cycles end with nothing waiting, and a third of
-    /// all events were such idle frees.
+    /// The order of the event that frees the module at `busy_until`, not yet in the queue: its
+    /// place in the order (time, priority, sequence number) is fixed when the cycle ends, but it
+    /// is queued only once a trigger waits for it. Most cycles end with nothing waiting, and a
+    /// third of all events were such idle frees.
     deferred_free: Option<u64>,
     trigger_time: Option<Time>,
     wakes: Vec<Wake>,
@@ -108,9 +248,13 @@ struct ModuleState {
 pub struct LockstepHost {
     wiring: Wiring,
     modules: Vec<ModuleState>,
-    queue: BinaryHeap<Scheduled>,
+    queue: EventQueue,
+    deliveries: Slab<Outputs>,
+    injections: Slab<Option<(InputRef, Box<dyn Any + Send>)>>,
     now: Time,
     seq: u64,
+    seq_limit: u64,
+    inject_order_base: u64,
     externals: Vec<InputRef>,
     tap: Option<Arc<dyn Tap>>,
     trace: Option<Vec<TraceEntry>>,
@@ -122,7 +266,8 @@ pub struct LockstepHost {
     /// match runs tens of thousands of cycles per simulated minute.
     published: Vec<(u16, Box<dyn ErasedPackage>)>,
     emptied: Vec<u16>,
-    arrivals: Vec<InputRef>,
+    /// Each triggering input a package arrived on, and whether it was stored there.
+    arrivals: Vec<(InputRef, bool)>,
 }
 
 #[derive(Clone, Copy)]
@@ -169,9 +314,11 @@ impl LockstepHost {
     pub fn new(graph: Graph, config: HostConfig) -> LockstepHost {
         let externals = graph.externals.clone();
         let (wiring, parts) = split(graph);
+        let order = EventOrder::new(parts.iter().map(|p| p.priority));
         let modules = parts
             .into_iter()
             .map(|parts| ModuleState {
+                order_base: order.base(parts.priority),
                 rng: module_rng(config.seed, &parts.name),
                 timing_rng: timing_rng(config.seed, &parts.name),
                 busy_until: Time::ZERO,
@@ -188,9 +335,13 @@ impl LockstepHost {
         let mut host = LockstepHost {
             wiring,
             modules,
-            queue: BinaryHeap::new(),
+            queue: EventQueue::new(),
+            deliveries: Slab::new(),
+            injections: Slab::new(),
             now: Time::ZERO,
             seq: 0,
+            seq_limit: order.seq_limit(),
+            inject_order_base: order.base(INJECT_PRIORITY),
             externals,
             tap: None,
             trace: None,
@@ -204,8 +355,8 @@ impl LockstepHost {
         };
         for m in 0..host.modules.len() {
             if let Trigger::Periodic { offset, .. } = host.modules[m].parts.trigger {
-                let priority = host.modules[m].parts.priority;
-                host.schedule(Time::ZERO + offset, priority, EventKind::Tick(m as u32));
+                let base = host.modules[m].order_base;
+                host.schedule(Time::ZERO + offset, base, Event::Tick(m as u32));
             }
         }
         host
@@ -247,9 +398,20 @@ impl LockstepHost {
         &self.wiring.names
     }
 
-    fn schedule(&mut self, time: Time, priority: i32, kind: EventKind) {
-        self.seq += 1;
-        self.queue.push(Scheduled { time, priority, seq: self.seq, kind });
+    /// The next `count` sequence numbers (the first is returned): events at the same instant
+    /// and priority run in this order.
+    fn next_seqs(&mut self, count: u64) -> u64 {
+        let first = self.seq + 1;
+        self.seq += count;
+        assert!(self.seq < self.seq_limit, "the lockstep host ran out of sequence numbers");
+        first
+    }
+
+    /// Queues `event` at `time`, after every event already queued at the same instant and
+    /// priority (`order_base`, from [`EventOrder::base`]).
+    fn schedule(&mut self, time: Time, order_base: u64, event: Event) {
+        let order = order_base | self.next_seqs(1);
+        self.queue.push(self.now, Scheduled { time, order, event });
     }
 
     /// Feeds a package to an external input, visible at `at` (not before the current time).
@@ -264,11 +426,9 @@ impl LockstepHost {
         self.check_external(input_ref)?;
         let package = Package::new(value, stamp, 0, ModuleId(u32::MAX));
         let at = at.max(self.now);
-        self.schedule(
-            at,
-            i32::MIN,
-            EventKind::Inject { input: input_ref, package: Box::new(package) },
-        );
+        let (index, entry) = self.injections.vacant_entry();
+        *entry = Some((input_ref, Box::new(package)));
+        self.schedule(at, self.inject_order_base, Event::Inject(index));
         Ok(())
     }
 
@@ -286,7 +446,7 @@ impl LockstepHost {
         let slot = &self.modules[input.module.index()].parts.inputs[usize::from(input.port)].slot;
         slot.push_encoded(encoding, bytes, stamp, seq, ModuleId(u32::MAX))
             .map_err(|e| HostError::Decode { input: name, error: e.to_string() })?;
-        self.after_arrival(input, self.now);
+        self.after_arrival(input, true);
         Ok(())
     }
 
@@ -329,7 +489,8 @@ impl LockstepHost {
         self.interrupt.as_ref().is_some_and(|f| f.load(Ordering::Relaxed))
     }
 
-    /// Processes the next event; false when nothing is scheduled.
+    /// Processes the next event; false when nothing is scheduled. The packages one cycle sent
+    /// are delivered in one step as long as no other event comes between them.
     pub fn step(&mut self) -> Result<bool, HostError> {
         let Some(event) = self.queue.pop() else { return Ok(false) };
         if let Some(pacing) = self.pacing {
@@ -341,11 +502,11 @@ impl LockstepHost {
             }
         }
         self.now = event.time;
-        match event.kind {
-            EventKind::Tick(m) => {
+        match event.event {
+            Event::Tick(m) => {
                 if let Trigger::Periodic { period, .. } = self.modules[m as usize].parts.trigger {
-                    let priority = self.modules[m as usize].parts.priority;
-                    self.schedule(self.now + period, priority, EventKind::Tick(m));
+                    let base = self.modules[m as usize].order_base;
+                    self.schedule(self.now + period, base, Event::Tick(m));
                 }
                 let module = &self.modules[m as usize];
                 if module.busy_until <= self.now && !module.cycle_scheduled {
@@ -358,21 +519,21 @@ impl LockstepHost {
                     self.request_cycle(m, Wake::Tick, self.now);
                 }
             }
-            EventKind::Cycle(m) => {
+            Event::Cycle(m) => {
                 self.modules[m as usize].cycle_scheduled = false;
                 self.run_cycle(m)?;
             }
-            EventKind::Free(m) => {
+            Event::Free(m) => {
                 let state = &mut self.modules[m as usize];
                 if state.pending && state.busy_until <= self.now {
                     state.pending = false;
                     state.cycle_scheduled = true;
-                    let priority = state.parts.priority;
-                    self.schedule(self.now, priority, EventKind::Cycle(m));
+                    let base = state.order_base;
+                    self.schedule(self.now, base, Event::Cycle(m));
                 }
             }
-            EventKind::Deliver { module, port, package } => self.deliver(module, port, package),
-            EventKind::Ready { module, port } => {
+            Event::Deliver(index) => self.deliver_outputs(index, event.order),
+            Event::Ready { module, port } => {
                 let wake = self.wiring.outputs[module as usize]
                     .get(usize::from(port))
                     .is_some_and(|o| o.wake_on_ready);
@@ -380,14 +541,44 @@ impl LockstepHost {
                     self.request_cycle(module, Wake::ReceiversReady(port), self.now);
                 }
             }
-            EventKind::Inject { input, package } => {
+            Event::Inject(index) => {
+                let Some((input, package)) = self.injections.get_mut(index).take() else {
+                    unreachable!("an injected package is delivered once")
+                };
+                self.injections.release(index);
                 let slot =
                     &self.modules[input.module.index()].parts.inputs[usize::from(input.port)].slot;
-                let _ = slot.push_owned(package);
-                self.after_arrival(input, self.now);
+                let stored = slot.push_owned(package).is_some();
+                self.after_arrival(input, stored);
             }
         }
         Ok(true)
+    }
+
+    /// Delivers the packages of one cycle from the next one on, each in its own place in the
+    /// order (`order` is the next one's, the others' follow): as long as nothing the deliveries
+    /// scheduled comes before the next package's place, it is delivered at once; otherwise it is
+    /// queued again in that place.
+    fn deliver_outputs(&mut self, index: u32, mut order: u64) {
+        loop {
+            let outputs = self.deliveries.get_mut(index);
+            let module = outputs.module;
+            let Some((port, package)) = outputs.packages.pop() else {
+                unreachable!("a cycle's outputs are queued only while some are undelivered")
+            };
+            let more = !outputs.packages.is_empty();
+            self.deliver(module, port, package);
+            if !more {
+                self.deliveries.release(index);
+                return;
+            }
+            order += 1;
+            let next = Scheduled { time: self.now, order, event: Event::Deliver(index) };
+            if self.queue.peek().is_some_and(|first| *first > next) {
+                self.queue.push(self.now, next);
+                return;
+            }
+        }
     }
 
     fn deliver(&mut self, module: u32, port: u16, package: Box<dyn ErasedPackage>) {
@@ -412,25 +603,26 @@ impl LockstepHost {
         let mut arrivals = std::mem::take(&mut self.arrivals);
         if let Some((last, others)) = output.readers.split_last() {
             for reader in others {
-                reader.slot.push_cloned(package.as_any());
+                let stored = reader.slot.push_cloned(package.as_any()).is_some();
                 if reader.triggers {
-                    arrivals.push(reader.input);
+                    arrivals.push((reader.input, stored));
                 }
             }
-            last.slot.push_owned(package.into_any());
+            let stored = last.slot.push_owned(package.into_any()).is_some();
             if last.triggers {
-                arrivals.push(last.input);
+                arrivals.push((last.input, stored));
             }
         }
-        for input in arrivals.drain(..) {
-            self.after_arrival(input, self.now);
+        for (input, stored) in arrivals.drain(..) {
+            self.after_arrival(input, stored);
         }
         self.arrivals = arrivals;
     }
 
-    fn after_arrival(&mut self, input: InputRef, at: Time) {
-        if self.modules[input.module.index()].parts.triggered_by_arrival(input.port) {
-            self.request_cycle(input.module.0, Wake::Input(input.port), at);
+    /// A package arrived on `input` now (`stored`: and is pending there).
+    fn after_arrival(&mut self, input: InputRef, stored: bool) {
+        if self.modules[input.module.index()].parts.triggered_by_arrival(input.port, stored) {
+            self.request_cycle(input.module.0, Wake::Input(input.port), self.now);
         }
     }
 
@@ -444,15 +636,15 @@ impl LockstepHost {
         }
         if state.busy_until > now {
             state.pending = true;
-            if let Some(seq) = state.deferred_free.take() {
-                let (time, priority) = (state.busy_until, state.parts.priority);
-                self.queue.push(Scheduled { time, priority, seq, kind: EventKind::Free(m) });
+            if let Some(order) = state.deferred_free.take() {
+                let time = state.busy_until;
+                self.queue.push(now, Scheduled { time, order, event: Event::Free(m) });
             }
             return;
         }
         state.cycle_scheduled = true;
-        let priority = state.parts.priority;
-        self.schedule(now, priority, EventKind::Cycle(m));
+        let base = state.order_base;
+        self.schedule(now, base, Event::Cycle(m));
     }
 
     fn run_cycle(&mut self, m: u32) -> Result<(), HostError> {
@@ -488,7 +680,7 @@ impl LockstepHost {
         let sent = published.len();
         state.stats.record_cycle(now, duration, (sent > 0).then(|| visible - trigger_time));
         state.busy_until = visible;
-        let priority = state.parts.priority;
+        let order_base = state.order_base;
         if let Some(trace) = &mut self.trace {
             trace.push(TraceEntry {
                 time: now,
@@ -515,26 +707,37 @@ impl LockstepHost {
                 });
             }
         }
-        for (port, package) in published.drain(..) {
-            self.schedule(visible, priority, EventKind::Deliver { module: m, port, package });
+        if !published.is_empty() {
+            let first = self.next_seqs(published.len() as u64);
+            let (index, outputs) = self.deliveries.vacant_entry();
+            outputs.module = m;
+            // The released entry's empty buffer becomes the next cycle's.
+            std::mem::swap(&mut outputs.packages, &mut published);
+            outputs.packages.reverse();
+            let next = Scheduled {
+                time: visible,
+                order: order_base | first,
+                event: Event::Deliver(index),
+            };
+            self.queue.push(now, next);
         }
         self.published = published;
         for port in emptied.drain(..) {
             if let Some(Some((writer, true))) =
                 self.wiring.writers[m as usize].get(usize::from(port)).copied()
             {
-                let writer_priority = self.modules[writer.module.index()].parts.priority;
+                let writer_base = self.modules[writer.module.index()].order_base;
                 self.schedule(
                     now,
-                    writer_priority,
-                    EventKind::Ready { module: writer.module.0, port: writer.port },
+                    writer_base,
+                    Event::Ready { module: writer.module.0, port: writer.port },
                 );
             }
         }
         self.emptied = emptied;
         if duration > Duration::ZERO {
-            self.seq += 1;
-            self.modules[m as usize].deferred_free = Some(self.seq);
+            let order = order_base | self.next_seqs(1);
+            self.modules[m as usize].deferred_free = Some(order);
         } else {
             self.modules[m as usize].deferred_free = None;
         }
@@ -573,5 +776,79 @@ impl LockstepHost {
 impl Drop for LockstepHost {
     fn drop(&mut self) {
         self.stop();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::cmp::Reverse;
+
+    use proptest::prelude::*;
+
+    use super::*;
+
+    /// The plain order of the semantics: time, then priority, then sequence number.
+    fn plain_key(time: u64, priority: i32, seq: u64) -> (u64, i32, u64) {
+        (time, priority, seq)
+    }
+
+    proptest! {
+        #[test]
+        fn packed_orders_sort_like_priority_then_sequence(
+            priorities in proptest::collection::vec(any::<i32>(), 1..300),
+            events in proptest::collection::vec((0usize..300, 1u64..1 << 40), 2..40),
+        ) {
+            let order = EventOrder::new(priorities.iter().copied());
+            let keyed: Vec<_> = events
+                .iter()
+                .map(|&(m, seq)| {
+                    let priority = priorities[m % priorities.len()];
+                    (plain_key(0, priority, seq), order.base(priority) | seq)
+                })
+                .collect();
+            prop_assert!(order.seq_limit() > 1 << 40);
+            for a in &keyed {
+                for b in &keyed {
+                    prop_assert_eq!(a.0.cmp(&b.0), a.1.cmp(&b.1), "{:?} {:?}", a, b);
+                }
+            }
+        }
+
+        /// Random pushes (due now or later, at random priorities) and pops, as the host does
+        /// them: the two-lane queue pops exactly what one heap of all events pops.
+        #[test]
+        fn the_instant_lane_keeps_the_order_of_one_queue(
+            ops in proptest::collection::vec((0u8..4, 0u64..3, -2i32..3), 1..400),
+        ) {
+            let order = EventOrder::new(-2..3);
+            let mut queue = EventQueue::new();
+            let mut plain = BinaryHeap::new();
+            let mut now = Time::ZERO;
+            let mut seq = 0u64;
+            for (op, delay, priority) in ops {
+                if op == 0 {
+                    let popped = queue.pop();
+                    let expected = plain.pop().map(|Reverse(key)| key);
+                    prop_assert_eq!(
+                        popped.map(|e| (e.time.as_nanos(), e.order)),
+                        expected.map(|(t, p, s)| (t, order.base(p) | s))
+                    );
+                    prop_assert_eq!(queue.len(), plain.len());
+                    if let Some(e) = popped {
+                        now = e.time;
+                    }
+                } else {
+                    seq += 1;
+                    let time = now + Duration::from_nanos(delay);
+                    let event = Event::Tick(0);
+                    queue.push(now, Scheduled { time, order: order.base(priority) | seq, event });
+                    plain.push(Reverse(plain_key(time.as_nanos(), priority, seq)));
+                }
+                prop_assert_eq!(
+                    queue.peek().map(|e| (e.time.as_nanos(), e.order)),
+                    plain.peek().map(|Reverse((t, p, s))| (*t, order.base(*p) | s))
+                );
+            }
+        }
     }
 }

@@ -401,7 +401,7 @@ impl Worker {
                     deadline
                 }
                 Some(Event::Arrived { port, at }) => {
-                    if !self.parts.triggered_by_arrival(port) {
+                    if !self.parts.triggered_by_arrival(port, false) {
                         continue;
                     }
                     wakes.push(Wake::Input(port));

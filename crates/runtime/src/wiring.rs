@@ -43,8 +43,10 @@ pub(crate) struct ModuleParts {
 }
 
 impl ModuleParts {
-    /// Whether the module's trigger condition holds now that `port` received data.
-    pub(crate) fn triggered_by_arrival(&self, port: u16) -> bool {
+    /// Whether the module's trigger condition holds now that `port` received data. `stored`:
+    /// the package is known to be pending on `port` (the lockstep host has just stored it), so
+    /// an `Any` trigger need not lock the input to look.
+    pub(crate) fn triggered_by_arrival(&self, port: u16, stored: bool) -> bool {
         match &self.trigger {
             Trigger::Periodic { .. } => false,
             Trigger::OnInput { mode, inputs } => {
@@ -52,10 +54,13 @@ impl ModuleParts {
                     return false;
                 }
                 match mode {
-                    crate::graph::InputMode::Any => self
-                        .inputs
-                        .get(usize::from(port))
-                        .is_some_and(|decl| decl.slot.has_pending()),
+                    crate::graph::InputMode::Any => {
+                        stored
+                            || self
+                                .inputs
+                                .get(usize::from(port))
+                                .is_some_and(|decl| decl.slot.has_pending())
+                    }
                     crate::graph::InputMode::All => inputs.iter().all(|i| {
                         self.inputs.get(usize::from(i.port)).is_some_and(|d| d.slot.has_pending())
                     }),
