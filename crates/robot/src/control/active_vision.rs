@@ -224,7 +224,8 @@ struct Derivatives {
 pub struct ActiveVision {
     pub config: ActiveVisionConfig,
     scratch: ExpectedBelief,
-    /// The objects' view-independent predictions, made once per evaluation.
+    /// The objects' view-independent predictions (and simulated corrections), made once per
+    /// evaluation.
     priors: Vec<ObservationPrior>,
     sensing: SensingCandidate,
 }
@@ -300,20 +301,20 @@ impl ActiveVision {
         let (prior_variance, prior_expected_value) =
             Self::moments(&d, &world.pose.covariance, prior_object);
         let (lo, hi) = self.config.yaw_limits;
-        world.observation_priors_into(&mut self.priors);
+        world.observation_priors_within_into(self.config.range, &mut self.priors);
         let mut evaluations: Vec<GazeEvaluation> = candidates
             .iter()
             .map(|candidate| {
                 let direction = candidate.direction.clamp(lo.min(hi), hi.max(lo));
                 let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
                 let sensing = &mut self.sensing;
-                world.sensing_candidate_into(
-                    &self.priors,
+                world.expected_view_update_into(
+                    &mut self.priors,
                     &view,
                     self.config.min_visibility,
                     sensing,
+                    &mut self.scratch,
                 );
-                world.expected_update_into(sensing, &mut self.scratch);
                 let scratch = &self.scratch;
                 let posterior_object =
                     |id: ObjectId| scratch.object(id).copied().or_else(|| prior_object(id));
