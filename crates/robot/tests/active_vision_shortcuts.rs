@@ -1,10 +1,14 @@
-//! Active vision's fast path gives the answers of the plain one: the sensing candidate and the
+//! Active vision's fast paths give the answers of the plain ones: the sensing candidate and the
 //! expected update of a view made in one pass, from priors that keep what does not depend on
-//! the view, against one prediction per object followed by the expected update.
+//! the view, against one prediction per object followed by the expected update; and an
+//! evaluation into a used report against a fresh one.
 
 mod world_support;
 
-use strata_robot::geometry::Pose;
+use strata_robot::control::active_vision::{
+    ActiveVision, ActiveVisionConfig, ActiveVisionReport, GazeCandidate, ValueFunction, ValueState,
+};
+use strata_robot::geometry::{Point, Pose};
 use strata_robot::percept::ViewCone;
 use strata_robot::world::{
     ExpectedBelief, ExpectedObservation, ObjectId, ObservationPrior, PosePrior, SensingCandidate,
@@ -106,5 +110,47 @@ fn an_object_listed_twice_builds_on_its_first_observation_as_in_the_expected_upd
             assert_eq!(fast_sensing, sensing);
             assert_eq!(format!("{fast:?}"), format!("{belief:?}"));
         }
+    }
+}
+
+/// V: closeness of the ball and of the pose to fixed points (smooth, depends on both blocks).
+struct Closeness;
+
+impl ValueFunction for Closeness {
+    fn name(&self) -> &str {
+        "closeness"
+    }
+
+    fn objects(&self) -> Vec<ObjectId> {
+        vec![ObjectId(0)]
+    }
+
+    fn value(&self, state: &ValueState<'_>) -> f64 {
+        let ball = state.object(ObjectId(0)).map_or(0.0, |b| (-b.range()).exp());
+        ball + (-state.pose.position().distance(Point::new(1.0, 0.5))).exp()
+    }
+}
+
+#[test]
+fn an_evaluation_into_a_used_report_is_a_fresh_evaluation() {
+    let states = states();
+    let candidates = |n: usize, tag: &str| -> Vec<GazeCandidate> {
+        (0..n)
+            .map(|i| GazeCandidate {
+                label: format!("{tag}{i}"),
+                direction: -2.2 + 4.4 * i as f64 / n as f64,
+            })
+            .collect()
+    };
+    let mut vision = ActiveVision::new(ActiveVisionConfig::default());
+    let mut report = ActiveVisionReport::default();
+    // A larger evaluation first, then smaller and larger ones, each into the same report.
+    for (world, n) in states.iter().zip([13, 4, 9, 1, 17]) {
+        let gazes = candidates(n, if n % 2 == 0 { "a much longer label " } else { "c" });
+        vision.evaluate_into(world, &Closeness, &gazes, &mut report);
+        let fresh =
+            ActiveVision::new(ActiveVisionConfig::default()).evaluate(world, &Closeness, &gazes);
+        assert_eq!(format!("{report:?}"), format!("{fresh:?}"));
+        assert!(report.candidates.iter().any(|c| !c.observed.is_empty()));
     }
 }
