@@ -7,8 +7,9 @@
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::math::{RangeBearing, polar, posterior_covariance, symmetrize2};
-use super::object::{cartesian_noise_at, posterior_position_covariance};
+use super::math::{
+    MIN_RANGE, RangeBearing, polar, polar_to_cartesian_jacobian, posterior_covariance, symmetrize2,
+};
 use super::pose::landmark_measurement;
 use super::state::{ObjectId, WorldState};
 use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
@@ -113,16 +114,22 @@ struct Correction {
 }
 
 impl Correction {
+    /// The correction of observing `object`, at range and bearing `polar` (those of its
+    /// position, as [`ObservationPrior`] has them), with the given noise.
     fn of(
         object: &ObjectPrior,
+        (range, bearing): (f64, f64),
         pose: Option<&Pose>,
         range_sigma: f64,
         bearing_sigma: f64,
     ) -> Correction {
         let r = Matrix2::new(range_sigma.powi(2), 0.0, 0.0, bearing_sigma.powi(2));
-        let gained = gained_covariance(object.position, &r);
+        // `cartesian_noise_at(position, r)` and `posterior_position_covariance(covariance,
+        // position, r)` (object.rs), without computing the polar coordinates again.
+        let j = polar_to_cartesian_jacobian(range.max(MIN_RANGE), bearing);
+        let gained = symmetrize2(j * r * j.transpose());
         let posterior = if object.tracked {
-            posterior_position_covariance(&object.covariance, object.position, &r)
+            posterior_covariance(&object.covariance, &Matrix2::identity(), &gained)
         } else {
             Some(gained)
         };
@@ -174,12 +181,6 @@ pub(crate) trait BeliefView {
     fn pose_covariance(&self) -> Matrix3<f64>;
 }
 
-/// Covariance of the robot-frame measurement an observation with noise `r` of an object at
-/// `position` hands to the pose filter (see `GainedInformation`).
-pub(crate) fn gained_covariance(position: Vector2<f64>, r: &Matrix2<f64>) -> Matrix2<f64> {
-    cartesian_noise_at(position, r)
-}
-
 pub(crate) fn expected_update_into(
     view: &impl BeliefView,
     candidate: &SensingCandidate,
@@ -196,7 +197,8 @@ pub(crate) fn expected_update_into(
             prior.tracked = true;
             prior.covariance = out.objects[k].covariance;
         }
-        Correction::of(&prior, pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
+        let (z, _) = polar(prior.position);
+        Correction::of(&prior, (z.x, z.y), pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
             .fold(obs, previous, out);
     }
 }
@@ -413,26 +415,29 @@ impl WorldState {
             };
             let obs = self.expected_observation(prior, visibility);
             sensing.observations.push(obs);
-            let previous = out.objects.iter().position(|o| o.id == obs.object);
-            let correction = match (previous, prior.correction) {
-                (None, Some(kept)) => kept,
-                _ => {
-                    let Some(mut object) = self.object_prior(obs.object) else { continue };
-                    if let Some(k) = previous {
-                        // As in the expected update: a second observation (priors listing an
-                        // object twice) builds on the first one's outcome, and is not kept.
-                        object.tracked = true;
-                        object.covariance = out.objects[k].covariance;
+            let at = (prior.range, prior.bearing);
+            match out.objects.iter().position(|o| o.id == obs.object) {
+                None => {
+                    if prior.correction.is_none() {
+                        let Some(object) = self.object_prior(obs.object) else { continue };
+                        let sigmas = (obs.range_sigma, obs.bearing_sigma);
+                        prior.correction =
+                            Some(Correction::of(&object, at, pose.as_ref(), sigmas.0, sigmas.1));
                     }
-                    let made =
-                        Correction::of(&object, pose.as_ref(), obs.range_sigma, obs.bearing_sigma);
-                    if previous.is_none() {
-                        prior.correction = Some(made);
+                    if let Some(correction) = &prior.correction {
+                        correction.fold(&obs, None, out);
                     }
-                    made
                 }
-            };
-            correction.fold(&obs, previous, out);
+                Some(k) => {
+                    // As in the expected update: a second observation (priors listing an object
+                    // twice) builds on the first one's outcome, and is not kept.
+                    let Some(mut object) = self.object_prior(obs.object) else { continue };
+                    object.tracked = true;
+                    object.covariance = out.objects[k].covariance;
+                    Correction::of(&object, at, pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
+                        .fold(&obs, Some(k), out);
+                }
+            }
         }
     }
 }
@@ -490,6 +495,29 @@ mod tests {
         assert_relative_eq!(normal_cdf(0.0), 0.5, epsilon = 1e-7);
         assert_relative_eq!(normal_cdf(1.96), 0.975, epsilon = 1e-4);
         assert_relative_eq!(normal_cdf(-1.0), 0.158_655_25, epsilon = 1e-6);
+    }
+
+    #[test]
+    fn a_correction_is_made_as_the_object_filter_makes_its_noise_and_posterior() {
+        use crate::world::object::{cartesian_noise_at, posterior_position_covariance};
+        let covariance = Matrix2::new(0.04, 0.01, 0.01, 0.02);
+        for (x, y) in [(2.0, 0.4), (-1.3, 2.2), (0.01, -0.02), (0.0, 0.0), (5.5, -3.1)] {
+            let position = Vector2::new(x, y);
+            for tracked in [true, false] {
+                let object = ObjectPrior { tracked, position, covariance, map_position: None };
+                let (z, _) = polar(position);
+                let c = Correction::of(&object, (z.x, z.y), None, 0.1 + 0.05 * x.abs(), 0.035);
+                let r = Matrix2::new((0.1 + 0.05 * x.abs()).powi(2), 0.0, 0.0, 0.035f64.powi(2));
+                let bits = |m: &Matrix2<f64>| m.map(f64::to_bits);
+                assert_eq!(bits(&c.gained), bits(&cartesian_noise_at(position, &r)));
+                let posterior = if tracked {
+                    posterior_position_covariance(&covariance, position, &r)
+                } else {
+                    Some(cartesian_noise_at(position, &r))
+                };
+                assert_eq!(c.posterior.map(|p| bits(&p)), posterior.map(|p| bits(&p)));
+            }
+        }
     }
 
     #[test]
