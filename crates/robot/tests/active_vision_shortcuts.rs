@@ -154,3 +154,32 @@ fn an_evaluation_into_a_used_report_is_a_fresh_evaluation() {
         assert!(report.candidates.iter().any(|c| !c.observed.is_empty()));
     }
 }
+
+#[test]
+fn candidates_looked_at_from_the_same_limit_are_evaluated_as_each_alone() {
+    let states = states();
+    let directions = [-3.0, 0.3, -2.5, 2.4, -2.0, 3.1, 0.3, 2.0, 1.0];
+    let gazes: Vec<GazeCandidate> = directions
+        .iter()
+        .enumerate()
+        .map(|(i, d)| GazeCandidate { label: format!("g{i}"), direction: *d })
+        .collect();
+    let mut vision = ActiveVision::new(ActiveVisionConfig::default());
+    for world in &states {
+        let report = vision.evaluate(world, &Closeness, &gazes);
+        for (gaze, evaluation) in gazes.iter().zip(&report.candidates) {
+            let alone = ActiveVision::new(ActiveVisionConfig::default()).evaluate(
+                world,
+                &Closeness,
+                std::slice::from_ref(gaze),
+            );
+            let alone = &alone.candidates[0];
+            assert_eq!(evaluation.label, alone.label);
+            assert_eq!(evaluation.direction.to_bits(), alone.direction.to_bits());
+            assert_eq!(evaluation.observed, alone.observed);
+            assert_eq!(evaluation.value_variance.to_bits(), alone.value_variance.to_bits());
+            assert_eq!(evaluation.expected_value.to_bits(), alone.expected_value.to_bits());
+            assert_eq!(evaluation.improvement.to_bits(), alone.improvement.to_bits());
+        }
+    }
+}

@@ -320,6 +320,30 @@ impl ActiveVision {
         evaluations.truncate(candidates.len());
         for (i, candidate) in candidates.iter().enumerate() {
             let direction = candidate.direction.clamp(lo.min(hi), hi.max(lo));
+            if i == evaluations.len() {
+                evaluations.push(GazeEvaluation {
+                    label: String::new(),
+                    direction,
+                    observed: Vec::new(),
+                    value_variance: 0.0,
+                    expected_value: 0.0,
+                    improvement: 0.0,
+                    score: 0.0,
+                });
+            }
+            let (done, rest) = evaluations.split_at_mut(i);
+            let e = &mut rest[0];
+            e.label.clone_from(&candidate.label);
+            e.direction = direction;
+            // Candidates beyond a yaw limit are all looked at from the limit: the same view,
+            // simulated once.
+            if let Some(same) = done.iter().find(|d| d.direction.to_bits() == direction.to_bits()) {
+                e.observed.clone_from(&same.observed);
+                e.value_variance = same.value_variance;
+                e.expected_value = same.expected_value;
+                e.improvement = same.improvement;
+                continue;
+            }
             let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
             world.expected_view_update_into(
                 &mut self.priors,
@@ -332,30 +356,15 @@ impl ActiveVision {
             let posterior_object =
                 |id: ObjectId| scratch.object(id).copied().or_else(|| prior_object(id));
             let (variance, expected) = Self::moments(&d, &scratch.pose, posterior_object);
-            let improvement = match self.config.criterion {
-                Criterion::MinExpectedValueVariance => prior_variance - variance,
-                Criterion::MaxExpectedTaskValue => expected - prior_expected_value,
-            }
-            .max(0.0);
-            if i == evaluations.len() {
-                evaluations.push(GazeEvaluation {
-                    label: String::new(),
-                    direction,
-                    observed: Vec::new(),
-                    value_variance: variance,
-                    expected_value: expected,
-                    improvement,
-                    score: 0.0,
-                });
-            }
-            let e = &mut evaluations[i];
-            e.label.clone_from(&candidate.label);
-            e.direction = direction;
             let names = self.sensing.observations.iter().filter_map(|o| world.get(o.object));
             overwrite(&mut e.observed, names.map(|o| o.name.as_str()));
             e.value_variance = variance;
             e.expected_value = expected;
-            e.improvement = improvement;
+            e.improvement = match self.config.criterion {
+                Criterion::MinExpectedValueVariance => prior_variance - variance,
+                Criterion::MaxExpectedTaskValue => expected - prior_expected_value,
+            }
+            .max(0.0);
         }
         let best = evaluations.iter().map(|e| e.improvement).fold(0.0, f64::max);
         for e in evaluations.iter_mut() {
