@@ -107,6 +107,8 @@ pub struct Ctx {
     pub out: Output,
     vision: ActiveVision,
     pub vision_report: Option<ActiveVisionReport>,
+    /// The last report's storage, reused by the next evaluation.
+    spare_report: ActiveVisionReport,
     ball_unknown_since: Option<Time>,
     landmark_groups: Vec<String>,
 }
@@ -221,14 +223,20 @@ fn head_goal_for(label: &str) -> HeadGoal {
 }
 
 /// Sensing candidates: the ball, the best instance of each landmark group, and the ball
-/// together with the nearest landmarks when they fit in one gaze.
-fn gaze_candidates(ctx: &Ctx, world: &WorldState) -> Vec<(GazeCandidate, Vec<String>)> {
-    let mut out = Vec::new();
+/// together with the nearest landmarks when they fit in one gaze; each with the objects it
+/// looks at.
+fn gaze_candidates(ctx: &Ctx, world: &WorldState) -> (Vec<GazeCandidate>, Vec<Vec<String>>) {
+    let mut gazes = Vec::new();
+    let mut objects = Vec::new();
+    let mut out = |c: GazeCandidate, about: Vec<String>| {
+        gazes.push(c);
+        objects.push(about);
+    };
     let ball_id = world.object(BALL).map(|o| o.id);
     if let Some(id) = ball_id
         && let Some(c) = GazeCandidate::toward(world, id, BALL)
     {
-        out.push((c, vec![BALL.to_owned()]));
+        out(c, vec![BALL.to_owned()]);
     }
     let mut landmarks: Vec<_> = ctx
         .landmark_groups
@@ -239,18 +247,18 @@ fn gaze_candidates(ctx: &Ctx, world: &WorldState) -> Vec<(GazeCandidate, Vec<Str
     landmarks.sort_by(|a, b| a.position.range().total_cmp(&b.position.range()));
     for landmark in landmarks.iter().take(6) {
         if let Some(c) = GazeCandidate::toward(world, landmark.id, landmark.name.clone()) {
-            out.push((c, vec![landmark.name.to_string()]));
+            out(c, vec![landmark.name.to_string()]);
         }
         if let Some(ball) = ball_id {
             let label = format!("{BALL}+{}", landmark.name);
             if let Some(c) =
                 GazeCandidate::covering(world, &[ball, landmark.id], ctx.config.fov * 0.8, label)
             {
-                out.push((c, vec![BALL.to_owned(), landmark.name.to_string()]));
+                out(c, vec![BALL.to_owned(), landmark.name.to_string()]);
             }
         }
     }
-    out
+    (gazes, objects)
 }
 
 /// The head's score vector for a behavior whose value function is `value`.
@@ -266,8 +274,7 @@ fn gaze(ctx: &mut Ctx, value: Option<&dyn ValueFunction>) {
         GazeStrategy::ActiveVision
         | GazeStrategy::ActiveVisionTaskValue
         | GazeStrategy::Entropy => {
-            let candidates = gaze_candidates(ctx, &world);
-            let gazes: Vec<GazeCandidate> = candidates.iter().map(|(c, _)| c.clone()).collect();
+            let (gazes, objects) = gaze_candidates(ctx, &world);
             let scores: Vec<f64> = if strategy == GazeStrategy::Entropy {
                 entropy_scores(&world, &gazes, &ctx.vision.config)
             } else {
@@ -278,17 +285,18 @@ fn gaze(ctx: &mut Ctx, value: Option<&dyn ValueFunction>) {
                 };
                 let fallback = PositionValue { target: world.pose.pose.position() };
                 let vf: &dyn ValueFunction = value.unwrap_or(&fallback);
-                let report = ctx.vision.evaluate(&world, vf, &gazes);
+                let mut report = std::mem::take(&mut ctx.spare_report);
+                ctx.vision.evaluate_into(&world, vf, &gazes, &mut report);
                 let scores = report.candidates.iter().map(|c| c.score).collect();
                 ctx.vision_report = Some(report);
                 scores
             };
             let mut vector = ScoreVector::default();
-            for ((candidate, objects), score) in candidates.iter().zip(scores) {
+            for ((candidate, objects), score) in gazes.iter().zip(objects).zip(scores) {
                 vector.push(GoalScore {
                     goal: head_goal_for(&candidate.label),
                     deliberative: score,
-                    objects: objects.clone(),
+                    objects,
                 });
             }
             if !vector.goals.iter().any(|g| g.goal == HeadGoal::ObserveBall) {
@@ -734,6 +742,7 @@ impl SoccerBehavior {
                 out: Output::default(),
                 vision: ActiveVision::new(vision),
                 vision_report: None,
+                spare_report: ActiveVisionReport::default(),
                 ball_unknown_since: None,
                 landmark_groups: groups,
             },
@@ -763,7 +772,9 @@ impl DeliberativePolicy for SoccerBehavior {
         ctx.decision = input.assignment.cloned();
         ctx.stability = input.stability;
         ctx.out = Output::default();
-        ctx.vision_report = None;
+        if let Some(report) = ctx.vision_report.take() {
+            ctx.spare_report = report;
+        }
         if ctx.ball_known() {
             ctx.ball_unknown_since = None;
         } else if ctx.ball_unknown_since.is_none() {

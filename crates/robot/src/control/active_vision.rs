@@ -224,7 +224,8 @@ struct Derivatives {
 pub struct ActiveVision {
     pub config: ActiveVisionConfig,
     scratch: ExpectedBelief,
-    /// The objects' view-independent predictions, made once per evaluation.
+    /// The objects' view-independent predictions (and simulated corrections), made once per
+    /// evaluation.
     priors: Vec<ObservationPrior>,
     sensing: SensingCandidate,
 }
@@ -295,63 +296,103 @@ impl ActiveVision {
         vf: &dyn ValueFunction,
         candidates: &[GazeCandidate],
     ) -> ActiveVisionReport {
+        let mut report = ActiveVisionReport::default();
+        self.evaluate_into(world, vf, candidates, &mut report);
+        report
+    }
+
+    /// As [`ActiveVision::evaluate`], into `report`, reusing its storage (its candidates' labels
+    /// and observed names): a deliberative layer evaluates at every tick.
+    pub fn evaluate_into(
+        &mut self,
+        world: &WorldState,
+        vf: &dyn ValueFunction,
+        candidates: &[GazeCandidate],
+        report: &mut ActiveVisionReport,
+    ) {
         let d = self.derivatives(world, vf);
         let prior_object = |id: ObjectId| world.get(id).map(|o| o.covariance);
         let (prior_variance, prior_expected_value) =
             Self::moments(&d, &world.pose.covariance, prior_object);
         let (lo, hi) = self.config.yaw_limits;
-        world.observation_priors_into(&mut self.priors);
-        let mut evaluations: Vec<GazeEvaluation> = candidates
-            .iter()
-            .map(|candidate| {
-                let direction = candidate.direction.clamp(lo.min(hi), hi.max(lo));
-                let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
-                let sensing = &mut self.sensing;
-                world.sensing_candidate_into(
-                    &self.priors,
-                    &view,
-                    self.config.min_visibility,
-                    sensing,
-                );
-                world.expected_update_into(sensing, &mut self.scratch);
-                let scratch = &self.scratch;
-                let posterior_object =
-                    |id: ObjectId| scratch.object(id).copied().or_else(|| prior_object(id));
-                let (variance, expected) = Self::moments(&d, &scratch.pose, posterior_object);
-                let improvement = match self.config.criterion {
-                    Criterion::MinExpectedValueVariance => prior_variance - variance,
-                    Criterion::MaxExpectedTaskValue => expected - prior_expected_value,
-                }
-                .max(0.0);
-                GazeEvaluation {
-                    label: candidate.label.clone(),
+        world.observation_priors_within_into(self.config.range, &mut self.priors);
+        let evaluations = &mut report.candidates;
+        evaluations.truncate(candidates.len());
+        for (i, candidate) in candidates.iter().enumerate() {
+            let direction = candidate.direction.clamp(lo.min(hi), hi.max(lo));
+            if i == evaluations.len() {
+                evaluations.push(GazeEvaluation {
+                    label: String::new(),
                     direction,
-                    observed: sensing
-                        .observations
-                        .iter()
-                        .filter_map(|o| world.get(o.object).map(|e| e.name.clone()))
-                        .map(String::from)
-                        .collect(),
-                    value_variance: variance,
-                    expected_value: expected,
-                    improvement,
+                    observed: Vec::new(),
+                    value_variance: 0.0,
+                    expected_value: 0.0,
+                    improvement: 0.0,
                     score: 0.0,
-                }
-            })
-            .collect();
+                });
+            }
+            let (done, rest) = evaluations.split_at_mut(i);
+            let e = &mut rest[0];
+            e.label.clone_from(&candidate.label);
+            e.direction = direction;
+            // Candidates beyond a yaw limit are all looked at from the limit: the same view,
+            // simulated once.
+            if let Some(same) = done.iter().find(|d| d.direction.to_bits() == direction.to_bits()) {
+                e.observed.clone_from(&same.observed);
+                e.value_variance = same.value_variance;
+                e.expected_value = same.expected_value;
+                e.improvement = same.improvement;
+                continue;
+            }
+            let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
+            world.expected_view_update_into(
+                &mut self.priors,
+                &view,
+                self.config.min_visibility,
+                &mut self.sensing,
+                &mut self.scratch,
+            );
+            let scratch = &self.scratch;
+            let posterior_object =
+                |id: ObjectId| scratch.object(id).copied().or_else(|| prior_object(id));
+            let (variance, expected) = Self::moments(&d, &scratch.pose, posterior_object);
+            let names = self.sensing.observations.iter().filter_map(|o| world.get(o.object));
+            overwrite(&mut e.observed, names.map(|o| o.name.as_str()));
+            e.value_variance = variance;
+            e.expected_value = expected;
+            e.improvement = match self.config.criterion {
+                Criterion::MinExpectedValueVariance => prior_variance - variance,
+                Criterion::MaxExpectedTaskValue => expected - prior_expected_value,
+            }
+            .max(0.0);
+        }
         let best = evaluations.iter().map(|e| e.improvement).fold(0.0, f64::max);
-        for e in &mut evaluations {
+        for e in evaluations.iter_mut() {
             e.score = if best > 1e-15 { (e.improvement / best).clamp(0.0, 1.0) } else { 0.0 };
         }
-        ActiveVisionReport {
-            value_function: vf.name().to_owned(),
-            criterion: self.config.criterion,
-            value: d.value,
-            prior_variance,
-            prior_expected_value,
-            candidates: evaluations,
-        }
+        report.value_function.clear();
+        report.value_function.push_str(vf.name());
+        report.criterion = self.config.criterion;
+        report.value = d.value;
+        report.prior_variance = prior_variance;
+        report.prior_expected_value = prior_expected_value;
     }
+}
+
+/// Makes `target` the list of `texts`, reusing its strings' storage.
+fn overwrite<'a>(target: &mut Vec<String>, texts: impl Iterator<Item = &'a str>) {
+    let mut n = 0;
+    for text in texts {
+        match target.get_mut(n) {
+            Some(kept) => {
+                kept.clear();
+                kept.push_str(text);
+            }
+            None => target.push(text.to_owned()),
+        }
+        n += 1;
+    }
+    target.truncate(n);
 }
 
 /// Central-difference gradient and Hessian of `f` around 0 with the given steps.

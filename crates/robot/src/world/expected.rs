@@ -4,12 +4,13 @@
 //! are needed, and they do not depend on the measured values: the simulation is exact for the
 //! covariances a real update would produce, and never changes the filters.
 
-use nalgebra::{Matrix2, Matrix3, Vector2};
+use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::math::{RangeBearing, polar, symmetrize2};
-use super::object::{cartesian_noise_at, posterior_position_covariance};
-use super::pose::pose_posterior_covariance;
+use super::math::{
+    MIN_RANGE, RangeBearing, polar, polar_to_cartesian_jacobian, posterior_covariance, symmetrize2,
+};
+use super::pose::landmark_measurement;
 use super::state::{ObjectId, WorldState};
 use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
 use crate::percept::ViewCone;
@@ -83,6 +84,82 @@ pub struct ObservationPrior {
     pub bearing_spread: f64,
     /// Distance of the estimated position (for the view cone's test).
     pub distance: f64,
+    /// The probability that the object is within a camera's range, for the range it was made
+    /// for: it does not depend on the view's direction.
+    within: Option<WithinRange>,
+    /// What simulating an observation of the object needs that does not depend on the view,
+    /// kept the first time a view observes it (see [`WorldState::expected_view_update_into`]).
+    correction: Option<Correction>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct WithinRange {
+    range: f64,
+    probability: f64,
+}
+
+/// The view-independent parts of the simulated correction of one observation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Correction {
+    /// The object's position covariance before the observation.
+    covariance: Matrix2<f64>,
+    /// The measurement's noise in the robot frame: what the pose filter is handed.
+    gained: Matrix2<f64>,
+    /// The object's position covariance after a detection; `None` when the update is singular
+    /// (the observation is then left out).
+    posterior: Option<Matrix2<f64>>,
+    /// The Jacobian of a landmark's measurement with respect to the pose, when the observation
+    /// corrects the pose (a map position and a pose that is not lost).
+    landmark: Option<SMatrix<f64, 2, 3>>,
+}
+
+impl Correction {
+    /// The correction of observing `object`, at range and bearing `polar` (those of its
+    /// position, as [`ObservationPrior`] has them), with the given noise.
+    fn of(
+        object: &ObjectPrior,
+        (range, bearing): (f64, f64),
+        pose: Option<&Pose>,
+        range_sigma: f64,
+        bearing_sigma: f64,
+    ) -> Correction {
+        let r = Matrix2::new(range_sigma.powi(2), 0.0, 0.0, bearing_sigma.powi(2));
+        // `cartesian_noise_at(position, r)` and `posterior_position_covariance(covariance,
+        // position, r)` (object.rs), without computing the polar coordinates again.
+        let j = polar_to_cartesian_jacobian(range.max(MIN_RANGE), bearing);
+        let gained = symmetrize2(j * r * j.transpose());
+        let posterior = if object.tracked {
+            posterior_covariance(&object.covariance, &Matrix2::identity(), &gained)
+        } else {
+            Some(gained)
+        };
+        let landmark = match (pose, object.map_position) {
+            (Some(pose), Some(map)) => {
+                Some(landmark_measurement(&Vector3::new(pose.x, pose.y, pose.theta), map).1)
+            }
+            _ => None,
+        };
+        Correction { covariance: object.covariance, gained, posterior, landmark }
+    }
+
+    /// Folds the observation into `out`: the object's and the pose's covariances, each the
+    /// average of the detection's posterior and the miss's prior. `previous` is the object's
+    /// entry in `out` when an earlier observation of the same candidate simulated it already.
+    fn fold(&self, obs: &ExpectedObservation, previous: Option<usize>, out: &mut ExpectedBelief) {
+        let Some(posterior) = self.posterior else { return };
+        let pd = obs.detection_probability.clamp(0.0, 1.0);
+        let expected = symmetrize2(posterior * pd + self.covariance * (1.0 - pd));
+        match previous {
+            Some(k) => out.objects[k].covariance = expected,
+            None => out.objects.push(ExpectedObject { id: obs.object, covariance: expected }),
+        }
+        if let Some(jacobian) = &self.landmark
+            && let Some(post) = posterior_covariance(&out.pose, jacobian, &self.gained)
+        {
+            out.pose = post * pd + out.pose * (1.0 - pd);
+            out.pose = (out.pose + out.pose.transpose()) * 0.5;
+        }
+    }
 }
 
 /// What the expected update needs to know about one object before the observation.
@@ -104,12 +181,6 @@ pub(crate) trait BeliefView {
     fn pose_covariance(&self) -> Matrix3<f64>;
 }
 
-/// Covariance of the robot-frame measurement an observation with noise `r` of an object at
-/// `position` hands to the pose filter (see `GainedInformation`).
-pub(crate) fn gained_covariance(position: Vector2<f64>, r: &Matrix2<f64>) -> Matrix2<f64> {
-    cartesian_noise_at(position, r)
-}
-
 pub(crate) fn expected_update_into(
     view: &impl BeliefView,
     candidate: &SensingCandidate,
@@ -117,7 +188,7 @@ pub(crate) fn expected_update_into(
 ) {
     out.objects.clear();
     out.pose = view.pose_covariance();
-    let pose = view.pose_prior();
+    let pose = view.pose_prior().map(|(pose, _)| pose);
     for obs in &candidate.observations {
         let Some(mut prior) = view.object_prior(obs.object) else { continue };
         let previous = out.objects.iter().position(|o| o.id == obs.object);
@@ -126,26 +197,9 @@ pub(crate) fn expected_update_into(
             prior.tracked = true;
             prior.covariance = out.objects[k].covariance;
         }
-        let pd = obs.detection_probability.clamp(0.0, 1.0);
-        let r = Matrix2::new(obs.range_sigma.powi(2), 0.0, 0.0, obs.bearing_sigma.powi(2));
-        let gained = gained_covariance(prior.position, &r);
-        let posterior = if prior.tracked {
-            posterior_position_covariance(&prior.covariance, prior.position, &r)
-        } else {
-            Some(gained)
-        };
-        let Some(posterior) = posterior else { continue };
-        let expected = symmetrize2(posterior * pd + prior.covariance * (1.0 - pd));
-        match previous {
-            Some(k) => out.objects[k].covariance = expected,
-            None => out.objects.push(ExpectedObject { id: obs.object, covariance: expected }),
-        }
-        if let (Some((pose, _)), Some(map)) = (pose, prior.map_position)
-            && let Some(post) = pose_posterior_covariance(&pose, &out.pose, map, &gained)
-        {
-            out.pose = post * pd + out.pose * (1.0 - pd);
-            out.pose = (out.pose + out.pose.transpose()) * 0.5;
-        }
+        let (z, _) = polar(prior.position);
+        Correction::of(&prior, (z.x, z.y), pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
+            .fold(obs, previous, out);
     }
 }
 
@@ -231,6 +285,8 @@ impl WorldState {
             range_spread: (s[(0, 0)] + 1e-12).sqrt(),
             bearing_spread: (s[(1, 1)] + 1e-12).sqrt(),
             distance: Point::<Robot>::new(prior.position.x, prior.position.y).range(),
+            within: None,
+            correction: None,
         })
     }
 
@@ -238,10 +294,36 @@ impl WorldState {
     fn visibility(&self, prior: &ObservationPrior, view: &ViewCone) -> f64 {
         let half = (view.fov / 2.0 - self.view_margin).max(0.0);
         let angle = normalize_angle(prior.bearing - view.direction);
-        let sb = prior.bearing_spread;
-        let p_angle = normal_cdf((half - angle) / sb) - normal_cdf((-half - angle) / sb);
-        let p_range = normal_cdf((view.range - prior.range) / prior.range_spread);
+        let p_angle = angle_probability(half, angle, prior.bearing_spread);
+        let p_range = range_probability(prior, view.range);
         (p_angle * p_range).clamp(0.0, 1.0)
+    }
+
+    /// [`WorldState::visibility`] when it reaches `min_visibility` (and is positive), `None`
+    /// otherwise. Objects that surely fall short are left out before their angular
+    /// probability is computed: those too far for the view's range, and those whose bearing
+    /// lies more than `bearing_cut` standard deviations (see [`bearing_cut`]) outside the cone.
+    fn visibility_reaching(
+        &self,
+        prior: &ObservationPrior,
+        view: &ViewCone,
+        min_visibility: f64,
+        bearing_cut: f64,
+    ) -> Option<f64> {
+        // The angular probability is at most 1, so the visibility at most the range's.
+        let p_range = range_probability(prior, view.range);
+        if p_range < min_visibility {
+            return None;
+        }
+        let half = (view.fov / 2.0 - self.view_margin).max(0.0);
+        let angle = normalize_angle(prior.bearing - view.direction);
+        let sb = prior.bearing_spread;
+        let outside = angle.abs() - half;
+        if outside > 0.0 && outside * outside > bearing_cut * sb * sb {
+            return None;
+        }
+        let visibility = (angle_probability(half, angle, sb) * p_range).clamp(0.0, 1.0);
+        (visibility >= min_visibility && visibility > 0.0).then_some(visibility)
     }
 
     /// Every object's [`ObservationPrior`], in id order, into `out`: made once when several
@@ -253,6 +335,17 @@ impl WorldState {
                 .filter_map(|i| u16::try_from(i).ok())
                 .filter_map(|i| self.observation_prior(ObjectId(i))),
         );
+    }
+
+    /// As [`WorldState::observation_priors_into`], for views of detection range `range`: each
+    /// prior also holds the probability that its object is within that range, which views of
+    /// that range (whatever their direction) then do not compute again.
+    pub fn observation_priors_within_into(&self, range: f64, out: &mut Vec<ObservationPrior>) {
+        self.observation_priors_into(out);
+        for prior in out.iter_mut() {
+            let probability = normal_cdf((range - prior.range) / prior.range_spread);
+            prior.within = Some(WithinRange { range, probability });
+        }
     }
 
     /// The sensing candidate of looking along `view`: every object likely enough to be seen
@@ -275,17 +368,109 @@ impl WorldState {
         out: &mut SensingCandidate,
     ) {
         out.observations.clear();
+        let cut = bearing_cut(min_visibility);
         for prior in priors {
-            let visibility = self.visibility(prior, view);
-            if visibility >= min_visibility && visibility > 0.0 {
-                out.observations.push(ExpectedObservation {
-                    object: prior.object,
-                    range_sigma: prior.range_sigma,
-                    bearing_sigma: prior.bearing_sigma,
-                    detection_probability: visibility * self.detection_probability,
-                });
+            if let Some(visibility) = self.visibility_reaching(prior, view, min_visibility, cut) {
+                out.observations.push(self.expected_observation(prior, visibility));
             }
         }
+    }
+
+    fn expected_observation(
+        &self,
+        prior: &ObservationPrior,
+        visibility: f64,
+    ) -> ExpectedObservation {
+        ExpectedObservation {
+            object: prior.object,
+            range_sigma: prior.range_sigma,
+            bearing_sigma: prior.bearing_sigma,
+            detection_probability: visibility * self.detection_probability,
+        }
+    }
+
+    /// [`WorldState::sensing_candidate_into`] followed by [`WorldState::expected_update_into`],
+    /// in one pass and with the same results, for active vision's many views of one belief
+    /// (paper 3.6 (c)): what an observation's simulated correction needs that does not depend
+    /// on the view (the measurement noise in the robot frame, the object's posterior, the
+    /// landmark's Jacobian) is kept in the object's prior the first time a view observes it,
+    /// and reused by the next views. `priors` must come from this world state.
+    pub fn expected_view_update_into(
+        &self,
+        priors: &mut [ObservationPrior],
+        view: &ViewCone,
+        min_visibility: f64,
+        sensing: &mut SensingCandidate,
+        out: &mut ExpectedBelief,
+    ) {
+        sensing.observations.clear();
+        out.objects.clear();
+        out.pose = self.pose_covariance();
+        let pose = self.pose_prior().map(|(pose, _)| pose);
+        let cut = bearing_cut(min_visibility);
+        for prior in priors.iter_mut() {
+            let Some(visibility) = self.visibility_reaching(prior, view, min_visibility, cut)
+            else {
+                continue;
+            };
+            let obs = self.expected_observation(prior, visibility);
+            sensing.observations.push(obs);
+            let at = (prior.range, prior.bearing);
+            match out.objects.iter().position(|o| o.id == obs.object) {
+                None => {
+                    if prior.correction.is_none() {
+                        let Some(object) = self.object_prior(obs.object) else { continue };
+                        let sigmas = (obs.range_sigma, obs.bearing_sigma);
+                        prior.correction =
+                            Some(Correction::of(&object, at, pose.as_ref(), sigmas.0, sigmas.1));
+                    }
+                    if let Some(correction) = &prior.correction {
+                        correction.fold(&obs, None, out);
+                    }
+                }
+                Some(k) => {
+                    // As in the expected update: a second observation (priors listing an object
+                    // twice) builds on the first one's outcome, and is not kept.
+                    let Some(mut object) = self.object_prior(obs.object) else { continue };
+                    object.tracked = true;
+                    object.covariance = out.objects[k].covariance;
+                    Correction::of(&object, at, pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
+                        .fold(&obs, Some(k), out);
+                }
+            }
+        }
+    }
+}
+
+/// Probability that an object at `angle` from a view's direction, with bearing spread `sb`,
+/// lies within `half` of it.
+fn angle_probability(half: f64, angle: f64, sb: f64) -> f64 {
+    normal_cdf((half - angle) / sb) - normal_cdf((-half - angle) / sb)
+}
+
+/// Probability that an object is within a view's `range`: kept in its prior when made for that
+/// range (compared bit for bit, so a kept value is the one computing it would give).
+fn range_probability(prior: &ObservationPrior, range: f64) -> f64 {
+    match prior.within {
+        Some(w) if w.range.to_bits() == range.to_bits() => w.probability,
+        _ => normal_cdf((range - prior.range) / prior.range_spread),
+    }
+}
+
+/// The square of the number u of bearing standard deviations outside a view's cone beyond
+/// which an object's visibility is surely below `min_visibility`.
+///
+/// Beyond the cone's edge by u, the angular probability is at most the tail `normal_cdf(-u)`
+/// (the other term is subtracted, or its complement is), and the visibility at most that. The
+/// approximation's tail is `0.5 poly(t) exp(-u^2 / 2)` with `poly(t) <= 1` on its domain, and
+/// its rounding adds a few 1e-16: below `min_visibility` when `0.5 exp(-u^2 / 2) <=
+/// min_visibility / 1.02`, i.e. `u^2 >= 2 ln(0.51 / min_visibility)`. Thresholds too small for
+/// the rounding to be negligible against them cut nothing.
+fn bearing_cut(min_visibility: f64) -> f64 {
+    if min_visibility >= 1e-12 {
+        (2.0 * (0.51 / min_visibility).ln()).max(0.0)
+    } else {
+        f64::INFINITY
     }
 }
 
@@ -310,5 +495,46 @@ mod tests {
         assert_relative_eq!(normal_cdf(0.0), 0.5, epsilon = 1e-7);
         assert_relative_eq!(normal_cdf(1.96), 0.975, epsilon = 1e-4);
         assert_relative_eq!(normal_cdf(-1.0), 0.158_655_25, epsilon = 1e-6);
+    }
+
+    #[test]
+    fn a_correction_is_made_as_the_object_filter_makes_its_noise_and_posterior() {
+        use crate::world::object::{cartesian_noise_at, posterior_position_covariance};
+        let covariance = Matrix2::new(0.04, 0.01, 0.01, 0.02);
+        for (x, y) in [(2.0, 0.4), (-1.3, 2.2), (0.01, -0.02), (0.0, 0.0), (5.5, -3.1)] {
+            let position = Vector2::new(x, y);
+            for tracked in [true, false] {
+                let object = ObjectPrior { tracked, position, covariance, map_position: None };
+                let (z, _) = polar(position);
+                let c = Correction::of(&object, (z.x, z.y), None, 0.1 + 0.05 * x.abs(), 0.035);
+                let r = Matrix2::new((0.1 + 0.05 * x.abs()).powi(2), 0.0, 0.0, 0.035f64.powi(2));
+                let bits = |m: &Matrix2<f64>| m.map(f64::to_bits);
+                assert_eq!(bits(&c.gained), bits(&cartesian_noise_at(position, &r)));
+                let posterior = if tracked {
+                    posterior_position_covariance(&covariance, position, &r)
+                } else {
+                    Some(cartesian_noise_at(position, &r))
+                };
+                assert_eq!(c.posterior.map(|p| bits(&p)), posterior.map(|p| bits(&p)));
+            }
+        }
+    }
+
+    #[test]
+    fn beyond_the_bearing_cut_the_tail_is_below_the_threshold() {
+        for min_visibility in [1e-12, 1e-6, 0.01, 0.05, 0.2, 0.5, 0.51, 0.9, 1.0] {
+            let cut = bearing_cut(min_visibility).sqrt();
+            let mut previous = f64::INFINITY;
+            for k in 0..2000 {
+                let u = cut + f64::from(k) * 0.005;
+                let tail = normal_cdf(-u);
+                // Decreasing, and below the threshold with the margin the rounding needs.
+                assert!(tail <= previous, "{u}");
+                assert!(tail < min_visibility / 1.01, "{min_visibility} {u} {tail}");
+                previous = tail;
+            }
+        }
+        assert_eq!(bearing_cut(0.0), f64::INFINITY);
+        assert_eq!(bearing_cut(f64::NAN), f64::INFINITY);
     }
 }

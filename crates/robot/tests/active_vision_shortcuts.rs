@@ -1,0 +1,185 @@
+//! Active vision's fast paths give the answers of the plain ones: the sensing candidate and the
+//! expected update of a view made in one pass, from priors that keep what does not depend on
+//! the view, against one prediction per object followed by the expected update; and an
+//! evaluation into a used report against a fresh one.
+
+mod world_support;
+
+use strata_robot::control::active_vision::{
+    ActiveVision, ActiveVisionConfig, ActiveVisionReport, GazeCandidate, ValueFunction, ValueState,
+};
+use strata_robot::geometry::{Point, Pose};
+use strata_robot::percept::ViewCone;
+use strata_robot::world::{
+    ExpectedBelief, ExpectedObservation, ObjectId, ObservationPrior, PosePrior, SensingCandidate,
+    WorldModel, WorldState,
+};
+use world_support::{Sim, config, patrol_step};
+
+/// World states along a patrol: landmarks tracked and untracked, a ball, the pose localized;
+/// the last one also with the pose lost.
+fn states() -> Vec<WorldState> {
+    let start = Pose::new(-1.0, 0.5, 0.3);
+    let prior = PosePrior { pose: start, sigma: [0.1, 0.1, 0.05] };
+    let mut world = WorldModel::new(config(Some(prior))).expect("valid config");
+    let mut sim = Sim::new(7, start);
+    let mut out = Vec::new();
+    for frame in 1..=240 {
+        let (odometry, percepts) = sim.frame(patrol_step(&sim));
+        world.process(odometry, &percepts);
+        if frame % 60 == 0 {
+            out.push(world.state());
+        }
+    }
+    let mut lost = out[out.len() - 1].clone();
+    lost.pose.lost = true;
+    out.push(lost);
+    out
+}
+
+/// The plain path: every object's prediction, filtered by visibility, then the expected update.
+fn plain(world: &WorldState, view: &ViewCone, min_visibility: f64) -> SensingCandidate {
+    let observations = (0..world.objects.len())
+        .filter_map(|i| u16::try_from(i).ok())
+        .filter_map(|i| world.predicted_observation(ObjectId(i), view))
+        .filter(|p| p.visibility >= min_visibility && p.visibility > 0.0)
+        .map(|p| ExpectedObservation {
+            object: p.object,
+            range_sigma: p.range_sigma,
+            bearing_sigma: p.bearing_sigma,
+            detection_probability: p.visibility * world.detection_probability,
+        })
+        .collect();
+    SensingCandidate { observations }
+}
+
+fn check(world: &WorldState, priors: &mut [ObservationPrior], view: &ViewCone, min: f64) {
+    let expected = plain(world, view, min);
+    let belief = world.expected_update(&expected);
+    let mut sensing = SensingCandidate::default();
+    let mut fast = ExpectedBelief::default();
+    world.expected_view_update_into(priors, view, min, &mut sensing, &mut fast);
+    assert_eq!(sensing, expected, "{view:?} {min}");
+    // Bit for bit, signs of zeros included.
+    assert_eq!(format!("{fast:?}"), format!("{belief:?}"), "{view:?} {min}");
+}
+
+#[test]
+fn the_one_pass_view_update_equals_the_prediction_and_the_expected_update() {
+    let states = states();
+    assert!(states.iter().any(|w| w.objects.iter().filter(|o| o.tracked).count() > 3));
+    for world in &states {
+        // Priors made for the views' range, for another range, and without one; each kept
+        // across all the views, as active vision keeps them across its candidates.
+        let mut within = Vec::new();
+        world.observation_priors_within_into(6.0, &mut within);
+        let mut other = Vec::new();
+        world.observation_priors_within_into(4.0, &mut other);
+        let mut bare = Vec::new();
+        world.observation_priors_into(&mut bare);
+        for step in -80..=80 {
+            let direction = f64::from(step) * 0.025;
+            for (fov, range, min) in
+                [(1.06, 6.0, 0.05), (0.5, 6.0, 0.0), (2.0, 6.0, 0.6), (1.06, 6.0, 1e-13)]
+            {
+                let view = ViewCone { direction, fov, range };
+                check(world, &mut within, &view, min);
+                check(world, &mut other, &view, min);
+                check(world, &mut bare, &view, min);
+            }
+        }
+    }
+}
+
+#[test]
+fn an_object_listed_twice_builds_on_its_first_observation_as_in_the_expected_update() {
+    let world = &states()[2];
+    let mut priors = Vec::new();
+    world.observation_priors_within_into(6.0, &mut priors);
+    let twice: Vec<ObservationPrior> = priors.iter().chain(priors.iter()).copied().collect();
+    for direction in [-1.5, -0.4, 0.0, 0.9, 2.0] {
+        let view = ViewCone { direction, fov: 1.06, range: 6.0 };
+        let mut sensing = SensingCandidate::default();
+        world.sensing_candidate_into(&twice, &view, 0.05, &mut sensing);
+        let belief = world.expected_update(&sensing);
+        let mut fast_sensing = SensingCandidate::default();
+        let mut fast = ExpectedBelief::default();
+        let mut kept = twice.clone();
+        for _ in 0..2 {
+            world.expected_view_update_into(&mut kept, &view, 0.05, &mut fast_sensing, &mut fast);
+            assert_eq!(fast_sensing, sensing);
+            assert_eq!(format!("{fast:?}"), format!("{belief:?}"));
+        }
+    }
+}
+
+/// V: closeness of the ball and of the pose to fixed points (smooth, depends on both blocks).
+struct Closeness;
+
+impl ValueFunction for Closeness {
+    fn name(&self) -> &str {
+        "closeness"
+    }
+
+    fn objects(&self) -> Vec<ObjectId> {
+        vec![ObjectId(0)]
+    }
+
+    fn value(&self, state: &ValueState<'_>) -> f64 {
+        let ball = state.object(ObjectId(0)).map_or(0.0, |b| (-b.range()).exp());
+        ball + (-state.pose.position().distance(Point::new(1.0, 0.5))).exp()
+    }
+}
+
+#[test]
+fn an_evaluation_into_a_used_report_is_a_fresh_evaluation() {
+    let states = states();
+    let candidates = |n: usize, tag: &str| -> Vec<GazeCandidate> {
+        (0..n)
+            .map(|i| GazeCandidate {
+                label: format!("{tag}{i}"),
+                direction: -2.2 + 4.4 * i as f64 / n as f64,
+            })
+            .collect()
+    };
+    let mut vision = ActiveVision::new(ActiveVisionConfig::default());
+    let mut report = ActiveVisionReport::default();
+    // A larger evaluation first, then smaller and larger ones, each into the same report.
+    for (world, n) in states.iter().zip([13, 4, 9, 1, 17]) {
+        let gazes = candidates(n, if n % 2 == 0 { "a much longer label " } else { "c" });
+        vision.evaluate_into(world, &Closeness, &gazes, &mut report);
+        let fresh =
+            ActiveVision::new(ActiveVisionConfig::default()).evaluate(world, &Closeness, &gazes);
+        assert_eq!(format!("{report:?}"), format!("{fresh:?}"));
+        assert!(report.candidates.iter().any(|c| !c.observed.is_empty()));
+    }
+}
+
+#[test]
+fn candidates_looked_at_from_the_same_limit_are_evaluated_as_each_alone() {
+    let states = states();
+    let directions = [-3.0, 0.3, -2.5, 2.4, -2.0, 3.1, 0.3, 2.0, 1.0];
+    let gazes: Vec<GazeCandidate> = directions
+        .iter()
+        .enumerate()
+        .map(|(i, d)| GazeCandidate { label: format!("g{i}"), direction: *d })
+        .collect();
+    let mut vision = ActiveVision::new(ActiveVisionConfig::default());
+    for world in &states {
+        let report = vision.evaluate(world, &Closeness, &gazes);
+        for (gaze, evaluation) in gazes.iter().zip(&report.candidates) {
+            let alone = ActiveVision::new(ActiveVisionConfig::default()).evaluate(
+                world,
+                &Closeness,
+                std::slice::from_ref(gaze),
+            );
+            let alone = &alone.candidates[0];
+            assert_eq!(evaluation.label, alone.label);
+            assert_eq!(evaluation.direction.to_bits(), alone.direction.to_bits());
+            assert_eq!(evaluation.observed, alone.observed);
+            assert_eq!(evaluation.value_variance.to_bits(), alone.value_variance.to_bits());
+            assert_eq!(evaluation.expected_value.to_bits(), alone.expected_value.to_bits());
+            assert_eq!(evaluation.improvement.to_bits(), alone.improvement.to_bits());
+        }
+    }
+}
