@@ -85,6 +85,11 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         let need = need_to_look(&goal.goal, world, &objects);
         (need, head_primitives(&goal.goal, world, || objects))
     }
+
+    /// Every answer reads the world state alone (the goal's objects, the pose).
+    fn world_only(&self) -> bool {
+        true
+    }
 }
 
 /// S_r of a head goal (not a scan) about `objects`.
@@ -176,6 +181,11 @@ impl ActivationPolicy<BodyGoal, WorldState> for BodyActivation {
             }
             BodyGoal::Stand => &[names::STAND],
         }
+    }
+
+    /// Every answer reads the world state alone (the ball, the obstacles).
+    fn world_only(&self) -> bool {
+        true
     }
 }
 

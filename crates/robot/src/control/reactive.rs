@@ -8,7 +8,9 @@
 //!    executed together now (two objects that do not fit in one gaze); stage 2 computes each
 //!    goal's reactive score S_r from the newest percepts and combines it with the deliberative
 //!    score S_d (the average, by default). S_d is never changed here: the reactive layer only
-//!    rescales, it never changes the goals.
+//!    rescales, it never changes the goals. A policy whose answers read nothing but the world
+//!    state ([`ActivationPolicy::world_only`]) is asked again only when a new world state or
+//!    score vector has arrived; in between its answers could not change, and are reused.
 //! 3. The goal with the highest final score among those some primitive behavior can pursue now
 //!    (chosen from perceptual data, skipping primitives the deliberative layer deactivated) is
 //!    selected, and that primitive is activated. The head+body multiplexer's selection inhibits
@@ -237,6 +239,16 @@ pub trait ActivationPolicy<G, W>: Send {
     ) -> (f64, &'static [&'static str]) {
         (self.reactive_score(goal, input), self.primitives_for(&goal.goal, input))
     }
+
+    /// Whether every answer above depends on nothing but the goal and `input.world` (not on
+    /// the percepts, the time, the actuation status or the stability). The world state changes
+    /// more slowly than percepts arrive (about 30 Hz against 83 Hz in a match), so the
+    /// multiplexer of such a policy asks again only when the world state or the score vector
+    /// has changed, and reuses the answers — the same answers — in between (see
+    /// [`ReactiveLayer::step_on_revision`]). `false`, the default, asks every cycle.
+    fn world_only(&self) -> bool {
+        false
+    }
 }
 
 /// One goal as the activation function scored it this cycle.
@@ -256,11 +268,64 @@ pub struct GoalReport {
     pub applicable: bool,
 }
 
+/// The goals a multiplexer scored in one cycle, in the order it scored them: a list shared
+/// with the multiplexer, since consecutive cycles on one world state score the same goals the
+/// same way and must not copy their reports. Reads as a slice; serialized as a list.
+#[derive(Clone, Default)]
+pub struct GoalReports(Option<std::sync::Arc<[GoalReport]>>);
+
+impl std::ops::Deref for GoalReports {
+    type Target = [GoalReport];
+
+    fn deref(&self) -> &[GoalReport] {
+        self.0.as_deref().unwrap_or_default()
+    }
+}
+
+impl<'a> IntoIterator for &'a GoalReports {
+    type Item = &'a GoalReport;
+    type IntoIter = std::slice::Iter<'a, GoalReport>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter()
+    }
+}
+
+impl From<Vec<GoalReport>> for GoalReports {
+    fn from(reports: Vec<GoalReport>) -> GoalReports {
+        GoalReports((!reports.is_empty()).then(|| reports.into()))
+    }
+}
+
+impl PartialEq for GoalReports {
+    fn eq(&self, other: &GoalReports) -> bool {
+        **self == **other
+    }
+}
+
+impl Debug for GoalReports {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        (**self).fmt(f)
+    }
+}
+
+impl Serialize for GoalReports {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        (**self).serialize(serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for GoalReports {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        Vec::<GoalReport>::deserialize(deserializer).map(GoalReports::from)
+    }
+}
+
 /// One multiplexer's decision in one cycle: the debugging view of the reactive layer.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MuxReport {
     pub group: Option<ResourceGroup>,
-    pub goals: Vec<GoalReport>,
+    pub goals: GoalReports,
     pub selected_goal: Option<std::sync::Arc<str>>,
     pub primitive: Option<std::borrow::Cow<'static, str>>,
     /// The multiplexer whose selection inhibited this one.
@@ -290,22 +355,62 @@ struct Active<G> {
     primitive: usize,
 }
 
-/// A selection made by the activation function, not yet executed.
-#[derive(Clone, Debug)]
-pub struct Selection<G> {
-    pub goal: GoalScore<G>,
+/// A selection made by the activation function, not yet executed. It names a goal of the
+/// multiplexer's current assessment rather than holding a copy of it (goals own strings, and
+/// a selection is made every cycle), so it is executed by the multiplexer that made it, before
+/// that multiplexer evaluates again or receives another score vector.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Selection {
+    /// The selected goal's place in [`Assessment::goals`].
+    goal: usize,
     pub final_score: f64,
     primitive: usize,
-    label: std::sync::Arc<str>,
+    /// The assessment the selection was made from.
+    assessment: u64,
 }
 
-/// The best goal during an evaluation: an offered goal by reference, or (`None`) the goal a
-/// split made, kept aside.
-struct Candidate<'a, G> {
-    goal: Option<&'a GoalScore<G>>,
+/// One goal as the activation function assessed it: everything that holds until the score
+/// vector or (for a world-only policy) the world state changes.
+struct Assessed<G> {
+    /// The offered goal (reflexes first, then the score vector) it comes from.
+    offered: usize,
+    /// The goal a split made, if the offered goal was split.
+    split: Option<GoalScore<G>>,
     final_score: f64,
-    primitive: usize,
-    label: std::sync::Arc<str>,
+    /// The first primitive (by index) that may pursue it; `None`: not applicable.
+    primitive: Option<usize>,
+}
+
+impl<G> Assessed<G> {
+    /// The goal itself: the one the split made, or the offered one (reflexes first, then the
+    /// score vector).
+    fn goal<'a>(
+        &'a self,
+        reflexes: &'a ScoreVector<G>,
+        scores: &'a ScoreVector<G>,
+    ) -> &'a GoalScore<G> {
+        self.split.as_ref().unwrap_or_else(|| {
+            match self.offered.checked_sub(reflexes.goals.len()) {
+                None => &reflexes.goals[self.offered],
+                Some(index) => &scores.goals[index],
+            }
+        })
+    }
+}
+
+/// The activation function's answers for every goal a multiplexer offers, made by
+/// [`Multiplexer::assess`] and ranked every cycle (the hysteresis bonus depends on the goal
+/// pursued, which the ranking itself changes).
+struct Assessment<G> {
+    goals: Vec<Assessed<G>>,
+    /// One per goal, in the same order.
+    reports: GoalReports,
+    /// The world-state revision the answers hold for; `None`: only for the cycle that made
+    /// them (no revision given, a policy that is not world-only, or a new score vector since).
+    revision: Option<u64>,
+    /// Counts assessments, so that a selection is executed only on the assessment it was
+    /// made from.
+    serial: u64,
 }
 
 /// Manages one resource group: holds the deliberative score vector, runs the activation
@@ -323,6 +428,9 @@ pub struct Multiplexer<G, Cmd, W> {
     /// cycle (a reactive cycle must not format strings it already has).
     labels: Vec<(std::sync::Arc<str>, std::sync::Arc<[String]>)>,
     deactivated: BTreeSet<String>,
+    assessment: Assessment<G>,
+    /// Where the next assessment's reports are gathered (kept for its capacity).
+    scratch: Vec<GoalReport>,
     active: Option<Active<G>>,
     report: MuxReport,
 }
@@ -352,6 +460,13 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
             reflexes: ScoreVector::default(),
             labels: Vec::new(),
             deactivated: BTreeSet::new(),
+            assessment: Assessment {
+                goals: Vec::new(),
+                reports: GoalReports::default(),
+                revision: None,
+                serial: 0,
+            },
+            scratch: Vec::new(),
             active: None,
             report: MuxReport { group: Some(group), ..MuxReport::default() },
         }
@@ -361,6 +476,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
     pub fn with_primitive(mut self, primitive: Box<dyn PrimitiveBehavior<G, Cmd, W>>) -> Self {
         self.primitives.retain(|p| p.name() != primitive.name());
         self.primitives.push(primitive);
+        self.assessment.revision = None;
         self
     }
 
@@ -370,6 +486,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         self
     }
 
+    /// Labels the offered goals anew; the answers for the previous ones no longer hold.
     fn relabel(&mut self) {
         self.labels = self
             .reflexes
@@ -380,6 +497,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                 (std::sync::Arc::from(g.goal.label()), std::sync::Arc::from(g.objects.as_slice()))
             })
             .collect();
+        self.assessment.revision = None;
     }
 
     pub fn group(&self) -> ResourceGroup {
@@ -408,101 +526,175 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         &self.scores
     }
 
+    /// The goal a selection names; `None` if the multiplexer assessed its goals again since
+    /// the selection was made.
+    pub fn selected(&self, selection: &Selection) -> Option<&GoalScore<G>> {
+        if selection.assessment != self.assessment.serial {
+            return None;
+        }
+        let assessed = self.assessment.goals.get(selection.goal)?;
+        Some(assessed.goal(&self.reflexes, &self.scores))
+    }
+
     /// The activation function: both stages and the selection, without executing anything.
-    pub fn evaluate(&mut self, input: &ReactiveInput<'_, W>) -> Option<Selection<G>> {
-        self.report.goals.clear();
-        // The best goal so far is remembered, not copied: goals own strings, and the ranking
-        // changes several times per cycle. Only the final choice is cloned.
-        let mut best: Option<(Candidate<'_, G>, f64)> = None;
-        let mut best_split: Option<GoalScore<G>> = None;
+    pub fn evaluate(&mut self, input: &ReactiveInput<'_, W>) -> Option<Selection> {
+        self.evaluate_on(input, None)
+    }
+
+    /// [`Multiplexer::evaluate`] on the world state numbered `revision` by the caller, if it
+    /// numbers them: a world-only policy's answers are reused while the world state and the
+    /// score vector stay.
+    fn evaluate_on(
+        &mut self,
+        input: &ReactiveInput<'_, W>,
+        revision: Option<u64>,
+    ) -> Option<Selection> {
+        if revision.is_none() || revision != self.assessment.revision {
+            self.assess(input);
+            self.assessment.revision = revision.filter(|_| self.policy.world_only());
+        }
+        self.report.goals = self.assessment.reports.clone();
+        self.rank()
+    }
+
+    /// Both stages of the activation function for every offered goal, and the primitive that
+    /// would pursue each.
+    fn assess(&mut self, input: &ReactiveInput<'_, W>) {
+        let mut goals = std::mem::take(&mut self.assessment.goals);
+        goals.clear();
+        let mut reports = std::mem::take(&mut self.scratch);
         let offered = self.reflexes.goals.iter().chain(self.scores.goals.iter());
         for (offered_index, offered_goal) in offered.enumerate() {
-            let split = self.policy.split(offered_goal, input);
-            let goals = split.as_deref().unwrap_or(std::slice::from_ref(offered_goal));
-            for goal in goals {
-                let (reactive, primitives) = self.policy.assess(goal, input);
-                let reactive = reactive.clamp(0.0, 1.0);
-                let final_score = self.config.combination.combine(goal.deliberative, reactive);
-                let primitive = primitives
-                    .iter()
-                    .copied()
-                    .filter(|name| !self.deactivated.contains(*name))
-                    .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
-                let (label, objects) = match self.labels.get(offered_index) {
-                    Some((label, objects)) if split.is_none() || goal.goal == offered_goal.goal => {
-                        (label.clone(), objects.clone())
+            match self.policy.split(offered_goal, input) {
+                None => {
+                    let (report, final_score, primitive) =
+                        self.assess_goal(offered_index, offered_goal, None, input);
+                    reports.push(report);
+                    goals.push(Assessed {
+                        offered: offered_index,
+                        split: None,
+                        final_score,
+                        primitive,
+                    });
+                }
+                Some(made) => {
+                    for goal in made {
+                        let (report, final_score, primitive) =
+                            self.assess_goal(offered_index, offered_goal, Some(&goal), input);
+                        reports.push(report);
+                        goals.push(Assessed {
+                            offered: offered_index,
+                            split: Some(goal),
+                            final_score,
+                            primitive,
+                        });
                     }
-                    _ => (
-                        std::sync::Arc::from(goal.goal.label()),
-                        std::sync::Arc::from(goal.objects.as_slice()),
-                    ),
-                };
-                self.report.goals.push(GoalReport {
-                    goal: label.clone(),
-                    objects,
-                    deliberative: goal.deliberative,
-                    reactive,
-                    final_score,
-                    applicable: primitive.is_some(),
-                });
-                let Some(primitive) = primitive else { continue };
-                let bonus = if self.active.as_ref().is_some_and(|a| a.goal == goal.goal) {
-                    self.config.hysteresis
-                } else {
-                    0.0
-                };
-                let ranked = final_score + bonus;
-                if best.as_ref().is_none_or(|(_, b)| ranked > *b) {
-                    // A goal made by the split lives only in this iteration.
-                    let chosen = if split.is_some() {
-                        best_split = Some(goal.clone());
-                        None
-                    } else {
-                        best_split = None;
-                        Some(offered_goal)
-                    };
-                    best =
-                        Some((Candidate { goal: chosen, final_score, primitive, label }, ranked));
                 }
             }
         }
-        let (best, _) = best?;
-        let goal = match best.goal {
-            Some(goal) => goal.clone(),
-            None => best_split?,
+        self.assessment.goals = goals;
+        self.assessment.reports = GoalReports(
+            (!reports.is_empty()).then(|| reports.drain(..).collect::<std::sync::Arc<[_]>>()),
+        );
+        self.scratch = reports;
+        self.assessment.serial = self.assessment.serial.wrapping_add(1);
+    }
+
+    /// Stage 2 for one goal — `offered_goal` itself, or a goal `made` of it by the split —
+    /// and the first primitive that may pursue it.
+    fn assess_goal(
+        &self,
+        offered_index: usize,
+        offered_goal: &GoalScore<G>,
+        made: Option<&GoalScore<G>>,
+        input: &ReactiveInput<'_, W>,
+    ) -> (GoalReport, f64, Option<usize>) {
+        let goal = made.unwrap_or(offered_goal);
+        let (reactive, primitives) = self.policy.assess(goal, input);
+        let reactive = reactive.clamp(0.0, 1.0);
+        let final_score = self.config.combination.combine(goal.deliberative, reactive);
+        let primitive = primitives
+            .iter()
+            .copied()
+            .filter(|name| !self.deactivated.contains(*name))
+            .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
+        let (label, objects) = match self.labels.get(offered_index) {
+            Some((label, objects)) if made.is_none() || goal.goal == offered_goal.goal => {
+                (label.clone(), objects.clone())
+            }
+            _ => (
+                std::sync::Arc::from(goal.goal.label()),
+                std::sync::Arc::from(goal.objects.as_slice()),
+            ),
         };
+        let report = GoalReport {
+            goal: label,
+            objects,
+            deliberative: goal.deliberative,
+            reactive,
+            final_score,
+            applicable: primitive.is_some(),
+        };
+        (report, final_score, primitive)
+    }
+
+    /// The applicable goal with the highest final score, plus the hysteresis bonus for the
+    /// goal pursued; on a tie the goal assessed first.
+    fn rank(&self) -> Option<Selection> {
+        let mut best: Option<(usize, usize, f64)> = None;
+        for (index, assessed) in self.assessment.goals.iter().enumerate() {
+            let Some(primitive) = assessed.primitive else { continue };
+            let goal = assessed.goal(&self.reflexes, &self.scores);
+            let bonus = if self.active.as_ref().is_some_and(|a| a.goal == goal.goal) {
+                self.config.hysteresis
+            } else {
+                0.0
+            };
+            let ranked = assessed.final_score + bonus;
+            if best.is_none_or(|(_, _, b)| ranked > b) {
+                best = Some((index, primitive, ranked));
+            }
+        }
+        let (goal, primitive, _) = best?;
         Some(Selection {
             goal,
-            final_score: best.final_score,
-            primitive: best.primitive,
-            label: best.label,
+            final_score: self.assessment.goals[goal].final_score,
+            primitive,
+            assessment: self.assessment.serial,
         })
     }
 
     /// Activates the selected primitive (deactivating the previous one if it changes) and
-    /// steps it.
-    pub fn execute(
-        &mut self,
-        selection: &Selection<G>,
-        input: &ReactiveInput<'_, W>,
-    ) -> Option<Cmd> {
+    /// steps it. A selection from an earlier assessment executes nothing: the multiplexer
+    /// idles.
+    pub fn execute(&mut self, selection: &Selection, input: &ReactiveInput<'_, W>) -> Option<Cmd> {
+        let assessed = if selection.assessment == self.assessment.serial {
+            self.assessment.goals.get(selection.goal)
+        } else {
+            None
+        };
+        let Some(assessed) = assessed else {
+            self.idle(None);
+            return None;
+        };
+        let goal = &assessed.goal(&self.reflexes, &self.scores).goal;
         let same = self
             .active
             .as_ref()
-            .is_some_and(|a| a.primitive == selection.primitive && a.goal == selection.goal.goal);
+            .is_some_and(|a| a.primitive == selection.primitive && a.goal == *goal);
         if !same {
             if let Some(previous) = self.active.take() {
                 self.primitives[previous.primitive].deactivate();
             }
-            self.primitives[selection.primitive].activate(&selection.goal.goal, input);
-            self.active =
-                Some(Active { goal: selection.goal.goal.clone(), primitive: selection.primitive });
+            self.primitives[selection.primitive].activate(goal, input);
+            self.active = Some(Active { goal: goal.clone(), primitive: selection.primitive });
         }
         let primitive = &mut self.primitives[selection.primitive];
-        self.report.selected_goal = Some(selection.label.clone());
+        self.report.selected_goal =
+            self.assessment.reports.get(selection.goal).map(|r| r.goal.clone());
         self.report.primitive = Some(std::borrow::Cow::Borrowed(primitive.name()));
         self.report.inhibited_by = None;
-        primitive.step(&selection.goal.goal, input)
+        primitive.step(goal, input)
     }
 
     /// Nothing selected, or inhibited by another multiplexer: the active primitive stops.
@@ -521,10 +713,8 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
 
     /// The cycle's report, moved out (the next evaluation builds a new one).
     fn take_report(&mut self) -> MuxReport {
-        // The next cycle reports about as many goals: room for them at once, not by doubling.
         let fresh = MuxReport {
             group: Some(self.group),
-            goals: Vec::with_capacity(self.report.goals.len()),
             scores_received: self.report.scores_received,
             ..MuxReport::default()
         };
@@ -609,13 +799,39 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
         self.fall_detector.status()
     }
 
-    /// One reactive cycle on the newest percepts.
+    /// One reactive cycle on the newest percepts. Every call is taken to bring a new world
+    /// state: all activation policies are asked.
     pub fn step(&mut self, now: Time, percepts: &Percepts, world: Option<&W>) -> ReactiveReport {
+        self.cycle(now, percepts, world, None)
+    }
+
+    /// One reactive cycle on the newest percepts, for a caller that numbers the world states
+    /// it receives: `world` is the one numbered `revision`. A cycle on the revision of the
+    /// previous cycle reuses the answers of world-only activation policies
+    /// ([`ActivationPolicy::world_only`]), which are the answers they would give again; the
+    /// fall detector, the ranking with its hysteresis and the primitives run every cycle.
+    pub fn step_on_revision(
+        &mut self,
+        now: Time,
+        percepts: &Percepts,
+        world: Option<&W>,
+        revision: u64,
+    ) -> ReactiveReport {
+        self.cycle(now, percepts, world, Some(revision))
+    }
+
+    fn cycle(
+        &mut self,
+        now: Time,
+        percepts: &Percepts,
+        world: Option<&W>,
+        revision: Option<u64>,
+    ) -> ReactiveReport {
         let stability = self.fall_detector.update(percepts);
         let input = ReactiveInput { now, percepts, world, actuation: &self.actuation, stability };
-        let whole = self.whole_body.evaluate(&input);
-        let head = self.head.evaluate(&input);
-        let body = self.body.evaluate(&input);
+        let whole = self.whole_body.evaluate_on(&input, revision);
+        let head = self.head.evaluate_on(&input, revision);
+        let body = self.body.evaluate_on(&input, revision);
         let best_separate = head
             .as_ref()
             .map(|s| s.final_score)
