@@ -123,8 +123,8 @@ impl ActivationPolicy<HeadGoal, World> for HeadPolicy {
         if known { &["track", "search"] } else { &["search"] }
     }
 
-    fn world_only(&self) -> bool {
-        true
+    fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
+        Some(0)
     }
 }
 
@@ -162,8 +162,8 @@ impl ActivationPolicy<BodyGoal, World> for BodyPolicy {
         }
     }
 
-    fn world_only(&self) -> bool {
-        true
+    fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
+        Some(0)
     }
 }
 
@@ -511,8 +511,8 @@ impl ActivationPolicy<HeadGoal, World> for Counted {
     ) -> &'static [&'static str] {
         self.0.primitives_for(goal, input)
     }
-    fn world_only(&self) -> bool {
-        true
+    fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
+        Some(0)
     }
 }
 

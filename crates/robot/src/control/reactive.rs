@@ -8,9 +8,10 @@
 //!    executed together now (two objects that do not fit in one gaze); stage 2 computes each
 //!    goal's reactive score S_r from the newest percepts and combines it with the deliberative
 //!    score S_d (the average, by default). S_d is never changed here: the reactive layer only
-//!    rescales, it never changes the goals. A policy whose answers read nothing but the world
-//!    state ([`ActivationPolicy::world_only`]) is asked again only when a new world state or
-//!    score vector has arrived; in between its answers could not change, and are reused.
+//!    rescales, it never changes the goals. A policy whose answers read the world state and
+//!    little else ([`ActivationPolicy::reuse_key`]) is asked again only when a new world state
+//!    or score vector has arrived or that little else changed; in between its answers could not
+//!    change, and are reused.
 //! 3. The goal with the highest final score among those some primitive behavior can pursue now
 //!    (chosen from perceptual data, skipping primitives the deliberative layer deactivated) is
 //!    selected, and that primitive is activated. The head+body multiplexer's selection inhibits
@@ -240,14 +241,68 @@ pub trait ActivationPolicy<G, W>: Send {
         (self.reactive_score(goal, input), self.primitives_for(&goal.goal, input))
     }
 
-    /// Whether every answer above depends on nothing but the goal and `input.world` (not on
-    /// the percepts, the time, the actuation status or the stability). The world state changes
-    /// more slowly than percepts arrive (about 30 Hz against 83 Hz in a match), so the
-    /// multiplexer of such a policy asks again only when the world state or the score vector
-    /// has changed, and reuses the answers — the same answers — in between (see
-    /// [`ReactiveLayer::step_on_revision`]). `false`, the default, asks every cycle.
-    fn world_only(&self) -> bool {
-        false
+    /// What the answers above depend on besides the goal and `input.world`, if that is little:
+    /// `Some(key)` promises that they depend on the goal, the world state and whatever `key`
+    /// sums up of the rest of the input (equal keys, equal answers: `Some(0)` for a policy that
+    /// reads nothing else). The world state changes more slowly than percepts arrive (about
+    /// 30 Hz against 83 Hz in a match), so the multiplexer of such a policy asks again only
+    /// when the world state, the score vector or the key has changed, and reuses the answers —
+    /// the same answers — in between (see [`ReactiveLayer::step_on_revision`]). `None`, the
+    /// default, asks every cycle.
+    fn reuse_key(&self, _input: &ReactiveInput<'_, W>) -> Option<u64> {
+        None
+    }
+
+    /// [`ActivationPolicy::split`] with the goal's notes ([`GoalNotes`]). The multiplexer
+    /// asks this; the default ignores the notes.
+    fn split_noted(
+        &self,
+        goal: &GoalScore<G>,
+        _notes: &mut GoalNotes,
+        input: &ReactiveInput<'_, W>,
+    ) -> Option<Vec<GoalScore<G>>> {
+        self.split(goal, input)
+    }
+
+    /// [`ActivationPolicy::assess`] with the goal's notes ([`GoalNotes`]). The multiplexer
+    /// asks this; the default ignores the notes.
+    fn assess_noted(
+        &self,
+        goal: &GoalScore<G>,
+        _notes: &mut GoalNotes,
+        input: &ReactiveInput<'_, W>,
+    ) -> (f64, &'static [&'static str]) {
+        self.assess(goal, input)
+    }
+}
+
+/// What an activation policy keeps about one offered goal while the score vector stands —
+/// the objects the goal names, found by name once rather than every time it is asked. The
+/// multiplexer keeps one per offered goal and empties them when another score vector (or
+/// reflex vector) arrives; a goal made by a split gets empty notes each time. A policy's
+/// answers with its notes must be the answers without them.
+#[derive(Default)]
+pub struct GoalNotes(Option<Box<dyn std::any::Any + Send>>);
+
+impl GoalNotes {
+    /// The notes, made by `make` if there are none of type `T` yet.
+    pub fn get_or_insert_with<T: std::any::Any + Send>(
+        &mut self,
+        make: impl FnOnce() -> T,
+    ) -> &mut T {
+        if !self.0.as_ref().is_some_and(|notes| notes.is::<T>()) {
+            self.0 = Some(Box::new(make()));
+        }
+        self.0
+            .as_mut()
+            .and_then(|notes| notes.downcast_mut::<T>())
+            .expect("notes of type T were just put in")
+    }
+}
+
+impl Debug for GoalNotes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("GoalNotes").field(&self.0.is_some()).finish()
     }
 }
 
@@ -288,6 +343,24 @@ impl<'a> IntoIterator for &'a GoalReports {
 
     fn into_iter(self) -> Self::IntoIter {
         self.iter()
+    }
+}
+
+impl GoalReports {
+    /// Replaces the list with `reports`' (leaving `reports` empty, its capacity kept): in
+    /// place when nobody else holds the list any longer and it is as long, as it is when a
+    /// multiplexer assesses the same goals on a new world state after the previous cycle's
+    /// report was dropped.
+    fn replace(&mut self, reports: &mut Vec<GoalReport>) {
+        if let Some(list) = self.0.as_mut().and_then(std::sync::Arc::get_mut)
+            && list.len() == reports.len()
+        {
+            for (slot, report) in list.iter_mut().zip(reports.drain(..)) {
+                *slot = report;
+            }
+            return;
+        }
+        self.0 = (!reports.is_empty()).then(|| reports.drain(..).collect());
     }
 }
 
@@ -379,6 +452,9 @@ struct Assessed<G> {
     final_score: f64,
     /// The first primitive (by index) that may pursue it; `None`: not applicable.
     primitive: Option<usize>,
+    /// It is the goal the multiplexer pursues (it earns the hysteresis bonus). Valid while
+    /// [`Assessment::pursued_known`].
+    pursued: bool,
 }
 
 impl<G> Assessed<G> {
@@ -405,12 +481,15 @@ struct Assessment<G> {
     goals: Vec<Assessed<G>>,
     /// One per goal, in the same order.
     reports: GoalReports,
-    /// The world-state revision the answers hold for; `None`: only for the cycle that made
-    /// them (no revision given, a policy that is not world-only, or a new score vector since).
-    revision: Option<u64>,
+    /// The world-state revision and the policy's reuse key the answers hold for; `None`: only
+    /// for the cycle that made them (no revision given, no key, or a new score vector since).
+    key: Option<(u64, u64)>,
     /// Counts assessments, so that a selection is executed only on the assessment it was
     /// made from.
     serial: u64,
+    /// Whether the goals' `pursued` flags hold for the goal pursued now: comparing goals every
+    /// cycle would compare their strings, though the goal pursued rarely changes.
+    pursued_known: bool,
 }
 
 /// Manages one resource group: holds the deliberative score vector, runs the activation
@@ -427,7 +506,13 @@ pub struct Multiplexer<G, Cmd, W> {
     /// Labels of the reflexes and offered goals, made once per score vector rather than every
     /// cycle (a reactive cycle must not format strings it already has).
     labels: Vec<(std::sync::Arc<str>, std::sync::Arc<[String]>)>,
+    /// The policy's notes on each offered goal (reflexes first), emptied with the labels.
+    notes: Vec<GoalNotes>,
     deactivated: BTreeSet<String>,
+    /// The primitive each list of names given by the policy resolves to, under the current
+    /// deactivations: the policy answers with a few static lists, so each is resolved once
+    /// per score vector rather than by comparing names for every goal.
+    resolved: Vec<(&'static [&'static str], Option<usize>)>,
     assessment: Assessment<G>,
     /// Where the next assessment's reports are gathered (kept for its capacity).
     scratch: Vec<GoalReport>,
@@ -459,12 +544,15 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
             scores: ScoreVector::default(),
             reflexes: ScoreVector::default(),
             labels: Vec::new(),
+            notes: Vec::new(),
             deactivated: BTreeSet::new(),
+            resolved: Vec::new(),
             assessment: Assessment {
                 goals: Vec::new(),
                 reports: GoalReports::default(),
-                revision: None,
+                key: None,
                 serial: 0,
+                pursued_known: false,
             },
             scratch: Vec::new(),
             active: None,
@@ -476,7 +564,8 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
     pub fn with_primitive(mut self, primitive: Box<dyn PrimitiveBehavior<G, Cmd, W>>) -> Self {
         self.primitives.retain(|p| p.name() != primitive.name());
         self.primitives.push(primitive);
-        self.assessment.revision = None;
+        self.resolved.clear();
+        self.assessment.key = None;
         self
     }
 
@@ -486,7 +575,8 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         self
     }
 
-    /// Labels the offered goals anew; the answers for the previous ones no longer hold.
+    /// Labels the offered goals anew; the answers for the previous ones, the policy's notes on
+    /// them and the primitives resolved under the previous deactivations no longer hold.
     fn relabel(&mut self) {
         self.labels = self
             .reflexes
@@ -497,7 +587,10 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                 (std::sync::Arc::from(g.goal.label()), std::sync::Arc::from(g.objects.as_slice()))
             })
             .collect();
-        self.assessment.revision = None;
+        self.notes.clear();
+        self.notes.resize_with(self.labels.len(), GoalNotes::default);
+        self.resolved.clear();
+        self.assessment.key = None;
     }
 
     pub fn group(&self) -> ResourceGroup {
@@ -542,16 +635,17 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
     }
 
     /// [`Multiplexer::evaluate`] on the world state numbered `revision` by the caller, if it
-    /// numbers them: a world-only policy's answers are reused while the world state and the
-    /// score vector stay.
+    /// numbers them: the answers of a policy with a reuse key are reused while the world
+    /// state, the score vector and the key stay.
     fn evaluate_on(
         &mut self,
         input: &ReactiveInput<'_, W>,
         revision: Option<u64>,
     ) -> Option<Selection> {
-        if revision.is_none() || revision != self.assessment.revision {
+        let key = revision.zip(self.policy.reuse_key(input));
+        if key.is_none() || key != self.assessment.key {
             self.assess(input);
-            self.assessment.revision = revision.filter(|_| self.policy.world_only());
+            self.assessment.key = key;
         }
         self.report.goals = self.assessment.reports.clone();
         self.rank()
@@ -563,41 +657,60 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         let mut goals = std::mem::take(&mut self.assessment.goals);
         goals.clear();
         let mut reports = std::mem::take(&mut self.scratch);
+        let mut resolved = std::mem::take(&mut self.resolved);
+        let mut notes = std::mem::take(&mut self.notes);
+        // One for every offered goal, or the zip below would leave goals out.
+        notes.resize_with(self.reflexes.goals.len() + self.scores.goals.len(), GoalNotes::default);
         let offered = self.reflexes.goals.iter().chain(self.scores.goals.iter());
-        for (offered_index, offered_goal) in offered.enumerate() {
-            match self.policy.split(offered_goal, input) {
+        for ((offered_index, offered_goal), notes) in offered.enumerate().zip(&mut notes) {
+            match self.policy.split_noted(offered_goal, notes, input) {
                 None => {
-                    let (report, final_score, primitive) =
-                        self.assess_goal(offered_index, offered_goal, None, input);
+                    let (report, final_score, primitive) = self.assess_goal(
+                        offered_index,
+                        offered_goal,
+                        None,
+                        notes,
+                        input,
+                        &mut resolved,
+                    );
                     reports.push(report);
                     goals.push(Assessed {
                         offered: offered_index,
                         split: None,
                         final_score,
                         primitive,
+                        pursued: false,
                     });
                 }
                 Some(made) => {
                     for goal in made {
-                        let (report, final_score, primitive) =
-                            self.assess_goal(offered_index, offered_goal, Some(&goal), input);
+                        let (report, final_score, primitive) = self.assess_goal(
+                            offered_index,
+                            offered_goal,
+                            Some(&goal),
+                            &mut GoalNotes::default(),
+                            input,
+                            &mut resolved,
+                        );
                         reports.push(report);
                         goals.push(Assessed {
                             offered: offered_index,
                             split: Some(goal),
                             final_score,
                             primitive,
+                            pursued: false,
                         });
                     }
                 }
             }
         }
+        self.resolved = resolved;
+        self.notes = notes;
         self.assessment.goals = goals;
-        self.assessment.reports = GoalReports(
-            (!reports.is_empty()).then(|| reports.drain(..).collect::<std::sync::Arc<[_]>>()),
-        );
+        self.assessment.reports.replace(&mut reports);
         self.scratch = reports;
         self.assessment.serial = self.assessment.serial.wrapping_add(1);
+        self.assessment.pursued_known = false;
     }
 
     /// Stage 2 for one goal — `offered_goal` itself, or a goal `made` of it by the split —
@@ -607,17 +720,15 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         offered_index: usize,
         offered_goal: &GoalScore<G>,
         made: Option<&GoalScore<G>>,
+        notes: &mut GoalNotes,
         input: &ReactiveInput<'_, W>,
+        resolved: &mut Vec<(&'static [&'static str], Option<usize>)>,
     ) -> (GoalReport, f64, Option<usize>) {
         let goal = made.unwrap_or(offered_goal);
-        let (reactive, primitives) = self.policy.assess(goal, input);
+        let (reactive, primitives) = self.policy.assess_noted(goal, notes, input);
         let reactive = reactive.clamp(0.0, 1.0);
         let final_score = self.config.combination.combine(goal.deliberative, reactive);
-        let primitive = primitives
-            .iter()
-            .copied()
-            .filter(|name| !self.deactivated.contains(*name))
-            .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
+        let primitive = self.resolve(primitives, resolved);
         let (label, objects) = match self.labels.get(offered_index) {
             Some((label, objects)) if made.is_none() || goal.goal == offered_goal.goal => {
                 (label.clone(), objects.clone())
@@ -638,18 +749,40 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         (report, final_score, primitive)
     }
 
+    /// The first of `names` that is registered and not deactivated, remembered in
+    /// `resolved` (taken out of the multiplexer while its goals are assessed).
+    fn resolve(
+        &self,
+        names: &'static [&'static str],
+        resolved: &mut Vec<(&'static [&'static str], Option<usize>)>,
+    ) -> Option<usize> {
+        // The same static list, at the same address: the same names.
+        if let Some((_, primitive)) = resolved.iter().find(|(n, _)| std::ptr::eq(*n, names)) {
+            return *primitive;
+        }
+        let primitive = names
+            .iter()
+            .copied()
+            .filter(|name| !self.deactivated.contains(*name))
+            .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
+        resolved.push((names, primitive));
+        primitive
+    }
+
     /// The applicable goal with the highest final score, plus the hysteresis bonus for the
     /// goal pursued; on a tie the goal assessed first.
-    fn rank(&self) -> Option<Selection> {
+    fn rank(&mut self) -> Option<Selection> {
+        if !self.assessment.pursued_known {
+            for assessed in &mut self.assessment.goals {
+                let goal = assessed.goal(&self.reflexes, &self.scores);
+                assessed.pursued = self.active.as_ref().is_some_and(|a| a.goal == goal.goal);
+            }
+            self.assessment.pursued_known = true;
+        }
         let mut best: Option<(usize, usize, f64)> = None;
         for (index, assessed) in self.assessment.goals.iter().enumerate() {
             let Some(primitive) = assessed.primitive else { continue };
-            let goal = assessed.goal(&self.reflexes, &self.scores);
-            let bonus = if self.active.as_ref().is_some_and(|a| a.goal == goal.goal) {
-                self.config.hysteresis
-            } else {
-                0.0
-            };
+            let bonus = if assessed.pursued { self.config.hysteresis } else { 0.0 };
             let ranked = assessed.final_score + bonus;
             if best.is_none_or(|(_, _, b)| ranked > b) {
                 best = Some((index, primitive, ranked));
@@ -678,16 +811,21 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
             return None;
         };
         let goal = &assessed.goal(&self.reflexes, &self.scores).goal;
-        let same = self
-            .active
-            .as_ref()
-            .is_some_and(|a| a.primitive == selection.primitive && a.goal == *goal);
+        // The ranking has just compared the goals with the one pursued.
+        let pursued = if self.assessment.pursued_known {
+            assessed.pursued
+        } else {
+            self.active.as_ref().is_some_and(|a| a.goal == *goal)
+        };
+        let same =
+            pursued && self.active.as_ref().is_some_and(|a| a.primitive == selection.primitive);
         if !same {
             if let Some(previous) = self.active.take() {
                 self.primitives[previous.primitive].deactivate();
             }
             self.primitives[selection.primitive].activate(goal, input);
             self.active = Some(Active { goal: goal.clone(), primitive: selection.primitive });
+            self.assessment.pursued_known = false;
         }
         let primitive = &mut self.primitives[selection.primitive];
         self.report.selected_goal =
@@ -701,6 +839,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
     pub fn idle(&mut self, inhibited_by: Option<ResourceGroup>) {
         if let Some(previous) = self.active.take() {
             self.primitives[previous.primitive].deactivate();
+            self.assessment.pursued_known = false;
         }
         self.report.selected_goal = None;
         self.report.primitive = None;
@@ -807,9 +946,10 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
 
     /// One reactive cycle on the newest percepts, for a caller that numbers the world states
     /// it receives: `world` is the one numbered `revision`. A cycle on the revision of the
-    /// previous cycle reuses the answers of world-only activation policies
-    /// ([`ActivationPolicy::world_only`]), which are the answers they would give again; the
-    /// fall detector, the ranking with its hysteresis and the primitives run every cycle.
+    /// previous cycle reuses the answers of activation policies with a reuse key
+    /// ([`ActivationPolicy::reuse_key`]) if their key is the same too: they are the answers
+    /// the policies would give again. The fall detector, the ranking with its hysteresis and
+    /// the primitives run every cycle.
     pub fn step_on_revision(
         &mut self,
         now: Time,
