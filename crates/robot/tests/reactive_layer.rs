@@ -122,6 +122,10 @@ impl ActivationPolicy<HeadGoal, World> for HeadPolicy {
         };
         if known { &["track", "search"] } else { &["search"] }
     }
+
+    fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
+        Some(0)
+    }
 }
 
 struct Look(&'static str);
@@ -156,6 +160,10 @@ impl ActivationPolicy<BodyGoal, World> for BodyPolicy {
             }
             BodyGoal::GoToAndKick => &["walk"],
         }
+    }
+
+    fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
+        Some(0)
     }
 }
 
@@ -469,13 +477,136 @@ fn hysteresis_keeps_the_current_goal_when_scores_are_close() {
     };
     let first = mux.evaluate(&input).expect("a selection");
     let _ = mux.execute(&first, &input);
-    assert_eq!(first.goal.goal, HeadGoal::Observe("a".into()));
+    assert_eq!(mux.selected(&first).map(|g| &g.goal), Some(&HeadGoal::Observe("a".into())));
     // b becomes slightly more uncertain than a: within the hysteresis, a is kept.
     let world = World { confidence: vec![("a", 0.5, 0.0), ("b", 0.46, 0.0)], target_close: false };
     let input = ReactiveInput { world: Some(&world), ..input };
-    assert_eq!(mux.evaluate(&input).expect("selection").goal.goal, HeadGoal::Observe("a".into()));
+    let kept = mux.evaluate(&input).expect("selection");
+    assert_eq!(mux.selected(&kept).map(|g| &g.goal), Some(&HeadGoal::Observe("a".into())));
     // Well beyond it, b wins.
     let world = World { confidence: vec![("a", 0.5, 0.0), ("b", 0.3, 0.0)], target_close: false };
     let input = ReactiveInput { world: Some(&world), ..input };
-    assert_eq!(mux.evaluate(&input).expect("selection").goal.goal, HeadGoal::Observe("b".into()));
+    let switched = mux.evaluate(&input).expect("selection");
+    assert_eq!(mux.selected(&switched).map(|g| &g.goal), Some(&HeadGoal::Observe("b".into())));
+}
+
+/// A world-only policy that counts how often the multiplexer asks it.
+struct Counted(HeadPolicy, std::sync::Arc<std::sync::atomic::AtomicUsize>);
+impl ActivationPolicy<HeadGoal, World> for Counted {
+    fn split(
+        &self,
+        goal: &GoalScore<HeadGoal>,
+        input: &ReactiveInput<'_, World>,
+    ) -> Option<Vec<GoalScore<HeadGoal>>> {
+        self.0.split(goal, input)
+    }
+    fn reactive_score(&self, goal: &GoalScore<HeadGoal>, input: &ReactiveInput<'_, World>) -> f64 {
+        self.1.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.0.reactive_score(goal, input)
+    }
+    fn primitives_for(
+        &self,
+        goal: &HeadGoal,
+        input: &ReactiveInput<'_, World>,
+    ) -> &'static [&'static str] {
+        self.0.primitives_for(goal, input)
+    }
+    fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
+        Some(0)
+    }
+}
+
+/// Cycles numbered by world-state revision reuse a world-only policy's answers while the world
+/// state and the score vector stay, and decide exactly as cycles that ask every time: same
+/// reports, same commands, through world changes, new score vectors, splits, hysteresis, a
+/// fall and a deactivated primitive.
+#[test]
+fn cycles_on_one_world_state_decide_as_cycles_that_ask_every_time() {
+    let config = MultiplexerConfig { combination: ScoreCombination::Average, hysteresis: 0.05 };
+    let counted = |asked: &std::sync::Arc<std::sync::atomic::AtomicUsize>| {
+        Multiplexer::new(
+            ResourceGroup::Head,
+            config.clone(),
+            Box::new(Counted(HeadPolicy, asked.clone())),
+        )
+        .with_primitive(Box::new(Look("track")))
+        .with_primitive(Box::new(Look("search")))
+    };
+    let asked_plain = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let asked_revised = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let mut plain = layer(ScoreCombination::Average);
+    plain.head = counted(&asked_plain);
+    let mut revised = layer(ScoreCombination::Average);
+    revised.head = counted(&asked_revised);
+    let worlds = [
+        World { confidence: vec![("ball", 0.5, 0.1), ("post", 0.4, 0.4)], target_close: false },
+        World { confidence: vec![("ball", 0.5, -1.0), ("post", 0.2, 1.0)], target_close: true },
+        World { confidence: vec![("ball", 0.52, -1.0), ("post", 0.5, 1.0)], target_close: true },
+        World { confidence: vec![("ball", 0.1, 0.0), ("post", 0.9, 0.2)], target_close: false },
+    ];
+    let vectors = [
+        vec![observe("ball", 0.5), observe("post", 0.5)],
+        vec![
+            GoalScore::new(HeadGoal::ObserveBoth("ball".into(), "post".into()), 0.8)
+                .about("ball")
+                .about("post"),
+            observe("ball", 0.3),
+        ],
+    ];
+    for step in 0..48usize {
+        // A new world state every third cycle, a new score vector every eleventh.
+        let revision = (step / 3) as u64;
+        let world = &worlds[(step / 3) % worlds.len()];
+        if step % 11 == 0 {
+            let head = ScoreVector { goals: vectors[(step / 11) % vectors.len()].clone() };
+            let deactivated = if step == 33 {
+                ["kick".to_owned()].into_iter().collect()
+            } else {
+                Default::default()
+            };
+            for layer in [&mut plain, &mut revised] {
+                layer.head.set_scores(head.clone(), &Default::default(), Time::ZERO);
+                layer.body.set_scores(
+                    ScoreVector::single(BodyGoal::GoToAndKick),
+                    &deactivated,
+                    Time::ZERO,
+                );
+            }
+        }
+        let percepts = if step == 20 { tipping() } else { upright() };
+        let now = Time::from_nanos(step as u64);
+        let expected = plain.step(now, &percepts, Some(world));
+        let got = revised.step_on_revision(now, &percepts, Some(world), revision);
+        assert_eq!(got, expected, "cycle {step}");
+    }
+    // A new world state every third cycle: about a third of the questions.
+    let plain = asked_plain.load(std::sync::atomic::Ordering::Relaxed);
+    let revised = asked_revised.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(revised > 0 && 2 * revised < plain, "asked {revised} times, not {plain}");
+}
+
+/// A selection is executed only by the assessment it was made from.
+#[test]
+fn a_selection_from_an_earlier_assessment_executes_nothing() {
+    let mut layer = layer(ScoreCombination::Average);
+    layer.head.set_scores(
+        ScoreVector { goals: vec![observe("ball", 0.9)] },
+        &Default::default(),
+        Time::ZERO,
+    );
+    let world = World { confidence: vec![("ball", 0.5, 0.0)], target_close: false };
+    let percepts = upright();
+    let actuation = Default::default();
+    let input = ReactiveInput {
+        now: Time::ZERO,
+        percepts: &percepts,
+        world: Some(&world),
+        actuation: &actuation,
+        stability: Stability::Stable,
+    };
+    let old = layer.head.evaluate(&input).expect("a selection");
+    let new = layer.head.evaluate(&input).expect("a selection");
+    assert!(layer.head.selected(&old).is_none());
+    assert!(layer.head.execute(&old, &input).is_none());
+    assert!(layer.head.execute(&new, &input).is_some());
 }

@@ -5,8 +5,9 @@
 use std::sync::Arc;
 
 use strata_robot::control::active_vision::GazeCandidate;
-use strata_robot::control::reactive::{ActivationPolicy, ReactiveInput, Stability};
+use strata_robot::control::reactive::{ActivationPolicy, GoalNotes, ReactiveInput, Stability};
 use strata_robot::control::scores::GoalScore;
+use strata_robot::platform::FallDirection;
 use strata_robot::world::{ObjectEstimate, WorldState};
 
 use crate::field::TeamField;
@@ -24,15 +25,17 @@ pub struct HeadActivation {
     pub fov: f64,
 }
 
-impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
-    fn split(
+impl HeadActivation {
+    /// Stage 1 on the goal's objects, found by `find`.
+    fn split_with<'a>(
         &self,
-        goal: &GoalScore<HeadGoal>,
-        input: &Input<'_>,
+        goal: &'a GoalScore<HeadGoal>,
+        input: &Input<'a>,
+        find: impl FnOnce(&'a WorldState, &'a HeadGoal) -> GoalObjects<'a>,
     ) -> Option<Vec<GoalScore<HeadGoal>>> {
         let HeadGoal::ObserveTogether { objects } = &goal.goal else { return None };
         let world = input.world?;
-        let found = head_goal_objects(world, &goal.goal);
+        let found = find(world, &goal.goal);
         let together = found.len() == objects.len()
             && GazeCandidate::covering_direction(world, found.iter().map(|o| o.id), self.fov * 0.8)
                 .is_some();
@@ -58,6 +61,32 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         Some(split)
     }
 
+    /// S_r and the primitives on the goal's objects, found (if needed) by `find`.
+    fn assess_with<'a>(
+        &self,
+        goal: &'a GoalScore<HeadGoal>,
+        input: &Input<'a>,
+        find: impl FnOnce(&'a WorldState, &'a HeadGoal) -> GoalObjects<'a>,
+    ) -> (f64, &'static [&'static str]) {
+        let Some(world) = input.world else { return (1.0, &[names::SEARCH_OBJECT_ELLIPSE]) };
+        if goal.goal == HeadGoal::Scan {
+            return (0.5, &[names::SEARCH_OBJECT_ELLIPSE]);
+        }
+        let objects = find(world, &goal.goal);
+        let need = need_to_look(&goal.goal, world, &objects);
+        (need, head_primitives(&goal.goal, world, || objects))
+    }
+}
+
+impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
+    fn split(
+        &self,
+        goal: &GoalScore<HeadGoal>,
+        input: &Input<'_>,
+    ) -> Option<Vec<GoalScore<HeadGoal>>> {
+        self.split_with(goal, input, head_goal_objects)
+    }
+
     fn reactive_score(&self, goal: &GoalScore<HeadGoal>, input: &Input<'_>) -> f64 {
         let Some(world) = input.world else { return 1.0 };
         if goal.goal == HeadGoal::Scan {
@@ -77,13 +106,119 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         goal: &GoalScore<HeadGoal>,
         input: &Input<'_>,
     ) -> (f64, &'static [&'static str]) {
-        let Some(world) = input.world else { return (1.0, &[names::SEARCH_OBJECT_ELLIPSE]) };
-        if goal.goal == HeadGoal::Scan {
-            return (0.5, &[names::SEARCH_OBJECT_ELLIPSE]);
+        self.assess_with(goal, input, head_goal_objects)
+    }
+
+    /// The goal's objects found where its notes say, not by name.
+    fn split_noted(
+        &self,
+        goal: &GoalScore<HeadGoal>,
+        notes: &mut GoalNotes,
+        input: &Input<'_>,
+    ) -> Option<Vec<GoalScore<HeadGoal>>> {
+        // Only goals about several objects are split: the others need no notes for it.
+        self.split_with(goal, input, |world, goal| {
+            notes.get_or_insert_with(FoundObjects::default).objects(world, goal)
+        })
+    }
+
+    /// The goal's objects found where its notes say, not by name.
+    fn assess_noted(
+        &self,
+        goal: &GoalScore<HeadGoal>,
+        notes: &mut GoalNotes,
+        input: &Input<'_>,
+    ) -> (f64, &'static [&'static str]) {
+        let found = notes.get_or_insert_with(FoundObjects::default);
+        self.assess_with(goal, input, |world, goal| found.objects(world, goal))
+    }
+
+    /// Every answer reads the world state alone (the goal's objects, the pose).
+    fn reuse_key(&self, _: &Input<'_>) -> Option<u64> {
+        Some(0)
+    }
+}
+
+/// Where a head goal's objects were found by name: the ball and landmark instances a head goal
+/// names are looked for by name (a hash of the name) several times per world state; found once,
+/// they are found again by place.
+#[derive(Debug, Default)]
+struct FoundObjects {
+    /// The objects of the world state they were found in: kept, so that their names' very
+    /// texts identify the layout.
+    noted: Option<Arc<[ObjectEstimate]>>,
+    /// Each object's place in [`WorldState::objects`].
+    places: Vec<usize>,
+}
+
+impl FoundObjects {
+    /// [`head_goal_objects`] for `goal`: from the places noted, if `world` is a state of the
+    /// layout they were noted in, otherwise by name (noting the places for next time).
+    fn objects<'a>(&mut self, world: &'a WorldState, goal: &'a HeadGoal) -> GoalObjects<'a> {
+        if let Some(objects) = self.at_places(world) {
+            return objects;
         }
-        let objects = head_goal_objects(world, &goal.goal);
-        let need = need_to_look(&goal.goal, world, &objects);
-        (need, head_primitives(&goal.goal, world, || objects))
+        let objects = head_goal_objects(world, goal);
+        self.note(world, goal, &objects);
+        objects
+    }
+
+    /// The objects at the places noted, if `world` holds at each the very name noted there (the
+    /// same shared text) in a list as long: the layout they were noted in, by the test the
+    /// world state's name index makes before it answers.
+    fn at_places<'a>(&self, world: &'a WorldState) -> Option<GoalObjects<'a>> {
+        let noted = self.noted.as_ref().filter(|n| n.len() == world.objects.len())?;
+        let at = |place: usize| {
+            let name = noted.get(place)?.name.as_str();
+            world.objects.get(place).filter(|o| std::ptr::eq(o.name.as_str(), name))
+        };
+        if let [one] = self.places.as_slice() {
+            return at(*one).map(|o| GoalObjects::One(Some(o)));
+        }
+        let mut missing = false;
+        let objects = GoalObjects::collect(self.places.iter().map_while(|place| {
+            let object = at(*place);
+            missing |= object.is_none();
+            object
+        }));
+        (!missing).then_some(objects)
+    }
+
+    /// Notes where `objects`, found by name for `goal`, are — if each is the object of that
+    /// very name (a group's best instance changes with the estimates, and a missing object
+    /// has no place).
+    fn note(&mut self, world: &WorldState, goal: &HeadGoal, objects: &[&ObjectEstimate]) {
+        self.places.clear();
+        self.noted = None;
+        let named = match goal {
+            HeadGoal::ObserveBall => {
+                objects.len() == 1 && self.note_place(world, crate::world_config::BALL, objects[0])
+            }
+            HeadGoal::ObserveLandmark { name } => {
+                objects.len() == 1 && self.note_place(world, name, objects[0])
+            }
+            HeadGoal::ObserveTogether { objects: names } => {
+                names.len() == objects.len()
+                    && names.iter().zip(objects).all(|(name, o)| self.note_place(world, name, o))
+            }
+            _ => false,
+        };
+        if named {
+            self.noted = Some(world.objects.clone());
+        } else {
+            self.places.clear();
+        }
+    }
+
+    /// Notes the place of `object` if it is the object named `name`, where its id says.
+    fn note_place(&mut self, world: &WorldState, name: &str, object: &ObjectEstimate) -> bool {
+        let place = object.id.index();
+        let at_place = world.objects.get(place).is_some_and(|o| std::ptr::eq(o, object));
+        if object.name != name || !at_place {
+            return false;
+        }
+        self.places.push(place);
+        true
     }
 }
 
@@ -177,6 +312,11 @@ impl ActivationPolicy<BodyGoal, WorldState> for BodyActivation {
             BodyGoal::Stand => &[names::STAND],
         }
     }
+
+    /// Every answer reads the world state alone (the ball, the obstacles).
+    fn reuse_key(&self, _: &Input<'_>) -> Option<u64> {
+        Some(0)
+    }
 }
 
 /// Head and body: the reflexes (fall, stand-up), the dive, dribbling.
@@ -238,6 +378,23 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
             }
             _ => &[],
         }
+    }
+
+    /// The answers read the world state, the stability and whether the head is busy.
+    fn reuse_key(&self, input: &Input<'_>) -> Option<u64> {
+        let direction = |d: FallDirection| match d {
+            FallDirection::Front => 0,
+            FallDirection::Back => 1,
+            FallDirection::Left => 2,
+            FallDirection::Right => 3,
+        };
+        let stability = match input.stability {
+            Stability::Stable => 0,
+            Stability::Unstable(d) => 1 + direction(d),
+            Stability::Fallen(d) => 5 + direction(d),
+        };
+        let head_busy = input.actuation.busy.contains(&strata_robot::command::Resource::Head);
+        Some(stability | u64::from(head_busy) << 4)
     }
 }
 

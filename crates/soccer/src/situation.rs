@@ -116,7 +116,9 @@ pub enum GoalObjects<'a> {
 }
 
 impl<'a> GoalObjects<'a> {
-    fn collect(mut objects: impl Iterator<Item = &'a ObjectEstimate>) -> GoalObjects<'a> {
+    pub(crate) fn collect(
+        mut objects: impl Iterator<Item = &'a ObjectEstimate>,
+    ) -> GoalObjects<'a> {
         let Some(first) = objects.next() else { return GoalObjects::Several(Vec::new()) };
         let mut few = [first; FEW];
         let mut len = 1;

@@ -35,6 +35,9 @@ pub struct ReactiveModule<H, B, X, W> {
     layer: ReactiveLayer<H, B, X, W>,
     ports: ReactivePorts<H, B, X, W>,
     world: Option<W>,
+    /// How many world states have arrived: the number of the one in `world`, so the layer can
+    /// tell a cycle on a new world state from one on the previous cycle's.
+    world_revision: u64,
     last_stability: Option<Stability>,
 }
 
@@ -46,7 +49,7 @@ impl<H: Goal, B: Goal, X: Goal, W> std::fmt::Debug for ReactiveModule<H, B, X, W
 
 impl<H: Goal, B: Goal, X: Goal, W> ReactiveModule<H, B, X, W> {
     pub fn new(layer: ReactiveLayer<H, B, X, W>, ports: ReactivePorts<H, B, X, W>) -> Self {
-        ReactiveModule { layer, ports, world: None, last_stability: None }
+        ReactiveModule { layer, ports, world: None, world_revision: 0, last_stability: None }
     }
 }
 
@@ -64,10 +67,16 @@ impl<H: Goal, B: Goal, X: Goal, W: strata_runtime::Message> Module for ReactiveM
         }
         if let Some(world) = ctx.latest(self.ports.world) {
             self.world = Some(world.value);
+            self.world_revision += 1;
         }
         let Some(percepts) = ctx.latest(self.ports.percepts) else { return Ok(()) };
         let stamp = percepts.stamp;
-        let report = self.layer.step(ctx.now(), &percepts.value, self.world.as_ref());
+        let report = self.layer.step_on_revision(
+            ctx.now(),
+            &percepts.value,
+            self.world.as_ref(),
+            self.world_revision,
+        );
         // Commands go out every cycle, empty or not: they are what paces actuation.
         ctx.send_stamped(self.ports.commands, report.commands, stamp);
         if self.last_stability != Some(report.stability) {

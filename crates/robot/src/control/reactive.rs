@@ -8,7 +8,10 @@
 //!    executed together now (two objects that do not fit in one gaze); stage 2 computes each
 //!    goal's reactive score S_r from the newest percepts and combines it with the deliberative
 //!    score S_d (the average, by default). S_d is never changed here: the reactive layer only
-//!    rescales, it never changes the goals.
+//!    rescales, it never changes the goals. A policy whose answers read the world state and
+//!    little else ([`ActivationPolicy::reuse_key`]) is asked again only when a new world state
+//!    or score vector has arrived or that little else changed; in between its answers could not
+//!    change, and are reused.
 //! 3. The goal with the highest final score among those some primitive behavior can pursue now
 //!    (chosen from perceptual data, skipping primitives the deliberative layer deactivated) is
 //!    selected, and that primitive is activated. The head+body multiplexer's selection inhibits
@@ -237,6 +240,70 @@ pub trait ActivationPolicy<G, W>: Send {
     ) -> (f64, &'static [&'static str]) {
         (self.reactive_score(goal, input), self.primitives_for(&goal.goal, input))
     }
+
+    /// What the answers above depend on besides the goal and `input.world`, if that is little:
+    /// `Some(key)` promises that they depend on the goal, the world state and whatever `key`
+    /// sums up of the rest of the input (equal keys, equal answers: `Some(0)` for a policy that
+    /// reads nothing else). The world state changes more slowly than percepts arrive (about
+    /// 30 Hz against 83 Hz in a match), so the multiplexer of such a policy asks again only
+    /// when the world state, the score vector or the key has changed, and reuses the answers —
+    /// the same answers — in between (see [`ReactiveLayer::step_on_revision`]). `None`, the
+    /// default, asks every cycle.
+    fn reuse_key(&self, _input: &ReactiveInput<'_, W>) -> Option<u64> {
+        None
+    }
+
+    /// [`ActivationPolicy::split`] with the goal's notes ([`GoalNotes`]). The multiplexer
+    /// asks this; the default ignores the notes.
+    fn split_noted(
+        &self,
+        goal: &GoalScore<G>,
+        _notes: &mut GoalNotes,
+        input: &ReactiveInput<'_, W>,
+    ) -> Option<Vec<GoalScore<G>>> {
+        self.split(goal, input)
+    }
+
+    /// [`ActivationPolicy::assess`] with the goal's notes ([`GoalNotes`]). The multiplexer
+    /// asks this; the default ignores the notes.
+    fn assess_noted(
+        &self,
+        goal: &GoalScore<G>,
+        _notes: &mut GoalNotes,
+        input: &ReactiveInput<'_, W>,
+    ) -> (f64, &'static [&'static str]) {
+        self.assess(goal, input)
+    }
+}
+
+/// What an activation policy keeps about one offered goal while the score vector stands —
+/// the objects the goal names, found by name once rather than every time it is asked. The
+/// multiplexer keeps one per offered goal and empties them when another score vector (or
+/// reflex vector) arrives; a goal made by a split gets empty notes each time. A policy's
+/// answers with its notes must be the answers without them.
+#[derive(Default)]
+pub struct GoalNotes(Option<Box<dyn std::any::Any + Send>>);
+
+impl GoalNotes {
+    /// The notes, made by `make` if there are none of type `T` yet.
+    pub fn get_or_insert_with<T: std::any::Any + Send>(
+        &mut self,
+        make: impl FnOnce() -> T,
+    ) -> &mut T {
+        if !self.0.as_ref().is_some_and(|notes| notes.is::<T>()) {
+            self.0 = Some(Box::new(make()));
+        }
+        self.0
+            .as_mut()
+            .and_then(|notes| notes.downcast_mut::<T>())
+            .expect("notes of type T were just put in")
+    }
+}
+
+impl Debug for GoalNotes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("GoalNotes").field(&self.0.is_some()).finish()
+    }
 }
 
 /// One goal as the activation function scored it this cycle.
@@ -256,11 +323,82 @@ pub struct GoalReport {
     pub applicable: bool,
 }
 
+/// The goals a multiplexer scored in one cycle, in the order it scored them: a list shared
+/// with the multiplexer, since consecutive cycles on one world state score the same goals the
+/// same way and must not copy their reports. Reads as a slice; serialized as a list.
+#[derive(Clone, Default)]
+pub struct GoalReports(Option<std::sync::Arc<[GoalReport]>>);
+
+impl std::ops::Deref for GoalReports {
+    type Target = [GoalReport];
+
+    fn deref(&self) -> &[GoalReport] {
+        self.0.as_deref().unwrap_or_default()
+    }
+}
+
+impl<'a> IntoIterator for &'a GoalReports {
+    type Item = &'a GoalReport;
+    type IntoIter = std::slice::Iter<'a, GoalReport>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter()
+    }
+}
+
+impl GoalReports {
+    /// Replaces the list with `reports`' (leaving `reports` empty, its capacity kept): in
+    /// place when nobody else holds the list any longer and it is as long, as it is when a
+    /// multiplexer assesses the same goals on a new world state after the previous cycle's
+    /// report was dropped.
+    fn replace(&mut self, reports: &mut Vec<GoalReport>) {
+        if let Some(list) = self.0.as_mut().and_then(std::sync::Arc::get_mut)
+            && list.len() == reports.len()
+        {
+            for (slot, report) in list.iter_mut().zip(reports.drain(..)) {
+                *slot = report;
+            }
+            return;
+        }
+        self.0 = (!reports.is_empty()).then(|| reports.drain(..).collect());
+    }
+}
+
+impl From<Vec<GoalReport>> for GoalReports {
+    fn from(reports: Vec<GoalReport>) -> GoalReports {
+        GoalReports((!reports.is_empty()).then(|| reports.into()))
+    }
+}
+
+impl PartialEq for GoalReports {
+    fn eq(&self, other: &GoalReports) -> bool {
+        **self == **other
+    }
+}
+
+impl Debug for GoalReports {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        (**self).fmt(f)
+    }
+}
+
+impl Serialize for GoalReports {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        (**self).serialize(serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for GoalReports {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        Vec::<GoalReport>::deserialize(deserializer).map(GoalReports::from)
+    }
+}
+
 /// One multiplexer's decision in one cycle: the debugging view of the reactive layer.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MuxReport {
     pub group: Option<ResourceGroup>,
-    pub goals: Vec<GoalReport>,
+    pub goals: GoalReports,
     pub selected_goal: Option<std::sync::Arc<str>>,
     pub primitive: Option<std::borrow::Cow<'static, str>>,
     /// The multiplexer whose selection inhibited this one.
@@ -290,22 +428,68 @@ struct Active<G> {
     primitive: usize,
 }
 
-/// A selection made by the activation function, not yet executed.
-#[derive(Clone, Debug)]
-pub struct Selection<G> {
-    pub goal: GoalScore<G>,
+/// A selection made by the activation function, not yet executed. It names a goal of the
+/// multiplexer's current assessment rather than holding a copy of it (goals own strings, and
+/// a selection is made every cycle), so it is executed by the multiplexer that made it, before
+/// that multiplexer evaluates again or receives another score vector.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Selection {
+    /// The selected goal's place in [`Assessment::goals`].
+    goal: usize,
     pub final_score: f64,
     primitive: usize,
-    label: std::sync::Arc<str>,
+    /// The assessment the selection was made from.
+    assessment: u64,
 }
 
-/// The best goal during an evaluation: an offered goal by reference, or (`None`) the goal a
-/// split made, kept aside.
-struct Candidate<'a, G> {
-    goal: Option<&'a GoalScore<G>>,
+/// One goal as the activation function assessed it: everything that holds until the score
+/// vector or (for a world-only policy) the world state changes.
+struct Assessed<G> {
+    /// The offered goal (reflexes first, then the score vector) it comes from.
+    offered: usize,
+    /// The goal a split made, if the offered goal was split.
+    split: Option<GoalScore<G>>,
     final_score: f64,
-    primitive: usize,
-    label: std::sync::Arc<str>,
+    /// The first primitive (by index) that may pursue it; `None`: not applicable.
+    primitive: Option<usize>,
+    /// It is the goal the multiplexer pursues (it earns the hysteresis bonus). Valid while
+    /// [`Assessment::pursued_known`].
+    pursued: bool,
+}
+
+impl<G> Assessed<G> {
+    /// The goal itself: the one the split made, or the offered one (reflexes first, then the
+    /// score vector).
+    fn goal<'a>(
+        &'a self,
+        reflexes: &'a ScoreVector<G>,
+        scores: &'a ScoreVector<G>,
+    ) -> &'a GoalScore<G> {
+        self.split.as_ref().unwrap_or_else(|| {
+            match self.offered.checked_sub(reflexes.goals.len()) {
+                None => &reflexes.goals[self.offered],
+                Some(index) => &scores.goals[index],
+            }
+        })
+    }
+}
+
+/// The activation function's answers for every goal a multiplexer offers, made by
+/// [`Multiplexer::assess`] and ranked every cycle (the hysteresis bonus depends on the goal
+/// pursued, which the ranking itself changes).
+struct Assessment<G> {
+    goals: Vec<Assessed<G>>,
+    /// One per goal, in the same order.
+    reports: GoalReports,
+    /// The world-state revision and the policy's reuse key the answers hold for; `None`: only
+    /// for the cycle that made them (no revision given, no key, or a new score vector since).
+    key: Option<(u64, u64)>,
+    /// Counts assessments, so that a selection is executed only on the assessment it was
+    /// made from.
+    serial: u64,
+    /// Whether the goals' `pursued` flags hold for the goal pursued now: comparing goals every
+    /// cycle would compare their strings, though the goal pursued rarely changes.
+    pursued_known: bool,
 }
 
 /// Manages one resource group: holds the deliberative score vector, runs the activation
@@ -322,7 +506,16 @@ pub struct Multiplexer<G, Cmd, W> {
     /// Labels of the reflexes and offered goals, made once per score vector rather than every
     /// cycle (a reactive cycle must not format strings it already has).
     labels: Vec<(std::sync::Arc<str>, std::sync::Arc<[String]>)>,
+    /// The policy's notes on each offered goal (reflexes first), emptied with the labels.
+    notes: Vec<GoalNotes>,
     deactivated: BTreeSet<String>,
+    /// The primitive each list of names given by the policy resolves to, under the current
+    /// deactivations: the policy answers with a few static lists, so each is resolved once
+    /// per score vector rather than by comparing names for every goal.
+    resolved: Vec<(&'static [&'static str], Option<usize>)>,
+    assessment: Assessment<G>,
+    /// Where the next assessment's reports are gathered (kept for its capacity).
+    scratch: Vec<GoalReport>,
     active: Option<Active<G>>,
     report: MuxReport,
 }
@@ -351,7 +544,17 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
             scores: ScoreVector::default(),
             reflexes: ScoreVector::default(),
             labels: Vec::new(),
+            notes: Vec::new(),
             deactivated: BTreeSet::new(),
+            resolved: Vec::new(),
+            assessment: Assessment {
+                goals: Vec::new(),
+                reports: GoalReports::default(),
+                key: None,
+                serial: 0,
+                pursued_known: false,
+            },
+            scratch: Vec::new(),
             active: None,
             report: MuxReport { group: Some(group), ..MuxReport::default() },
         }
@@ -361,6 +564,8 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
     pub fn with_primitive(mut self, primitive: Box<dyn PrimitiveBehavior<G, Cmd, W>>) -> Self {
         self.primitives.retain(|p| p.name() != primitive.name());
         self.primitives.push(primitive);
+        self.resolved.clear();
+        self.assessment.key = None;
         self
     }
 
@@ -370,6 +575,8 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         self
     }
 
+    /// Labels the offered goals anew; the answers for the previous ones, the policy's notes on
+    /// them and the primitives resolved under the previous deactivations no longer hold.
     fn relabel(&mut self) {
         self.labels = self
             .reflexes
@@ -380,6 +587,10 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
                 (std::sync::Arc::from(g.goal.label()), std::sync::Arc::from(g.objects.as_slice()))
             })
             .collect();
+        self.notes.clear();
+        self.notes.resize_with(self.labels.len(), GoalNotes::default);
+        self.resolved.clear();
+        self.assessment.key = None;
     }
 
     pub fn group(&self) -> ResourceGroup {
@@ -408,107 +619,227 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         &self.scores
     }
 
+    /// The goal a selection names; `None` if the multiplexer assessed its goals again since
+    /// the selection was made.
+    pub fn selected(&self, selection: &Selection) -> Option<&GoalScore<G>> {
+        if selection.assessment != self.assessment.serial {
+            return None;
+        }
+        let assessed = self.assessment.goals.get(selection.goal)?;
+        Some(assessed.goal(&self.reflexes, &self.scores))
+    }
+
     /// The activation function: both stages and the selection, without executing anything.
-    pub fn evaluate(&mut self, input: &ReactiveInput<'_, W>) -> Option<Selection<G>> {
-        self.report.goals.clear();
-        // The best goal so far is remembered, not copied: goals own strings, and the ranking
-        // changes several times per cycle. Only the final choice is cloned.
-        let mut best: Option<(Candidate<'_, G>, f64)> = None;
-        let mut best_split: Option<GoalScore<G>> = None;
+    pub fn evaluate(&mut self, input: &ReactiveInput<'_, W>) -> Option<Selection> {
+        self.evaluate_on(input, None)
+    }
+
+    /// [`Multiplexer::evaluate`] on the world state numbered `revision` by the caller, if it
+    /// numbers them: the answers of a policy with a reuse key are reused while the world
+    /// state, the score vector and the key stay.
+    fn evaluate_on(
+        &mut self,
+        input: &ReactiveInput<'_, W>,
+        revision: Option<u64>,
+    ) -> Option<Selection> {
+        let key = revision.zip(self.policy.reuse_key(input));
+        if key.is_none() || key != self.assessment.key {
+            self.assess(input);
+            self.assessment.key = key;
+        }
+        self.report.goals = self.assessment.reports.clone();
+        self.rank()
+    }
+
+    /// Both stages of the activation function for every offered goal, and the primitive that
+    /// would pursue each.
+    fn assess(&mut self, input: &ReactiveInput<'_, W>) {
+        let mut goals = std::mem::take(&mut self.assessment.goals);
+        goals.clear();
+        let mut reports = std::mem::take(&mut self.scratch);
+        let mut resolved = std::mem::take(&mut self.resolved);
+        let mut notes = std::mem::take(&mut self.notes);
+        // One for every offered goal, or the zip below would leave goals out.
+        notes.resize_with(self.reflexes.goals.len() + self.scores.goals.len(), GoalNotes::default);
         let offered = self.reflexes.goals.iter().chain(self.scores.goals.iter());
-        for (offered_index, offered_goal) in offered.enumerate() {
-            let split = self.policy.split(offered_goal, input);
-            let goals = split.as_deref().unwrap_or(std::slice::from_ref(offered_goal));
-            for goal in goals {
-                let (reactive, primitives) = self.policy.assess(goal, input);
-                let reactive = reactive.clamp(0.0, 1.0);
-                let final_score = self.config.combination.combine(goal.deliberative, reactive);
-                let primitive = primitives
-                    .iter()
-                    .copied()
-                    .filter(|name| !self.deactivated.contains(*name))
-                    .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
-                let (label, objects) = match self.labels.get(offered_index) {
-                    Some((label, objects)) if split.is_none() || goal.goal == offered_goal.goal => {
-                        (label.clone(), objects.clone())
+        for ((offered_index, offered_goal), notes) in offered.enumerate().zip(&mut notes) {
+            match self.policy.split_noted(offered_goal, notes, input) {
+                None => {
+                    let (report, final_score, primitive) = self.assess_goal(
+                        offered_index,
+                        offered_goal,
+                        None,
+                        notes,
+                        input,
+                        &mut resolved,
+                    );
+                    reports.push(report);
+                    goals.push(Assessed {
+                        offered: offered_index,
+                        split: None,
+                        final_score,
+                        primitive,
+                        pursued: false,
+                    });
+                }
+                Some(made) => {
+                    for goal in made {
+                        let (report, final_score, primitive) = self.assess_goal(
+                            offered_index,
+                            offered_goal,
+                            Some(&goal),
+                            &mut GoalNotes::default(),
+                            input,
+                            &mut resolved,
+                        );
+                        reports.push(report);
+                        goals.push(Assessed {
+                            offered: offered_index,
+                            split: Some(goal),
+                            final_score,
+                            primitive,
+                            pursued: false,
+                        });
                     }
-                    _ => (
-                        std::sync::Arc::from(goal.goal.label()),
-                        std::sync::Arc::from(goal.objects.as_slice()),
-                    ),
-                };
-                self.report.goals.push(GoalReport {
-                    goal: label.clone(),
-                    objects,
-                    deliberative: goal.deliberative,
-                    reactive,
-                    final_score,
-                    applicable: primitive.is_some(),
-                });
-                let Some(primitive) = primitive else { continue };
-                let bonus = if self.active.as_ref().is_some_and(|a| a.goal == goal.goal) {
-                    self.config.hysteresis
-                } else {
-                    0.0
-                };
-                let ranked = final_score + bonus;
-                if best.as_ref().is_none_or(|(_, b)| ranked > *b) {
-                    // A goal made by the split lives only in this iteration.
-                    let chosen = if split.is_some() {
-                        best_split = Some(goal.clone());
-                        None
-                    } else {
-                        best_split = None;
-                        Some(offered_goal)
-                    };
-                    best =
-                        Some((Candidate { goal: chosen, final_score, primitive, label }, ranked));
                 }
             }
         }
-        let (best, _) = best?;
-        let goal = match best.goal {
-            Some(goal) => goal.clone(),
-            None => best_split?,
+        self.resolved = resolved;
+        self.notes = notes;
+        self.assessment.goals = goals;
+        self.assessment.reports.replace(&mut reports);
+        self.scratch = reports;
+        self.assessment.serial = self.assessment.serial.wrapping_add(1);
+        self.assessment.pursued_known = false;
+    }
+
+    /// Stage 2 for one goal — `offered_goal` itself, or a goal `made` of it by the split —
+    /// and the first primitive that may pursue it.
+    fn assess_goal(
+        &self,
+        offered_index: usize,
+        offered_goal: &GoalScore<G>,
+        made: Option<&GoalScore<G>>,
+        notes: &mut GoalNotes,
+        input: &ReactiveInput<'_, W>,
+        resolved: &mut Vec<(&'static [&'static str], Option<usize>)>,
+    ) -> (GoalReport, f64, Option<usize>) {
+        let goal = made.unwrap_or(offered_goal);
+        let (reactive, primitives) = self.policy.assess_noted(goal, notes, input);
+        let reactive = reactive.clamp(0.0, 1.0);
+        let final_score = self.config.combination.combine(goal.deliberative, reactive);
+        let primitive = self.resolve(primitives, resolved);
+        let (label, objects) = match self.labels.get(offered_index) {
+            Some((label, objects)) if made.is_none() || goal.goal == offered_goal.goal => {
+                (label.clone(), objects.clone())
+            }
+            _ => (
+                std::sync::Arc::from(goal.goal.label()),
+                std::sync::Arc::from(goal.objects.as_slice()),
+            ),
         };
+        let report = GoalReport {
+            goal: label,
+            objects,
+            deliberative: goal.deliberative,
+            reactive,
+            final_score,
+            applicable: primitive.is_some(),
+        };
+        (report, final_score, primitive)
+    }
+
+    /// The first of `names` that is registered and not deactivated, remembered in
+    /// `resolved` (taken out of the multiplexer while its goals are assessed).
+    fn resolve(
+        &self,
+        names: &'static [&'static str],
+        resolved: &mut Vec<(&'static [&'static str], Option<usize>)>,
+    ) -> Option<usize> {
+        // The same static list, at the same address: the same names.
+        if let Some((_, primitive)) = resolved.iter().find(|(n, _)| std::ptr::eq(*n, names)) {
+            return *primitive;
+        }
+        let primitive = names
+            .iter()
+            .copied()
+            .filter(|name| !self.deactivated.contains(*name))
+            .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
+        resolved.push((names, primitive));
+        primitive
+    }
+
+    /// The applicable goal with the highest final score, plus the hysteresis bonus for the
+    /// goal pursued; on a tie the goal assessed first.
+    fn rank(&mut self) -> Option<Selection> {
+        if !self.assessment.pursued_known {
+            for assessed in &mut self.assessment.goals {
+                let goal = assessed.goal(&self.reflexes, &self.scores);
+                assessed.pursued = self.active.as_ref().is_some_and(|a| a.goal == goal.goal);
+            }
+            self.assessment.pursued_known = true;
+        }
+        let mut best: Option<(usize, usize, f64)> = None;
+        for (index, assessed) in self.assessment.goals.iter().enumerate() {
+            let Some(primitive) = assessed.primitive else { continue };
+            let bonus = if assessed.pursued { self.config.hysteresis } else { 0.0 };
+            let ranked = assessed.final_score + bonus;
+            if best.is_none_or(|(_, _, b)| ranked > b) {
+                best = Some((index, primitive, ranked));
+            }
+        }
+        let (goal, primitive, _) = best?;
         Some(Selection {
             goal,
-            final_score: best.final_score,
-            primitive: best.primitive,
-            label: best.label,
+            final_score: self.assessment.goals[goal].final_score,
+            primitive,
+            assessment: self.assessment.serial,
         })
     }
 
     /// Activates the selected primitive (deactivating the previous one if it changes) and
-    /// steps it.
-    pub fn execute(
-        &mut self,
-        selection: &Selection<G>,
-        input: &ReactiveInput<'_, W>,
-    ) -> Option<Cmd> {
-        let same = self
-            .active
-            .as_ref()
-            .is_some_and(|a| a.primitive == selection.primitive && a.goal == selection.goal.goal);
+    /// steps it. A selection from an earlier assessment executes nothing: the multiplexer
+    /// idles.
+    pub fn execute(&mut self, selection: &Selection, input: &ReactiveInput<'_, W>) -> Option<Cmd> {
+        let assessed = if selection.assessment == self.assessment.serial {
+            self.assessment.goals.get(selection.goal)
+        } else {
+            None
+        };
+        let Some(assessed) = assessed else {
+            self.idle(None);
+            return None;
+        };
+        let goal = &assessed.goal(&self.reflexes, &self.scores).goal;
+        // The ranking has just compared the goals with the one pursued.
+        let pursued = if self.assessment.pursued_known {
+            assessed.pursued
+        } else {
+            self.active.as_ref().is_some_and(|a| a.goal == *goal)
+        };
+        let same =
+            pursued && self.active.as_ref().is_some_and(|a| a.primitive == selection.primitive);
         if !same {
             if let Some(previous) = self.active.take() {
                 self.primitives[previous.primitive].deactivate();
             }
-            self.primitives[selection.primitive].activate(&selection.goal.goal, input);
-            self.active =
-                Some(Active { goal: selection.goal.goal.clone(), primitive: selection.primitive });
+            self.primitives[selection.primitive].activate(goal, input);
+            self.active = Some(Active { goal: goal.clone(), primitive: selection.primitive });
+            self.assessment.pursued_known = false;
         }
         let primitive = &mut self.primitives[selection.primitive];
-        self.report.selected_goal = Some(selection.label.clone());
+        self.report.selected_goal =
+            self.assessment.reports.get(selection.goal).map(|r| r.goal.clone());
         self.report.primitive = Some(std::borrow::Cow::Borrowed(primitive.name()));
         self.report.inhibited_by = None;
-        primitive.step(&selection.goal.goal, input)
+        primitive.step(goal, input)
     }
 
     /// Nothing selected, or inhibited by another multiplexer: the active primitive stops.
     pub fn idle(&mut self, inhibited_by: Option<ResourceGroup>) {
         if let Some(previous) = self.active.take() {
             self.primitives[previous.primitive].deactivate();
+            self.assessment.pursued_known = false;
         }
         self.report.selected_goal = None;
         self.report.primitive = None;
@@ -521,10 +852,8 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
 
     /// The cycle's report, moved out (the next evaluation builds a new one).
     fn take_report(&mut self) -> MuxReport {
-        // The next cycle reports about as many goals: room for them at once, not by doubling.
         let fresh = MuxReport {
             group: Some(self.group),
-            goals: Vec::with_capacity(self.report.goals.len()),
             scores_received: self.report.scores_received,
             ..MuxReport::default()
         };
@@ -609,13 +938,40 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
         self.fall_detector.status()
     }
 
-    /// One reactive cycle on the newest percepts.
+    /// One reactive cycle on the newest percepts. Every call is taken to bring a new world
+    /// state: all activation policies are asked.
     pub fn step(&mut self, now: Time, percepts: &Percepts, world: Option<&W>) -> ReactiveReport {
+        self.cycle(now, percepts, world, None)
+    }
+
+    /// One reactive cycle on the newest percepts, for a caller that numbers the world states
+    /// it receives: `world` is the one numbered `revision`. A cycle on the revision of the
+    /// previous cycle reuses the answers of activation policies with a reuse key
+    /// ([`ActivationPolicy::reuse_key`]) if their key is the same too: they are the answers
+    /// the policies would give again. The fall detector, the ranking with its hysteresis and
+    /// the primitives run every cycle.
+    pub fn step_on_revision(
+        &mut self,
+        now: Time,
+        percepts: &Percepts,
+        world: Option<&W>,
+        revision: u64,
+    ) -> ReactiveReport {
+        self.cycle(now, percepts, world, Some(revision))
+    }
+
+    fn cycle(
+        &mut self,
+        now: Time,
+        percepts: &Percepts,
+        world: Option<&W>,
+        revision: Option<u64>,
+    ) -> ReactiveReport {
         let stability = self.fall_detector.update(percepts);
         let input = ReactiveInput { now, percepts, world, actuation: &self.actuation, stability };
-        let whole = self.whole_body.evaluate(&input);
-        let head = self.head.evaluate(&input);
-        let body = self.body.evaluate(&input);
+        let whole = self.whole_body.evaluate_on(&input, revision);
+        let head = self.head.evaluate_on(&input, revision);
+        let body = self.body.evaluate_on(&input, revision);
         let best_separate = head
             .as_ref()
             .map(|s| s.final_score)
