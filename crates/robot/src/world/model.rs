@@ -14,7 +14,7 @@ use super::config::{
 };
 use super::expected::{BeliefView, ExpectedBelief, ObjectPrior, SensingCandidate};
 use super::math::{
-    RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius, symmetrize2,
+    BearingBound, RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius, symmetrize2,
 };
 use super::object::{GainedInformation, MotionModel, ObjectFilter, innovation_at};
 use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
@@ -793,23 +793,31 @@ impl WorldModel {
     /// and a little less certain where they are.
     fn negative_information(&mut self, view: &ViewCone) {
         let k = self.config.confidence;
+        let bearing_bound = BearingBound::new(view, k.view_margin);
         for slot in &mut self.slots {
             let Some(track) = &mut slot.track else { continue };
             if track.updated {
                 continue;
             }
-            // Too close or beyond the camera's range whatever the uncertainty (the range
-            // tests below only get stricter): no need for the bearing's trigonometry.
-            let range = track.filter.position_vector().norm();
-            if range < MIN_VISIBLE_RANGE || range > view.range {
+            // Too close, beyond the camera's range or outside its bearings whatever the
+            // uncertainty (the tests below only get stricter): no need for the bearing's
+            // trigonometry.
+            let position = track.filter.position_vector();
+            let range = position.norm();
+            if range < MIN_VISIBLE_RANGE
+                || range > view.range
+                || bearing_bound.certainly_outside(position, range)
+            {
                 continue;
             }
-            let (z, h) = polar(track.filter.position_vector());
+            let (z, h) = polar(position);
             let s = h * track.filter.position_covariance() * h.transpose();
             let (sr, sb) = (s[(0, 0)].max(0.0).sqrt(), s[(1, 1)].max(0.0).sqrt());
+            if z.x < MIN_VISIBLE_RANGE || z.x + 2.0 * sr > view.range {
+                continue;
+            }
             let margin = k.view_margin + 2.0 * sb;
-            let inside = view.contains_polar(track.filter.position().range(), z.y, margin);
-            if z.x < MIN_VISIBLE_RANGE || z.x + 2.0 * sr > view.range || !inside {
+            if !view.contains_polar(track.filter.position().range(), z.y, margin) {
                 continue;
             }
             track.existence = bayes_miss(track.existence, k.detection_probability)
