@@ -929,15 +929,15 @@ impl WorldModel {
     fn finish_frame(&mut self, camera: bool) {
         let forget = self.config.confidence.forget_threshold;
         let mut confidences = std::mem::take(&mut self.confidences);
-        confidences.clear();
-        for i in 0..self.slots.len() {
+        confidences.resize(self.slots.len(), 0.0);
+        for (i, confidence) in confidences.iter_mut().enumerate() {
             let tracked = self.slots[i].track.is_some();
             let mut c = if tracked { self.confidence(i) } else { 0.0 };
             if tracked && c < forget {
                 self.slots[i].track = None;
                 c = 0.0;
             }
-            confidences.push(c);
+            *confidence = c;
         }
         self.confidences = confidences;
         self.confidences_current = true;
