@@ -1,6 +1,7 @@
 //! The world state's fast paths give the answers of the plain ones: the name index against a
 //! scan of the objects, sensing candidates from shared per-object priors against one
-//! prediction per object, and the covering gaze's direction against the candidate.
+//! prediction per object, the covering gaze's direction against the candidate, and published
+//! confidences (kept from the end of a frame) against ones worked out afresh.
 
 mod world_support;
 
@@ -14,7 +15,7 @@ use strata_robot::world::{
     WorldState,
 };
 use strata_runtime::Time;
-use world_support::{BALL, DT, config};
+use world_support::{BALL, DT, Sim, config, patrol_step};
 
 /// A world state with a tracked ball, a localized pose and untracked landmarks.
 fn state() -> WorldState {
@@ -151,4 +152,46 @@ fn the_covering_direction_is_the_covering_candidates() {
             assert_eq!(direction.map(f64::to_bits), expected, "{set:?} {fov}");
         }
     }
+}
+
+/// Every published confidence is the model's confidence at the time of publication, bit for
+/// bit, whatever happened since the last frame.
+fn assert_published_confidences_are_current(world: &WorldModel, when: &str) {
+    let state = world.state();
+    for o in state.objects.iter() {
+        let fresh = world.object_confidence(o.id);
+        assert_eq!(o.confidence.to_bits(), fresh.to_bits(), "{} {when}", o.name);
+    }
+}
+
+#[test]
+fn published_confidences_are_worked_out_afresh_after_any_change() {
+    let prior = PosePrior { pose: Pose::new(-1.0, 0.5, 0.3), sigma: [0.05, 0.05, 0.02] };
+    let mut world = WorldModel::new(config(Some(prior))).expect("valid config");
+    let mut sim = Sim::new(7, Pose::new(-1.0, 0.5, 0.3));
+    sim.ball_velocity = nalgebra::Vector2::new(0.4, -0.2);
+    assert_published_confidences_are_current(&world, "before any frame");
+    for frame in 0..120 {
+        let (odometry, percepts) = sim.frame(patrol_step(&sim));
+        world.process(odometry, &percepts);
+        assert_published_confidences_are_current(&world, "after a frame");
+        // Between a frame and the publication: each way the model can change.
+        match frame % 6 {
+            0 => world.predict(Odometry { dx: 0.02, dy: 0.0, dtheta: 0.05 }),
+            1 => world.advance_to(Time::from_secs_f64(sim.time + 0.5 * DT)),
+            2 => world.note_frame_without_image(&Percepts::default()),
+            3 => world.update(&CameraPercepts {
+                stamp: Time::from_secs_f64(sim.time + 0.7 * DT),
+                view: ViewCone { direction: sim.head_yaw(), fov: sim.fov, range: 6.0 },
+                observations: Vec::new(),
+            }),
+            4 if frame == 100 => {
+                world.command(strata_robot::world::WorldCommand::Kidnapped).expect("accepted")
+            }
+            _ => {}
+        }
+        assert_published_confidences_are_current(&world, &format!("after change {frame}"));
+    }
+    world.command(strata_robot::world::WorldCommand::Reset).expect("accepted");
+    assert_published_confidences_are_current(&world, "after a reset");
 }

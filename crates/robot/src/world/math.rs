@@ -151,6 +151,48 @@ pub(crate) fn major_sigma(p: &Matrix2<f64>) -> f64 {
     (tr / 2.0 + disc).max(0.0).sqrt()
 }
 
+/// A cheap test that a point is outside a view cone's bearing limits whatever margin (at least
+/// `min_margin`) the exact test ([`ViewCone::contains_polar`]) uses: negative information asks
+/// every unobserved filter, most of them are well outside the image, and this spares them the
+/// bearing's `atan2` and `sin_cos`. One `sin_cos` per image instead.
+///
+/// Conservative: a point it calls outside is more than [`BearingBound::SLACK`] beyond the
+/// widest accepted bearing, far more than the rounding of either test, so the exact test would
+/// reject it too; points near the limit are left to the exact test.
+///
+/// [`ViewCone::contains_polar`]: crate::percept::ViewCone::contains_polar
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BearingBound {
+    /// The optical axis as a unit vector.
+    axis: Vector2<f64>,
+    /// Cosine of the widest bearing off the axis that can be accepted, plus the slack; `None`
+    /// when that reaches all around (nothing is certainly outside).
+    cos_limit: Option<f64>,
+}
+
+impl BearingBound {
+    /// Angular slack, rad: rounding of `atan2`, the angle's normalization and the dot product
+    /// below stays under 1e-7 rad even where the cosine is flat.
+    pub const SLACK: f64 = 1e-6;
+
+    pub fn new(view: &crate::percept::ViewCone, min_margin: f64) -> BearingBound {
+        // The exact test accepts |bearing - direction| <= max(fov / 2 - margin, 0), which only
+        // shrinks as the margin grows.
+        let limit = (view.fov / 2.0 - min_margin).max(0.0) + Self::SLACK;
+        let (s, c) = view.direction.sin_cos();
+        let cos_limit = (limit < std::f64::consts::PI).then(|| limit.cos());
+        BearingBound { axis: Vector2::new(c, s), cos_limit }
+    }
+
+    /// Whether `p`, at distance `range` (its norm, > 0), is certainly outside the cone's
+    /// bearing limits. NaN anywhere answers `false`.
+    pub fn certainly_outside(&self, p: Vector2<f64>, range: f64) -> bool {
+        // The angle off the axis exceeds the limit exactly when its cosine is below the
+        // limit's (both in [0, pi]).
+        self.cos_limit.is_some_and(|cos_limit| p.dot(&self.axis) < range * cos_limit)
+    }
+}
+
 /// The rotation matrix of angle `a`.
 pub(crate) fn rotation(a: f64) -> Matrix2<f64> {
     let (s, c) = a.sin_cos();
@@ -179,6 +221,48 @@ mod tests {
     fn chi2_two_dof_matches_tables() {
         assert_relative_eq!(chi2_2dof_quantile(0.95), 5.991, epsilon = 1e-3);
         assert_relative_eq!(chi2_2dof_quantile(0.99), 9.210, epsilon = 1e-3);
+    }
+
+    #[test]
+    fn the_bearing_bound_never_rejects_what_the_view_cone_accepts() {
+        use crate::percept::ViewCone;
+        let view_margin = 0.1;
+        let mut outside = 0;
+        let mut total = 0;
+        for (direction, fov) in
+            [(0.0, 1.06), (0.7, 1.06), (-2.9, 1.06), (3.1, 2.0), (1.0, 0.2), (0.0, 6.5)]
+        {
+            let view = ViewCone { direction, fov, range: 8.0 };
+            let bound = BearingBound::new(&view, view_margin);
+            let limit = (fov / 2.0 - view_margin).max(0.0);
+            // Points all around, and bearings right at the widest accepted one.
+            let mut bearings: Vec<f64> =
+                (0..720).map(|i| f64::from(i) * 0.5f64.to_radians()).collect();
+            for side in [-1.0, 1.0] {
+                for eps in [0.0, 1e-15, 1e-12, 1e-9, 1e-7, 1e-6, 2e-6, 1e-3] {
+                    bearings.push(direction + side * (limit + eps));
+                    bearings.push(direction + side * (limit - eps));
+                }
+            }
+            for b in bearings {
+                for r in [0.2, 1.0, 3.7, 7.9] {
+                    let p = Vector2::new(r * b.cos(), r * b.sin());
+                    let point = crate::geometry::Point::<crate::geometry::Robot>::new(p.x, p.y);
+                    total += 1;
+                    if !bound.certainly_outside(p, p.norm()) {
+                        continue;
+                    }
+                    outside += 1;
+                    for margin in [view_margin, view_margin + 1e-12, 0.3, f64::INFINITY] {
+                        assert!(!view.contains(point, margin), "{direction} {fov} {b} {r}");
+                    }
+                }
+            }
+        }
+        // And it does spare most points of a narrow camera.
+        assert!(outside * 2 > total, "{outside} of {total}");
+        let nan = BearingBound::new(&ViewCone { direction: 0.0, fov: 1.0, range: 8.0 }, 0.1);
+        assert!(!nan.certainly_outside(Vector2::new(f64::NAN, 1.0), f64::NAN));
     }
 
     #[test]

@@ -14,7 +14,7 @@ use super::config::{
 };
 use super::expected::{BeliefView, ExpectedBelief, ObjectPrior, SensingCandidate};
 use super::math::{
-    RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius, symmetrize2,
+    BearingBound, RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius, symmetrize2,
 };
 use super::object::{GainedInformation, MotionModel, ObjectFilter, innovation_at};
 use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
@@ -206,6 +206,12 @@ pub struct WorldModel {
     team_objects: Vec<TeamObject>,
     diagnostics: WorldDiagnostics,
     scratch: Scratch,
+    /// Each slot's confidence as worked out at the end of the last frame (0 when untracked),
+    /// while `confidences_current`: the publication that follows a frame reuses them instead
+    /// of working each out again. Anything that may change a filter, the time or the slots'
+    /// tracks clears the flag (see [`WorldModel::confidence_changes`]).
+    confidences: Vec<f64>,
+    confidences_current: bool,
 }
 
 fn bayes_detect(e: f64, pd: f64, pf: f64) -> f64 {
@@ -327,6 +333,8 @@ impl WorldModel {
             team_objects: Vec::new(),
             diagnostics: WorldDiagnostics::default(),
             scratch: Scratch::default(),
+            confidences: Vec::new(),
+            confidences_current: false,
             config,
         })
     }
@@ -395,6 +403,7 @@ impl WorldModel {
 
     /// Applies a motion of the robot (odometry) to every filter.
     pub fn predict(&mut self, odometry: Odometry) {
+        self.confidence_changes();
         if !odometry.is_finite() {
             self.diagnostics.ignored += 1;
             return;
@@ -430,6 +439,7 @@ impl WorldModel {
 
     /// Lets time pass until `time`: mobile objects move by their own motion models.
     pub fn advance_to(&mut self, time: Time) {
+        self.confidence_changes();
         let dt = match self.time {
             Some(t) if time > t => (time - t).as_secs_f64(),
             Some(_) => return,
@@ -479,6 +489,7 @@ impl WorldModel {
     /// filter with its own observations, then the pose filter with what the landmark filters
     /// gained.
     pub fn update(&mut self, camera: &CameraPercepts) {
+        self.confidence_changes();
         self.advance_to(camera.stamp);
         let now = self.time.unwrap_or(camera.stamp);
         self.diagnostics.frames += 1;
@@ -793,23 +804,31 @@ impl WorldModel {
     /// and a little less certain where they are.
     fn negative_information(&mut self, view: &ViewCone) {
         let k = self.config.confidence;
+        let bearing_bound = BearingBound::new(view, k.view_margin);
         for slot in &mut self.slots {
             let Some(track) = &mut slot.track else { continue };
             if track.updated {
                 continue;
             }
-            // Too close or beyond the camera's range whatever the uncertainty (the range
-            // tests below only get stricter): no need for the bearing's trigonometry.
-            let range = track.filter.position_vector().norm();
-            if range < MIN_VISIBLE_RANGE || range > view.range {
+            // Too close, beyond the camera's range or outside its bearings whatever the
+            // uncertainty (the tests below only get stricter): no need for the bearing's
+            // trigonometry.
+            let position = track.filter.position_vector();
+            let range = position.norm();
+            if range < MIN_VISIBLE_RANGE
+                || range > view.range
+                || bearing_bound.certainly_outside(position, range)
+            {
                 continue;
             }
-            let (z, h) = polar(track.filter.position_vector());
+            let (z, h) = polar(position);
             let s = h * track.filter.position_covariance() * h.transpose();
             let (sr, sb) = (s[(0, 0)].max(0.0).sqrt(), s[(1, 1)].max(0.0).sqrt());
+            if z.x < MIN_VISIBLE_RANGE || z.x + 2.0 * sr > view.range {
+                continue;
+            }
             let margin = k.view_margin + 2.0 * sb;
-            let inside = view.contains_polar(track.filter.position().range(), z.y, margin);
-            if z.x < MIN_VISIBLE_RANGE || z.x + 2.0 * sr > view.range || !inside {
+            if !view.contains_polar(track.filter.position().range(), z.y, margin) {
                 continue;
             }
             track.existence = bayes_miss(track.existence, k.detection_probability)
@@ -885,6 +904,7 @@ impl WorldModel {
     }
 
     fn declare_kidnapped(&mut self) {
+        self.confidence_changes();
         let now = self.time.unwrap_or(Time::ZERO);
         // The robot was carried: landmark tracks not confirmed since the landmarks started
         // to disagree (or within the last moment, when told) are wrong.
@@ -908,11 +928,19 @@ impl WorldModel {
     /// fuse the team's estimates.
     fn finish_frame(&mut self, camera: bool) {
         let forget = self.config.confidence.forget_threshold;
-        for i in 0..self.slots.len() {
-            if self.slots[i].track.is_some() && self.confidence(i) < forget {
+        let mut confidences = std::mem::take(&mut self.confidences);
+        confidences.resize(self.slots.len(), 0.0);
+        for (i, confidence) in confidences.iter_mut().enumerate() {
+            let tracked = self.slots[i].track.is_some();
+            let mut c = if tracked { self.confidence(i) } else { 0.0 };
+            if tracked && c < forget {
                 self.slots[i].track = None;
+                c = 0.0;
             }
+            *confidence = c;
         }
+        self.confidences = confidences;
+        self.confidences_current = true;
         if self.lost.is_none() {
             match &self.pose {
                 None => self.lost = Some(LostReason::Uninitialized),
@@ -991,6 +1019,7 @@ impl WorldModel {
             RecoveryOutcome::Insufficient => return,
         };
         // Relabel: each sighting's track moves to the map instance it was matched with.
+        self.confidence_changes();
         let mut moved: Vec<(usize, Option<Track>)> = Vec::new();
         for &(i, to) in &h.assignment {
             let from = sightings[i].slot;
@@ -1015,7 +1044,7 @@ impl WorldModel {
         for group in self.groups.iter().filter(|g| g.category == ObjectCategory::Mobile) {
             let slot = group.slots.start;
             let Some(track) = &self.slots[slot].track else { continue };
-            if self.confidence(slot) < self.config.confidence.unknown_threshold {
+            if self.frame_confidence(slot) < self.config.confidence.unknown_threshold {
                 continue;
             }
             let candidates = self.team.candidates(now, group.class, group.variant, group.friction);
@@ -1051,7 +1080,7 @@ impl WorldModel {
                 &mut candidates,
             );
             if let (Some((pose, pose_cov)), Some(track)) = (pose, &self.slots[slot].track)
-                && self.confidence(slot) >= self.config.confidence.unknown_threshold
+                && self.frame_confidence(slot) >= self.config.confidence.unknown_threshold
             {
                 let (position, covariance) = field_estimate(
                     &pose,
@@ -1104,6 +1133,7 @@ impl WorldModel {
 
     /// Applies a command from the application.
     pub fn command(&mut self, command: WorldCommand) -> Result<(), ConfigError> {
+        self.confidence_changes();
         match command {
             WorldCommand::SetPose { prior } => {
                 validate_pose_prior("command.prior", &prior)?;
@@ -1151,6 +1181,22 @@ impl WorldModel {
         if value.is_finite() { value.clamp(0.0, 1.0) } else { 0.0 }
     }
 
+    /// [`WorldModel::confidence`], from the end of the frame when nothing changed since.
+    fn frame_confidence(&self, slot: usize) -> f64 {
+        if !self.confidences_current {
+            return self.confidence(slot);
+        }
+        let c = self.confidences[slot];
+        debug_assert_eq!(c.to_bits(), self.confidence(slot).to_bits(), "slot {slot}");
+        c
+    }
+
+    /// Something that a confidence depends on may change: the end-of-frame confidences are
+    /// no longer those of the model.
+    fn confidence_changes(&mut self) {
+        self.confidences_current = false;
+    }
+
     /// The confidence of an object, in [0, 1] (0 when not tracked).
     pub fn object_confidence(&self, id: ObjectId) -> f64 {
         if id.index() < self.slots.len() { self.confidence(id.index()) } else { 0.0 }
@@ -1195,7 +1241,7 @@ impl WorldModel {
             .enumerate()
             .map(|(i, slot)| {
                 let group = &self.groups[slot.group];
-                let confidence = self.confidence(i);
+                let confidence = self.frame_confidence(i);
                 let moving = group.category != ObjectCategory::Landmark;
                 let predicted = || {
                     let (pose, heading) = map_frame?;
