@@ -46,7 +46,7 @@ pub use rng::{module_rng, stable_hash};
 pub use stats::{
     HostKind, HostStats, InputStats, ModuleStats, RateStats, Scheduling, StatsCollector, Summary,
 };
-pub use tap::{Tap, TapRecord, Taps};
+pub use tap::{Tap, TapOutput, TapRecord, Taps};
 pub use threaded::{RunningHost, StopHandle, ThreadedHost};
 pub use time::{Clock, ManualClock, MonotonicClock, Time};
 

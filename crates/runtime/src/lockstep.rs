@@ -362,7 +362,9 @@ impl LockstepHost {
         host
     }
 
+    /// Shows `tap` the packages of the outputs it wants ([`Tap::wants`], asked now).
     pub fn set_tap(&mut self, tap: Arc<dyn Tap>) {
+        self.wiring.select_tapped(tap.as_ref());
         self.tap = Some(tap);
     }
 
@@ -590,7 +592,9 @@ impl LockstepHost {
                 event: TraceEvent::Deliver { port, seq: package.seq(), stamp: package.stamp() },
             });
         }
-        if let Some(tap) = &self.tap {
+        if output.tapped
+            && let Some(tap) = &self.tap
+        {
             tap.package(&TapRecord {
                 time: self.now,
                 module: ModuleId(module),

@@ -1,6 +1,7 @@
 //! What may travel between modules, and how the framework handles it without knowing its type.
 
 use std::any::Any;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde::Serialize;
 use serde::de::DeserializeOwned;
@@ -84,30 +85,55 @@ pub(crate) trait ErasedInput: Send + Sync {
 }
 
 pub(crate) struct InputSlot<T> {
-    pub(crate) connection: std::sync::Mutex<Connection<T>>,
+    connection: std::sync::Mutex<Connection<T>>,
+    /// Whether packages are pending, readable without the lock: a module looks at some
+    /// inputs every cycle that rarely have anything (a robot's team messages, its planning
+    /// layer's world commands), and locking to find nothing cost more than the rest of such a
+    /// look. Written only under the lock, after every change (see [`InputSlot::modify`]), so
+    /// it is exact whenever nobody holds the lock. A reader that sees `false` while a writer
+    /// is pushing on another thread acts as if it had taken the lock just before the writer;
+    /// the writer's wake-up reaches it after the push, and it sees `true` then.
+    pending: AtomicBool,
 }
 
 impl<T> InputSlot<T> {
     pub(crate) fn new(policy: Policy<T>) -> InputSlot<T> {
-        InputSlot { connection: std::sync::Mutex::new(Connection::new(policy)) }
+        InputSlot {
+            connection: std::sync::Mutex::new(Connection::new(policy)),
+            pending: AtomicBool::new(false),
+        }
     }
 
     /// A module that panicked while holding the lock leaves the data intact (the connection's
     /// operations cannot panic half-way), so a poisoned lock is safe to keep using.
-    pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, Connection<T>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Connection<T>> {
         self.connection.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// Runs `change` on the connection under its lock and publishes whether packages are
+    /// still pending: every change to the pending packages goes through here.
+    pub(crate) fn modify<R>(&self, change: impl FnOnce(&mut Connection<T>) -> R) -> R {
+        let mut connection = self.lock();
+        let result = change(&mut connection);
+        self.pending.store(!connection.is_empty(), Ordering::Release);
+        result
+    }
+
+    /// Whether packages are pending, without taking the lock.
+    pub(crate) fn is_pending(&self) -> bool {
+        self.pending.load(Ordering::Acquire)
     }
 }
 
 impl<T: Message> ErasedInput for InputSlot<T> {
     fn push_cloned(&self, package: &dyn Any) -> Option<Arrival> {
-        let package = package.downcast_ref::<Package<T>>()?;
-        Some(self.lock().push(package.clone()))
+        let package = package.downcast_ref::<Package<T>>()?.clone();
+        Some(self.modify(|connection| connection.push(package)))
     }
 
     fn push_owned(&self, package: Box<dyn Any + Send>) -> Option<Arrival> {
         let package = package.downcast::<Package<T>>().ok()?;
-        Some(self.lock().push(*package))
+        Some(self.modify(|connection| connection.push(*package)))
     }
 
     fn push_encoded(
@@ -119,11 +145,11 @@ impl<T: Message> ErasedInput for InputSlot<T> {
         producer: crate::ModuleId,
     ) -> Result<Arrival, EncodingError> {
         let value: T = encoding.decode(bytes)?;
-        Ok(self.lock().push(Package::new(value, stamp, seq, producer)))
+        Ok(self.modify(|connection| connection.push(Package::new(value, stamp, seq, producer))))
     }
 
     fn has_pending(&self) -> bool {
-        !self.lock().is_empty()
+        self.is_pending()
     }
 
     fn counters(&self) -> ConnectionCounters {
@@ -136,5 +162,67 @@ impl<T: Message> ErasedInput for InputSlot<T> {
 
     fn as_any(&self) -> &dyn Any {
         self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::package::ModuleId;
+
+    fn package(value: u32) -> Package<u32> {
+        Package::new(value, Time::from_nanos(u64::from(value)), u64::from(value), ModuleId(0))
+    }
+
+    proptest! {
+        /// The lock-free look at an input answers what looking under the lock answers, after
+        /// any mix of arrivals and takes, whatever the policy.
+        #[test]
+        fn the_pending_flag_follows_the_pending_packages(
+            policy in 0u8..3,
+            ops in proptest::collection::vec((0u8..6, any::<u32>()), 0..200),
+        ) {
+            let policy = match policy {
+                0 => Policy::Latest,
+                1 => Policy::queue(3),
+                _ => Policy::merge(|a: &mut u32, b| *a = a.wrapping_add(b)),
+            };
+            let slot = InputSlot::new(policy);
+            prop_assert!(!slot.is_pending());
+            for (op, value) in ops {
+                match op {
+                    0 => {
+                        slot.push_owned(Box::new(package(value)));
+                    }
+                    1 => {
+                        slot.push_cloned(&package(value));
+                    }
+                    2 => {
+                        slot.modify(Connection::take);
+                    }
+                    3 => {
+                        slot.modify(Connection::take_newest);
+                    }
+                    4 => {
+                        slot.modify(Connection::drain);
+                    }
+                    _ => {
+                        slot.push_encoded(
+                            Encoding::Json,
+                            value.to_string().as_bytes(),
+                            Time::ZERO,
+                            0,
+                            ModuleId(0),
+                        )
+                        .map_err(|e| TestCaseError::fail(e.to_string()))?;
+                    }
+                }
+                let locked = !slot.lock().is_empty();
+                prop_assert_eq!(slot.is_pending(), locked);
+                prop_assert_eq!(slot.has_pending(), locked);
+            }
+        }
     }
 }

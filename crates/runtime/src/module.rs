@@ -4,6 +4,7 @@ use std::fmt;
 
 use rand_chacha::ChaCha8Rng;
 
+use crate::connection::Connection;
 use crate::graph::{Input, InputDecl, Output};
 use crate::message::{ErasedPackage, InputSlot, Message};
 use crate::package::{ModuleId, Package};
@@ -111,11 +112,14 @@ impl Context<'_> {
 
     /// Takes the oldest pending package of `input` (for `Queue` inputs, one at a time).
     pub fn take<T: Message>(&mut self, input: Input<T>) -> Option<Package<T>> {
-        let (package, now_empty) = {
-            let mut connection = self.slot(input).lock();
+        let slot = self.slot(input);
+        if !slot.is_pending() {
+            return None;
+        }
+        let (package, now_empty) = slot.modify(|connection| {
             let package = connection.take();
             (package, connection.is_empty())
-        };
+        });
         if package.is_some() {
             self.after_take(input, now_empty);
         }
@@ -124,7 +128,11 @@ impl Context<'_> {
 
     /// Takes the newest pending package of `input`; older pending ones are consumed with it.
     pub fn latest<T: Message>(&mut self, input: Input<T>) -> Option<Package<T>> {
-        let package = self.slot(input).lock().take_newest();
+        let slot = self.slot(input);
+        if !slot.is_pending() {
+            return None;
+        }
+        let package = slot.modify(Connection::take_newest);
         if package.is_some() {
             self.after_take(input, true);
         }
@@ -133,7 +141,11 @@ impl Context<'_> {
 
     /// Takes every pending package of `input`, oldest first.
     pub fn drain<T: Message>(&mut self, input: Input<T>) -> Vec<Package<T>> {
-        let packages = self.slot(input).lock().drain();
+        let slot = self.slot(input);
+        if !slot.is_pending() {
+            return Vec::new();
+        }
+        let packages = slot.modify(Connection::drain);
         if !packages.is_empty() {
             self.after_take(input, true);
         }
@@ -141,7 +153,7 @@ impl Context<'_> {
     }
 
     pub fn has_pending<T: Message>(&self, input: Input<T>) -> bool {
-        !self.slot(input).lock().is_empty()
+        self.slot(input).is_pending()
     }
 
     /// Sends `value` stamped with the cycle's start time.

@@ -1,4 +1,4 @@
-//! Taps see every package a host delivers: the hook loggers and viewers attach to.
+//! Taps see the packages a host delivers: the hook loggers and viewers attach to.
 
 use crate::message::ErasedPackage;
 use crate::package::ModuleId;
@@ -27,11 +27,35 @@ impl std::fmt::Debug for TapRecord<'_> {
     }
 }
 
-/// Receives every package sent on every output. Called on the sending module's thread, inside
-/// its cycle: an implementation must not block (hand the record to a bounded background
-/// writer and count what it drops).
+/// An output as a tap is asked about it, before any package: see [`Tap::wants`].
+#[derive(Clone, Copy, Debug)]
+pub struct TapOutput<'a> {
+    pub module: ModuleId,
+    pub module_name: &'a str,
+    pub output: &'a str,
+    pub type_name: &'static str,
+}
+
+/// Receives the packages sent on the outputs it wants (by default, every output). Called on
+/// the sending module's thread, inside its cycle: an implementation must not block (hand the
+/// record to a bounded background writer and count what it drops).
 pub trait Tap: Send + Sync {
     fn package(&self, record: &TapRecord<'_>);
+
+    /// Whether this tap wants the packages of `output`. A host asks once per output when the
+    /// tap is set (before its first package) and then does not even build the records of the
+    /// outputs nobody wants: a match sends about a million packages per simulated minute,
+    /// and a tap that watches one output should not cost a call for each. The answer must
+    /// not change afterwards.
+    ///
+    /// This tells the host what a tap can do without; it does not promise that the tap sees
+    /// only what it asked for: [`Taps`] passes every record it gets to all its taps, so a tap
+    /// that shares one with a tap wanting everything (a logger) gets everything. `package`
+    /// must still ignore what it has no use for.
+    fn wants(&self, output: &TapOutput<'_>) -> bool {
+        let _ = output;
+        true
+    }
 }
 
 /// Several taps on one host (a host holds one): each sees every record, in order.
@@ -49,5 +73,10 @@ impl Tap for Taps {
         for tap in &self.0 {
             tap.package(record);
         }
+    }
+
+    /// Every output one of the taps wants.
+    fn wants(&self, output: &TapOutput<'_>) -> bool {
+        self.0.iter().any(|tap| tap.wants(output))
     }
 }

@@ -62,6 +62,8 @@ impl ThreadedHost {
         ThreadedHost { graph, config, tap: None }
     }
 
+    /// Shows `tap` the packages of the outputs it wants ([`Tap::wants`], asked at
+    /// [`ThreadedHost::start`]).
     pub fn set_tap(&mut self, tap: Arc<dyn Tap>) {
         self.tap = Some(tap);
     }
@@ -69,7 +71,10 @@ impl ThreadedHost {
     /// Starts every module's thread.
     pub fn start(self) -> Result<RunningHost, HostError> {
         let ThreadedHost { graph, config, tap } = self;
-        let (wiring, parts) = split(graph);
+        let (mut wiring, parts) = split(graph);
+        if let Some(tap) = &tap {
+            wiring.select_tapped(tap.as_ref());
+        }
         let (senders, receivers): (Vec<_>, Vec<_>) =
             (0..wiring.names.len()).map(|_| crossbeam_channel::unbounded()).unzip();
         let shared = Arc::new(Shared { wiring, senders, clock: MonotonicClock::start(), tap });
@@ -321,7 +326,9 @@ struct ThreadedBackend<'a> {
 impl Backend for ThreadedBackend<'_> {
     fn publish(&mut self, port: u16, package: Box<dyn ErasedPackage>) {
         let output = &self.shared.wiring.outputs[self.module.index()][usize::from(port)];
-        if let Some(tap) = &self.shared.tap {
+        if output.tapped
+            && let Some(tap) = &self.shared.tap
+        {
             tap.package(&TapRecord {
                 time: self.shared.clock.now(),
                 module: self.module,

@@ -7,6 +7,7 @@ use crate::message::ErasedInput;
 use crate::module::Module;
 use crate::package::ModuleId;
 use crate::stats::InputStats;
+use crate::tap::{Tap, TapOutput};
 
 pub(crate) struct Reader {
     pub(crate) input: InputRef,
@@ -20,6 +21,8 @@ pub(crate) struct OutputWiring {
     pub(crate) type_name: &'static str,
     pub(crate) wake_on_ready: bool,
     pub(crate) readers: Vec<Reader>,
+    /// Whether the host's tap wants this output's packages ([`Wiring::select_tapped`]).
+    pub(crate) tapped: bool,
 }
 
 /// Per module: its outputs' readers and its inputs' writers.
@@ -40,6 +43,22 @@ pub(crate) struct ModuleParts {
     pub(crate) real_time: bool,
     pub(crate) processing_time: ProcessingTime,
     pub(crate) inputs: Vec<InputDecl>,
+}
+
+impl Wiring {
+    /// Asks `tap` once which outputs it wants ([`Tap::wants`]); the host shows it only those.
+    pub(crate) fn select_tapped(&mut self, tap: &dyn Tap) {
+        for ((m, outputs), module_name) in self.outputs.iter_mut().enumerate().zip(&self.names) {
+            for output in outputs {
+                output.tapped = tap.wants(&TapOutput {
+                    module: ModuleId(m as u32),
+                    module_name,
+                    output: &output.name,
+                    type_name: output.type_name,
+                });
+            }
+        }
+    }
 }
 
 impl ModuleParts {
@@ -109,6 +128,7 @@ pub(crate) fn split(graph: Graph) -> (Wiring, Vec<ModuleParts>) {
                             }
                         })
                         .collect(),
+                    tapped: false,
                 })
                 .collect()
         })

@@ -391,3 +391,44 @@ fn simultaneous_events_follow_module_priority() {
         ["simulator", "robot", "simulator", "robot", "simulator", "robot"]
     );
 }
+
+/// A tap that wants one output is shown only that output's packages, and the same ones a tap
+/// wanting everything sees of it; sharing a `Taps` with such a tap shows it everything again.
+#[test]
+fn a_tap_sees_only_the_outputs_it_wants() {
+    struct Only {
+        output: &'static str,
+        inner: Collect,
+    }
+    impl strata_runtime::Tap for Only {
+        fn package(&self, record: &strata_runtime::TapRecord<'_>) {
+            self.inner.package(record);
+        }
+        fn wants(&self, output: &strata_runtime::TapOutput<'_>) -> bool {
+            output.output == self.output
+        }
+    }
+    let run = |shared_with_everything: bool| {
+        let (mut host, everything, _) = pipeline(3);
+        let only = Arc::new(Only { output: "estimate", inner: Collect::default() });
+        if shared_with_everything {
+            let taps = strata_runtime::Taps(vec![everything.clone(), only.clone()]);
+            host.set_tap(Arc::new(taps));
+        } else {
+            host.set_tap(only.clone());
+        }
+        host.run_for(Duration::from_secs(1)).expect("runs");
+        let only = only.inner.0.lock().expect("lock").clone();
+        let everything = everything.0.lock().expect("lock").clone();
+        (only, everything)
+    };
+    let (only, _) = run(false);
+    let (shared, everything) = run(true);
+    assert!(!only.is_empty());
+    assert!(only.iter().all(|(_, _, output, ..)| output == "estimate"), "{only:?}");
+    let estimates: Vec<_> =
+        everything.iter().filter(|(_, _, output, ..)| output == "estimate").cloned().collect();
+    assert_eq!(only, estimates);
+    assert!(everything.iter().any(|(_, _, output, ..)| output == "raw"));
+    assert_eq!(shared, everything, "a tap sharing `Taps` with a logger sees every record");
+}

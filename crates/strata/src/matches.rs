@@ -9,7 +9,8 @@ use anyhow::{Context as _, Result, bail};
 use serde::{Deserialize, Serialize};
 use strata_robot::assembly::RobotModules;
 use strata_runtime::{
-    HostConfig, HostStats, LockstepHost, Package, Tap, TapRecord, Taps, ThreadedHost, Time,
+    HostConfig, HostStats, LockstepHost, Package, Tap, TapOutput, TapRecord, Taps, ThreadedHost,
+    Time,
 };
 use strata_sim::{EventKind, RobotId};
 use strata_sim::{GameState, NoiseLevel, SimConfig, SimHandle, Simulation, add_simulator};
@@ -144,9 +145,15 @@ struct RoleTap {
     roles: Mutex<BTreeMap<String, Role>>,
 }
 
+impl RoleTap {
+    /// The planning layer's output the roles come from.
+    const OUTPUT: &'static str = "decision";
+}
+
 impl Tap for RoleTap {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.output != "decision" {
+        // Other outputs still come when a logger shares the tap.
+        if record.output != Self::OUTPUT {
             return;
         }
         if let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() {
@@ -156,6 +163,10 @@ impl Tap for RoleTap {
                 .unwrap_or_else(|e| e.into_inner())
                 .insert(robot, package.value.assignment.role);
         }
+    }
+
+    fn wants(&self, output: &TapOutput<'_>) -> bool {
+        output.output == Self::OUTPUT
     }
 }
 
