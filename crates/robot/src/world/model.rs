@@ -1428,11 +1428,12 @@ impl WorldModel {
             };
         let (field_position, field_covariance) = on_field;
         let known = tracked && confidence >= frame.threshold;
-        let recent = last_seen.is_some_and(|t| (frame.stamp - t).as_secs_f64() <= frame.max_age);
+        // The age of the last sighting only for the landmarks that may take part.
+        let recent = || last_seen.is_some_and(|t| (frame.stamp - t).as_secs_f64() <= frame.max_age);
         if known
             && frame.usable
-            && recent
             && let Some(map) = slot.map_position
+            && recent()
         {
             errors.add(field_position.distance(map));
         }
