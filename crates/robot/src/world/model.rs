@@ -27,7 +27,7 @@ use super::state::{
 use super::team::{
     FusionCandidate, Source, TeamError, TeamFusion, TeamObject, TeammateEstimate, fuse,
 };
-use crate::geometry::{Field, Odometry, Point, Pose, Vector};
+use crate::geometry::{Field, Odometry, Point, Pose, Robot, Vector};
 use crate::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use crate::platform::{FootContact, ObjectClass};
 
@@ -212,6 +212,44 @@ pub struct WorldModel {
     /// tracks clears the flag (see [`WorldModel::confidence_changes`]).
     confidences: Vec<f64>,
     confidences_current: bool,
+    /// Object lists this model published, newest last: one no reader holds any more is
+    /// written over by the next publication instead of allocating another.
+    published: Vec<std::sync::Arc<[ObjectEstimate]>>,
+}
+
+/// How many published object lists [`WorldModel::publish`] keeps for reuse: readers hold the
+/// newest (Latest) and sometimes the one before for a while.
+const PUBLISHED_LISTS: usize = 4;
+
+/// What every object of one publication shares.
+#[derive(Clone, Copy, Debug)]
+struct PublicationFrame<'a> {
+    stamp: Time,
+    pose: Pose,
+    pose_cov: Matrix3<f64>,
+    /// The usable pose filter and `(sin, cos)` of its heading.
+    map_frame: Option<(&'a PoseFilter, (f64, f64))>,
+    usable: bool,
+    /// `(sin, cos)` of `pose.theta`.
+    heading: (f64, f64),
+    threshold: f64,
+    max_age: f64,
+}
+
+/// The fields of a published [`ObjectEstimate`] that change from one publication to the next.
+#[derive(Clone, Copy, Debug)]
+struct Estimate {
+    tracked: bool,
+    known: bool,
+    position: Point<Robot>,
+    covariance: Matrix2<f64>,
+    field_position: Point<Field>,
+    field_covariance: Matrix2<f64>,
+    velocity: Option<Vector<Robot>>,
+    velocity_covariance: Option<Matrix2<f64>>,
+    field_velocity: Option<Vector<Field>>,
+    confidence: f64,
+    last_seen: Option<Time>,
 }
 
 fn bayes_detect(e: f64, pd: f64, pf: f64) -> f64 {
@@ -335,6 +373,7 @@ impl WorldModel {
             scratch: Scratch::default(),
             confidences: Vec::new(),
             confidences_current: false,
+            published: Vec::new(),
             config,
         })
     }
@@ -419,7 +458,12 @@ impl WorldModel {
             pose.predict(&odometry, &q);
         }
         let turn = odometry.dtheta.sin_cos();
-        let reported_turn = reported.dtheta.sin_cos();
+        // Uncorrected (the usual case) the turn is the reported one, bit for bit.
+        let reported_turn = if reported.dtheta.to_bits() == odometry.dtheta.to_bits() {
+            turn
+        } else {
+            reported.dtheta.sin_cos()
+        };
         for slot in &mut self.slots {
             if let Some(track) = &mut slot.track {
                 track.filter.predict_odometry_with(&odometry, turn, &q);
@@ -1216,7 +1260,84 @@ impl WorldModel {
 
     /// The world state to publish.
     pub fn state(&self) -> WorldState {
-        let stamp = self.time.unwrap_or(Time::ZERO);
+        let frame = self.publication_frame();
+        let mut errors = MapErrors::default();
+        let mut unknown = None;
+        // Collected straight into the shared list (exact size): no intermediate `Vec` to copy.
+        let objects: std::sync::Arc<[ObjectEstimate]> = self
+            .slots
+            .iter()
+            .enumerate()
+            .map(|(i, slot)| {
+                let group = &self.groups[slot.group];
+                let e = self.estimate(i, &frame, &mut unknown, &mut errors);
+                ObjectEstimate {
+                    id: ObjectId(u16::try_from(i).unwrap_or(u16::MAX)),
+                    name: slot.name.clone(),
+                    group: group.name.clone(),
+                    class: group.class,
+                    variant: group.variant,
+                    category: group.category,
+                    tracked: e.tracked,
+                    known: e.known,
+                    position: e.position,
+                    covariance: e.covariance,
+                    field_position: e.field_position,
+                    field_covariance: e.field_covariance,
+                    velocity: e.velocity,
+                    velocity_covariance: e.velocity_covariance,
+                    field_velocity: e.field_velocity,
+                    confidence: e.confidence,
+                    last_seen: e.last_seen,
+                    map_position: slot.map_position,
+                }
+            })
+            .collect();
+        self.world_state(&frame, objects, &errors)
+    }
+
+    /// [`WorldModel::state`], writing the objects into a list published before when no reader
+    /// holds it any more (no allocation, and the fields fixed by the layout — id, names, class,
+    /// category, map position — are already there). The same state, bit for bit.
+    pub fn publish(&mut self) -> WorldState {
+        let reusable = self.published.iter_mut().position(|list| {
+            std::sync::Arc::get_mut(list).is_some_and(|objects| objects.len() == self.slots.len())
+        });
+        let Some(k) = reusable else {
+            let state = self.state();
+            if self.published.len() >= PUBLISHED_LISTS {
+                self.published.remove(0);
+            }
+            self.published.push(state.objects.clone());
+            return state;
+        };
+        let mut list = self.published.remove(k);
+        let frame = self.publication_frame();
+        let mut errors = MapErrors::default();
+        let mut unknown = None;
+        if let Some(objects) = std::sync::Arc::get_mut(&mut list) {
+            for (i, o) in objects.iter_mut().enumerate() {
+                let e = self.estimate(i, &frame, &mut unknown, &mut errors);
+                o.tracked = e.tracked;
+                o.known = e.known;
+                o.position = e.position;
+                o.covariance = e.covariance;
+                o.field_position = e.field_position;
+                o.field_covariance = e.field_covariance;
+                o.velocity = e.velocity;
+                o.velocity_covariance = e.velocity_covariance;
+                o.field_velocity = e.field_velocity;
+                o.confidence = e.confidence;
+                o.last_seen = e.last_seen;
+            }
+        }
+        let state = self.world_state(&frame, list.clone(), &errors);
+        self.published.push(list);
+        state
+    }
+
+    /// What every object's estimate of a publication shares.
+    fn publication_frame(&self) -> PublicationFrame<'_> {
         let unknown_pose = Matrix3::from_diagonal(&nalgebra::Vector3::new(
             UNKNOWN_VARIANCE,
             UNKNOWN_VARIANCE,
@@ -1227,105 +1348,137 @@ impl WorldModel {
             .as_ref()
             .map_or((Pose::default(), unknown_pose), |p| (p.pose(), p.covariance()));
         let usable_pose = self.pose_usable();
-        let usable = usable_pose.is_some();
-        // The heading's trigonometry once per publication rather than once per object.
-        let map_frame = usable_pose.map(|p| (p, p.heading_sin_cos()));
+        // The heading's trigonometry once per publication rather than once per object, and
+        // once for both frames when the published heading is the filter's (normalized already).
         let heading = pose.theta.sin_cos();
-        let threshold = self.config.confidence.unknown_threshold;
-        let max_age = self.config.pose.map_accuracy_max_age;
-        let mut errors = MapErrors::default();
-        // Collected straight into the shared list (exact size): no intermediate `Vec` to copy.
-        let objects: std::sync::Arc<[ObjectEstimate]> = self
-            .slots
-            .iter()
-            .enumerate()
-            .map(|(i, slot)| {
-                let group = &self.groups[slot.group];
-                let confidence = self.frame_confidence(i);
-                let moving = group.category != ObjectCategory::Landmark;
-                let predicted = || {
-                    let (pose, heading) = map_frame?;
-                    Some(map_prediction_at(pose, heading, slot.map_position?))
-                };
-                let (tracked, position, covariance, velocity, velocity_cov, last_seen) =
-                    match &slot.track {
-                        Some(t) => (
-                            true,
-                            t.filter.position_vector(),
-                            t.filter.position_covariance(),
-                            moving.then(|| t.filter.velocity()),
-                            moving.then(|| t.filter.velocity_covariance()),
-                            Some(t.last_seen),
-                        ),
-                        None => match predicted() {
-                            Some((l, cov)) => (false, l, cov, None, None, None),
-                            None => (
-                                false,
-                                Vector2::zeros(),
-                                Matrix2::identity() * UNKNOWN_VARIANCE,
-                                None,
-                                None,
-                                None,
-                            ),
-                        },
+        let filter_heading = |p: &PoseFilter| {
+            if p.heading().to_bits() == pose.theta.to_bits() {
+                heading
+            } else {
+                p.heading_sin_cos()
+            }
+        };
+        PublicationFrame {
+            stamp: self.time.unwrap_or(Time::ZERO),
+            pose,
+            pose_cov,
+            map_frame: usable_pose.map(|p| (p, filter_heading(p))),
+            usable: usable_pose.is_some(),
+            heading,
+            threshold: self.config.confidence.unknown_threshold,
+            max_age: self.config.pose.map_accuracy_max_age,
+        }
+    }
+
+    /// The parts of slot `i`'s published estimate that change from one publication to the
+    /// next. `unknown`: the field estimate of an object nothing locates (the same for every
+    /// such slot of a publication: it depends on the pose alone), once worked out.
+    // Inlined into the publication loops: the estimate goes straight into the published
+    // object's fields instead of through a returned copy.
+    #[inline(always)]
+    fn estimate(
+        &self,
+        i: usize,
+        frame: &PublicationFrame<'_>,
+        unknown: &mut Option<(Point<Field>, Matrix2<f64>)>,
+        errors: &mut MapErrors,
+    ) -> Estimate {
+        let slot = &self.slots[i];
+        let group = &self.groups[slot.group];
+        let confidence = self.frame_confidence(i);
+        let moving = group.category != ObjectCategory::Landmark;
+        let (pose, pose_cov, heading) = (&frame.pose, &frame.pose_cov, frame.heading);
+        let field = |position: Vector2<f64>, covariance: &Matrix2<f64>| {
+            let (f, c) = field_estimate_with(pose, heading, pose_cov, position, covariance);
+            (Point::new(f.x, f.y), c)
+        };
+        let (tracked, position, covariance, velocity, velocity_covariance, last_seen, on_field) =
+            match &slot.track {
+                Some(t) => {
+                    let (position, covariance) =
+                        (t.filter.position_vector(), t.filter.position_covariance());
+                    let on_field = field(position, &covariance);
+                    (
+                        true,
+                        position,
+                        covariance,
+                        moving.then(|| t.filter.velocity()),
+                        moving.then(|| t.filter.velocity_covariance()),
+                        Some(t.last_seen),
+                        on_field,
+                    )
+                }
+                None => {
+                    let (position, covariance) = match frame.map_frame.zip(slot.map_position) {
+                        Some(((pose, heading), map)) => map_prediction_at(pose, heading, map),
+                        None => (Vector2::zeros(), Matrix2::identity() * UNKNOWN_VARIANCE),
                     };
-                let (field_position, field_covariance) = if tracked || !usable {
-                    let (f, c) =
-                        field_estimate_with(&pose, heading, &pose_cov, position, &covariance);
-                    (Point::new(f.x, f.y), c)
-                } else {
-                    (slot.map_position.unwrap_or_default(), Matrix2::identity() * MAP_SIGMA.powi(2))
-                };
-                let known = tracked && confidence >= threshold;
-                let recent = last_seen.is_some_and(|t| (stamp - t).as_secs_f64() <= max_age);
-                if known
-                    && usable
-                    && recent
-                    && let Some(map) = slot.map_position
-                {
-                    errors.add(field_position.distance(map));
+                    // With a usable pose an untracked object is reported where the map puts
+                    // it; without, the unknown estimate is placed with the pose.
+                    let on_field = if frame.usable {
+                        (
+                            slot.map_position.unwrap_or_default(),
+                            Matrix2::identity() * MAP_SIGMA.powi(2),
+                        )
+                    } else {
+                        *unknown.get_or_insert_with(|| field(position, &covariance))
+                    };
+                    (false, position, covariance, None, None, None, on_field)
                 }
-                ObjectEstimate {
-                    id: ObjectId(u16::try_from(i).unwrap_or(u16::MAX)),
-                    name: slot.name.clone(),
-                    group: group.name.clone(),
-                    class: group.class,
-                    variant: group.variant,
-                    category: group.category,
-                    tracked,
-                    known,
-                    position: Point::new(position.x, position.y),
-                    covariance,
-                    field_position,
-                    field_covariance,
-                    velocity,
-                    velocity_covariance: velocity_cov,
-                    field_velocity: velocity.map(|v| pose.vector_to_field(v)),
-                    confidence,
-                    last_seen,
-                    map_position: slot.map_position,
-                }
-            })
-            .collect();
-        let map_accuracy = errors.accuracy();
+            };
+        let (field_position, field_covariance) = on_field;
+        let known = tracked && confidence >= frame.threshold;
+        // The age of the last sighting only for the landmarks that may take part.
+        let recent = || last_seen.is_some_and(|t| (frame.stamp - t).as_secs_f64() <= frame.max_age);
+        if known
+            && frame.usable
+            && let Some(map) = slot.map_position
+            && recent()
+        {
+            errors.add(field_position.distance(map));
+        }
+        // `Pose::vector_to_field` with the publication's heading trigonometry.
+        let (s, c) = heading;
+        let field_velocity = velocity.map(|v| Vector::new(c * v.x - s * v.y, s * v.x + c * v.y));
+        Estimate {
+            tracked,
+            known,
+            position: Point::new(position.x, position.y),
+            covariance,
+            field_position,
+            field_covariance,
+            velocity,
+            velocity_covariance,
+            field_velocity,
+            confidence,
+            last_seen,
+        }
+    }
+
+    fn world_state(
+        &self,
+        frame: &PublicationFrame<'_>,
+        objects: std::sync::Arc<[ObjectEstimate]>,
+        errors: &MapErrors,
+    ) -> WorldState {
         WorldState {
-            stamp,
+            stamp: frame.stamp,
             pose: PoseEstimate {
-                pose,
-                covariance: pose_cov,
+                pose: frame.pose,
+                covariance: frame.pose_cov,
                 confidence: self.pose_confidence(),
                 lost: self.lost.is_some(),
                 lost_reason: self.lost,
                 last_correction: self.last_pose_correction,
             },
             objects,
-            map_accuracy,
+            map_accuracy: errors.accuracy(),
             odometry_error: self.odometry_error.estimate(),
             team: self.team_objects.clone(),
             camera: self.config.camera,
             detection_probability: self.config.confidence.detection_probability,
             view_margin: self.config.confidence.view_margin,
-            unknown_threshold: threshold,
+            unknown_threshold: frame.threshold,
             diagnostics: self.diagnostics,
             index: self.index.clone(),
         }
@@ -1463,4 +1616,136 @@ fn swap_tracks(slots: &mut [Slot], a: usize, b: usize) {
     let ta = slots[a].track.take();
     slots[a].track = slots[b].track.take();
     slots[b].track = ta;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::percept::ViewCone;
+    use crate::world::config::ObjectOfInterest;
+
+    fn layout(initial: Option<PosePrior>) -> WorldModelConfig {
+        let object = |name: &str, class: u16, kind: ObjectKind| ObjectOfInterest {
+            name: name.to_owned(),
+            class: ObjectClass(class),
+            variant: None,
+            kind,
+            confidence: None,
+        };
+        let mut config = WorldModelConfig {
+            objects: vec![
+                object(
+                    "ball",
+                    1,
+                    ObjectKind::Mobile { friction: 0.4, acceleration_noise: 0.15, max_speed: 3.0 },
+                ),
+                object(
+                    "post",
+                    10,
+                    ObjectKind::Landmark {
+                        positions: vec![Point::new(4.5, 0.8), Point::new(4.5, -0.8)],
+                        position_noise: 0.0,
+                    },
+                ),
+                object(
+                    "obstacle",
+                    30,
+                    ObjectKind::Obstacle {
+                        max_tracks: 3,
+                        acceleration_noise: 0.5,
+                        velocity_decay: 1.0,
+                        max_speed: 0.6,
+                    },
+                ),
+            ],
+            ..WorldModelConfig::default()
+        };
+        config.pose.initial = initial;
+        config
+    }
+
+    /// Every published estimate against the plain computations: field estimates with their
+    /// own trigonometry (the publication shares the heading's, and one estimate among the
+    /// objects nothing locates), untracked landmarks where [`WorldModel::map_prediction`] puts
+    /// them, field velocities as [`Pose::vector_to_field`] turns them.
+    fn check_against_plain(world: &WorldModel, when: &str) {
+        let state = world.state();
+        let usable = world.pose_usable().is_some();
+        for (i, o) in state.objects.iter().enumerate() {
+            let position = Vector2::new(o.position.x, o.position.y);
+            let bits2 = |m: &Matrix2<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            if o.tracked || !usable {
+                let (f, c) = field_estimate(
+                    &state.pose.pose,
+                    &state.pose.covariance,
+                    position,
+                    &o.covariance,
+                );
+                assert_eq!(
+                    (o.field_position.x.to_bits(), o.field_position.y.to_bits()),
+                    (f.x.to_bits(), f.y.to_bits()),
+                    "{} {when}",
+                    o.name
+                );
+                assert_eq!(bits2(&o.field_covariance), bits2(&c), "{} {when}", o.name);
+            }
+            if !o.tracked
+                && let Some((l, cov)) = world.map_prediction(i)
+            {
+                assert_eq!(
+                    (position.x.to_bits(), position.y.to_bits()),
+                    (l.x.to_bits(), l.y.to_bits())
+                );
+                assert_eq!(bits2(&o.covariance), bits2(&cov), "{} {when}", o.name);
+            }
+            let v = o.velocity.map(|v| state.pose.pose.vector_to_field(v));
+            assert_eq!(
+                o.field_velocity.map(|v| (v.x.to_bits(), v.y.to_bits())),
+                v.map(|v| (v.x.to_bits(), v.y.to_bits())),
+                "{} {when}",
+                o.name
+            );
+        }
+    }
+
+    fn run(initial: Option<PosePrior>) {
+        let mut world = WorldModel::new(layout(initial)).expect("valid config");
+        check_against_plain(&world, "at the start");
+        for k in 0..60u32 {
+            let t = f64::from(k + 1) / 30.0;
+            let stamp = Time::from_secs_f64(t);
+            let observation = |class: u16, range: f64, bearing: f64| Observation {
+                class: ObjectClass(class),
+                variant: None,
+                range,
+                bearing,
+                orientation: None,
+                range_sigma: 0.1,
+                bearing_sigma: 0.03,
+            };
+            let mut observations = vec![observation(1, 2.0 + 0.01 * f64::from(k), 0.3)];
+            if k % 2 == 0 {
+                observations.push(observation(10, 3.6, 0.25));
+                observations.push(observation(10, 3.6, -0.2));
+            }
+            let camera = Some(CameraPercepts {
+                stamp,
+                view: ViewCone { direction: 0.0, fov: 1.2, range: 6.0 },
+                observations,
+            });
+            let odometry = Odometry { dx: 0.01, dy: 0.002, dtheta: 0.004 };
+            world.process(odometry, &Percepts { stamp, camera, ..Percepts::default() });
+            check_against_plain(&world, &format!("after frame {k}"));
+        }
+    }
+
+    #[test]
+    fn published_estimates_are_the_plain_ones_localized() {
+        run(Some(PosePrior { pose: Pose::new(0.5, 0.1, 0.05), sigma: [0.05, 0.05, 0.02] }));
+    }
+
+    #[test]
+    fn published_estimates_are_the_plain_ones_lost() {
+        run(None);
+    }
 }

@@ -89,7 +89,7 @@ impl Module for WorldModule {
         }
         if let Some(stamp) = published {
             self.last_published = Some(stamp);
-            let state = self.model.state();
+            let state = self.model.publish();
             ctx.send_stamped(self.ports.world_state, state, stamp);
         }
         Ok(())

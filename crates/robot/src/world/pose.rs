@@ -55,6 +55,11 @@ impl PoseFilter {
         landmark_measurement(&self.x, map)
     }
 
+    /// The heading as the filter holds it (not normalized again).
+    pub(crate) fn heading(&self) -> f64 {
+        self.x[2]
+    }
+
     /// `(sin, cos)` of the heading, for [`PoseFilter::expected_landmark_with`].
     pub(crate) fn heading_sin_cos(&self) -> (f64, f64) {
         self.x[2].sin_cos()
