@@ -148,6 +148,36 @@ const CELL: f64 = 0.5;
 /// axis as an angle (which picks the sector) and as the sine and cosine the image uses.
 const SECTOR_MARGIN: f64 = 0.01;
 
+/// Which sectors' wedges can hold something seen from a cell's centre in an arc of
+/// directions: a wedge of half-angle `half` from the apex `k` behind the centre (`k` sin `half`
+/// = `r`) holds a point at distance `d` > `k` from the centre only if the point's direction
+/// is within `half` + asin(`r` / `d`) of the sector's (law of sines in the triangle of apex,
+/// centre and point: the angle at the point is below the one at the apex, at most `half`,
+/// and its sine is at most `r` / `d`).
+struct SectorSpan {
+    half: f64,
+    r: f64,
+    k: f64,
+    width: f64,
+}
+
+impl SectorSpan {
+    /// The sectors (the first, unwrapped, and how many) whose wedges can hold a point of the
+    /// arc from direction `start` over `arc` (rad, less than a half turn) no nearer than
+    /// `distance` to the centre: with a margin of 0.02 rad far beyond rounding, all of them
+    /// within `k` (and a percent).
+    fn sectors(&self, start: f64, arc: f64, distance: f64) -> (i64, i64) {
+        let all = (0, SECTORS as i64);
+        if !(distance > 1.01 * self.k && arc.is_finite() && start.is_finite()) {
+            return all;
+        }
+        let bound = self.half + (self.r / distance).asin() + 0.02;
+        let first = ((start - bound) / self.width - 0.5).floor() as i64;
+        let last = ((start + arc + bound) / self.width - 0.5).ceil() as i64;
+        if last - first + 1 >= SECTORS as i64 { all } else { (first, last - first + 1) }
+    }
+}
+
 impl Grid {
     fn new(xs: &[f64], ys: &[f64], points: usize, camera: &CameraConfig, carpet: [f64; 2]) -> Grid {
         use std::f64::consts::{FRAC_PI_2, TAU};
@@ -200,57 +230,75 @@ impl Grid {
         let mut masks = vec![0u64; nx * ny * SECTORS * words];
         // Per cell, the points within reach of its centre and the lines that come within
         // reach (plus a margin over rounding: the piece a sector keeps of a line is no nearer
-        // than the whole line), so the sectors test only those.
+        // than the whole line), each tested exactly only in the sectors whose wedge can hold
+        // it ([`SectorSpan`]).
         let axes: Vec<(f64, f64)> =
             (0..SECTORS).map(|sector| ((sector as f64 + 0.5) * width).sin_cos()).collect();
-        let mut near_points = Vec::with_capacity(points);
-        let mut near_lines = Vec::with_capacity(lines);
+        let span = SectorSpan { half, r, k, width };
+        let mut apexes = vec![(0.0, 0.0); SECTORS];
         for cy in 0..ny {
             for cx in 0..nx {
                 let (ccx, ccy) = (x0 + (cx as f64 + 0.5) * CELL, y0 + (cy as f64 + 0.5) * CELL);
-                near_points.clear();
-                near_points
-                    .extend((0..points).filter(|&i| length(xs[i] - ccx, ys[i] - ccy) <= reach));
-                near_lines.clear();
-                near_lines.extend((0..lines).filter(|&j| {
+                for (apex, &(sin, cos)) in apexes.iter_mut().zip(&axes) {
+                    *apex = (ccx - k * cos, ccy - k * sin);
+                }
+                let cell = &mut masks[(cy * nx + cx) * SECTORS * words..][..SECTORS * words];
+                // The exact test of the wedge of `sector` (the apex's frame, as in an image).
+                let local = |sector: usize, i: usize| {
+                    let ((sin, cos), (ax, ay)) = (axes[sector], apexes[sector]);
+                    let (dx, dy) = (xs[i] - ax, ys[i] - ay);
+                    (cos * dx + sin * dy, -sin * dx + cos * dy)
+                };
+                for i in 0..points {
+                    let (wx, wy) = (xs[i] - ccx, ys[i] - ccy);
+                    let distance = length(wx, wy);
+                    let near = distance <= reach;
+                    if !near {
+                        continue;
+                    }
+                    let (first, count) = span.sectors(wy.atan2(wx), 0.0, distance);
+                    for n in first..first + count {
+                        let sector = n.rem_euclid(SECTORS as i64) as usize;
+                        let (x, y) = local(sector, i);
+                        if x * tan >= y.abs() {
+                            cell[sector * words + i / 64] |= 1 << (i % 64);
+                        }
+                    }
+                }
+                for j in 0..lines {
                     let (a, b) = (points + j, points + lines + j);
                     let (dx, dy) = (xs[b] - xs[a], ys[b] - ys[a]);
                     let len2 = dx * dx + dy * dy;
-                    let t = if len2 > 0.0 {
-                        (((ccx - xs[a]) * dx + (ccy - ys[a]) * dy) / len2).clamp(0.0, 1.0)
-                    } else {
-                        0.0
-                    };
-                    length(xs[a] + dx * t - ccx, ys[a] + dy * t - ccy) <= reach + 1e-9
-                }));
-                for (sector, &(sin, cos)) in axes.iter().enumerate() {
-                    let (ax, ay) = (ccx - k * cos, ccy - k * sin);
-                    let local = |i: usize| {
-                        let (dx, dy) = (xs[i] - ax, ys[i] - ay);
-                        (cos * dx + sin * dy, -sin * dx + cos * dy)
-                    };
-                    let mask = &mut masks[((cy * nx + cx) * SECTORS + sector) * words..][..words];
-                    for &i in &near_points {
-                        let (x, y) = local(i);
-                        if x * tan >= y.abs() {
-                            mask[i / 64] |= 1 << (i % 64);
-                        }
-                    }
-                    for &j in &near_lines {
-                        let (a, b) = (points + j, points + lines + j);
-                        let Some((t0, t1)) = clip_to_wedge(local(a), local(b), tan) else {
-                            continue;
-                        };
-                        // The piece's point nearest to the cell's centre.
-                        let (dx, dy) = (xs[b] - xs[a], ys[b] - ys[a]);
-                        let len2 = dx * dx + dy * dy;
+                    let nearest = |t0: f64, t1: f64| {
                         let t = if len2 > 0.0 {
                             (((ccx - xs[a]) * dx + (ccy - ys[a]) * dy) / len2).clamp(t0, t1)
                         } else {
                             t0
                         };
-                        if length(xs[a] + dx * t - ccx, ys[a] + dy * t - ccy) <= reach {
-                            mask[point_words + j / 64] |= 1 << (j % 64);
+                        length(xs[a] + dx * t - ccx, ys[a] + dy * t - ccy)
+                    };
+                    let distance = nearest(0.0, 1.0);
+                    let near = distance <= reach + 1e-9;
+                    if !near {
+                        continue;
+                    }
+                    // The directions from the centre to the segment: an arc shorter than a half
+                    // turn when the segment keeps away from the centre (the only case where
+                    // `sectors` narrows).
+                    let from = (ys[a] - ccy).atan2(xs[a] - ccx);
+                    let to = (ys[b] - ccy).atan2(xs[b] - ccx);
+                    let turn = crate::util::wrap_angle(to - from);
+                    let (start, arc) = if turn >= 0.0 { (from, turn) } else { (to, -turn) };
+                    let (first, count) = span.sectors(start, arc, distance);
+                    for n in first..first + count {
+                        let sector = n.rem_euclid(SECTORS as i64) as usize;
+                        let Some((t0, t1)) = clip_to_wedge(local(sector, a), local(sector, b), tan)
+                        else {
+                            continue;
+                        };
+                        // The piece's point nearest to the cell's centre.
+                        if nearest(t0, t1) <= reach {
+                            cell[sector * words + point_words + j / 64] |= 1 << (j % 64);
                         }
                     }
                 }
@@ -480,8 +528,8 @@ impl Camera<'_> {
                 }
             }
         }
+        let robot = class(ObjectKind::Robot);
         for (local, variant) in &scratch.seen {
-            let robot = class(ObjectKind::Robot);
             reporter.report(rng, out, robot, Some(*variant), local, Facing::None, 1.0, &hidden);
         }
 
@@ -859,7 +907,7 @@ mod tests {
     fn the_grid_preselection_per_cell_changes_no_mask() {
         for preset in ["spl", "paper2010"] {
             let field = Field::preset(preset).expect("preset");
-            for (fov, range) in [(1.0, 6.0), (0.6, 3.0), (1.4, 9.0)] {
+            for (fov, range) in [(1.0, 6.0), (0.6, 3.0), (1.4, 9.0), (0.2, 1.0), (1.2, 0.5)] {
                 let config = CameraConfig { fov, range, ..CameraConfig::default() };
                 let carpet = [field.half_length() + 0.7, field.half_width() + 0.7];
                 let scene = Scene::new(&field, &config, carpet);
