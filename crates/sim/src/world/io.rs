@@ -19,12 +19,9 @@ impl Simulation {
     pub fn take_sensor_frame(&mut self, robot: RobotId) -> Result<Option<SensorFrame>, SimError> {
         let slot = self.slot(robot)?;
         let outbox = &mut self.robots[slot].outbox;
-        // The image goes into the frame where it waits, which then moves out once (not out,
-        // then into the result).
-        if let Some(frame) = outbox.sensors.as_mut() {
-            frame.camera = outbox.camera.take();
-        }
-        Ok(outbox.sensors.take())
+        let Some(mut frame) = outbox.sensors.take() else { return Ok(None) };
+        frame.camera = outbox.camera.take();
+        Ok(Some(frame))
     }
 
     /// Gives back a read frame's detections so the next image can reuse the allocation.
