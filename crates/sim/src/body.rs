@@ -208,7 +208,7 @@ impl Body {
 
     /// The odometry accumulated since the last call.
     pub fn take_odometry(&mut self) -> Odometry {
-        self.odometry_turn = Rotating::new(0.0);
+        self.odometry_turn = Rotating::ZERO;
         std::mem::replace(&mut self.odometry, Odometry::ZERO)
     }
 

@@ -148,6 +148,36 @@ const CELL: f64 = 0.5;
 /// axis as an angle (which picks the sector) and as the sine and cosine the image uses.
 const SECTOR_MARGIN: f64 = 0.01;
 
+/// Which sectors' wedges can hold something seen from a cell's centre in an arc of
+/// directions: a wedge of half-angle `half` from the apex `k` behind the centre (`k` sin `half`
+/// = `r`) holds a point at distance `d` > `k` from the centre only if the point's direction
+/// is within `half` + asin(`r` / `d`) of the sector's (law of sines in the triangle of apex,
+/// centre and point: the angle at the point is below the one at the apex, at most `half`,
+/// and its sine is at most `r` / `d`).
+struct SectorSpan {
+    half: f64,
+    r: f64,
+    k: f64,
+    width: f64,
+}
+
+impl SectorSpan {
+    /// The sectors (the first, unwrapped, and how many) whose wedges can hold a point of the
+    /// arc from direction `start` over `arc` (rad, less than a half turn) no nearer than
+    /// `distance` to the centre: with a margin of 0.02 rad far beyond rounding, all of them
+    /// within `k` (and a percent).
+    fn sectors(&self, start: f64, arc: f64, distance: f64) -> (i64, i64) {
+        let all = (0, SECTORS as i64);
+        if !(distance > 1.01 * self.k && arc.is_finite() && start.is_finite()) {
+            return all;
+        }
+        let bound = self.half + (self.r / distance).asin() + 0.02;
+        let first = ((start - bound) / self.width - 0.5).floor() as i64;
+        let last = ((start + arc + bound) / self.width - 0.5).ceil() as i64;
+        if last - first + 1 >= SECTORS as i64 { all } else { (first, last - first + 1) }
+    }
+}
+
 impl Grid {
     fn new(xs: &[f64], ys: &[f64], points: usize, camera: &CameraConfig, carpet: [f64; 2]) -> Grid {
         use std::f64::consts::{FRAC_PI_2, TAU};
@@ -198,39 +228,77 @@ impl Grid {
         let reach = camera.range + r + 1e-6;
         let tan = half.tan();
         let mut masks = vec![0u64; nx * ny * SECTORS * words];
+        // Per cell, the points within reach of its centre and the lines that come within
+        // reach (plus a margin over rounding: the piece a sector keeps of a line is no nearer
+        // than the whole line), each tested exactly only in the sectors whose wedge can hold
+        // it ([`SectorSpan`]).
+        let axes: Vec<(f64, f64)> =
+            (0..SECTORS).map(|sector| ((sector as f64 + 0.5) * width).sin_cos()).collect();
+        let span = SectorSpan { half, r, k, width };
+        let mut apexes = vec![(0.0, 0.0); SECTORS];
         for cy in 0..ny {
             for cx in 0..nx {
                 let (ccx, ccy) = (x0 + (cx as f64 + 0.5) * CELL, y0 + (cy as f64 + 0.5) * CELL);
-                for sector in 0..SECTORS {
-                    let (sin, cos) = ((sector as f64 + 0.5) * width).sin_cos();
-                    let (ax, ay) = (ccx - k * cos, ccy - k * sin);
-                    let local = |i: usize| {
-                        let (dx, dy) = (xs[i] - ax, ys[i] - ay);
-                        (cos * dx + sin * dy, -sin * dx + cos * dy)
-                    };
-                    let mask = &mut masks[((cy * nx + cx) * SECTORS + sector) * words..][..words];
-                    for i in 0..points {
-                        let (x, y) = local(i);
-                        let near = length(xs[i] - ccx, ys[i] - ccy) <= reach;
-                        if near && x * tan >= y.abs() {
-                            mask[i / 64] |= 1 << (i % 64);
+                for (apex, &(sin, cos)) in apexes.iter_mut().zip(&axes) {
+                    *apex = (ccx - k * cos, ccy - k * sin);
+                }
+                let cell = &mut masks[(cy * nx + cx) * SECTORS * words..][..SECTORS * words];
+                // The exact test of the wedge of `sector` (the apex's frame, as in an image).
+                let local = |sector: usize, i: usize| {
+                    let ((sin, cos), (ax, ay)) = (axes[sector], apexes[sector]);
+                    let (dx, dy) = (xs[i] - ax, ys[i] - ay);
+                    (cos * dx + sin * dy, -sin * dx + cos * dy)
+                };
+                for i in 0..points {
+                    let (wx, wy) = (xs[i] - ccx, ys[i] - ccy);
+                    let distance = length(wx, wy);
+                    let near = distance <= reach;
+                    if !near {
+                        continue;
+                    }
+                    let (first, count) = span.sectors(wy.atan2(wx), 0.0, distance);
+                    for n in first..first + count {
+                        let sector = n.rem_euclid(SECTORS as i64) as usize;
+                        let (x, y) = local(sector, i);
+                        if x * tan >= y.abs() {
+                            cell[sector * words + i / 64] |= 1 << (i % 64);
                         }
                     }
-                    for j in 0..lines {
-                        let (a, b) = (points + j, points + lines + j);
-                        let Some((t0, t1)) = clip_to_wedge(local(a), local(b), tan) else {
-                            continue;
-                        };
-                        // The piece's point nearest to the cell's centre.
-                        let (dx, dy) = (xs[b] - xs[a], ys[b] - ys[a]);
-                        let len2 = dx * dx + dy * dy;
+                }
+                for j in 0..lines {
+                    let (a, b) = (points + j, points + lines + j);
+                    let (dx, dy) = (xs[b] - xs[a], ys[b] - ys[a]);
+                    let len2 = dx * dx + dy * dy;
+                    let nearest = |t0: f64, t1: f64| {
                         let t = if len2 > 0.0 {
                             (((ccx - xs[a]) * dx + (ccy - ys[a]) * dy) / len2).clamp(t0, t1)
                         } else {
                             t0
                         };
-                        if length(xs[a] + dx * t - ccx, ys[a] + dy * t - ccy) <= reach {
-                            mask[point_words + j / 64] |= 1 << (j % 64);
+                        length(xs[a] + dx * t - ccx, ys[a] + dy * t - ccy)
+                    };
+                    let distance = nearest(0.0, 1.0);
+                    let near = distance <= reach + 1e-9;
+                    if !near {
+                        continue;
+                    }
+                    // The directions from the centre to the segment: an arc shorter than a half
+                    // turn when the segment keeps away from the centre (the only case where
+                    // `sectors` narrows).
+                    let from = (ys[a] - ccy).atan2(xs[a] - ccx);
+                    let to = (ys[b] - ccy).atan2(xs[b] - ccx);
+                    let turn = crate::util::wrap_angle(to - from);
+                    let (start, arc) = if turn >= 0.0 { (from, turn) } else { (to, -turn) };
+                    let (first, count) = span.sectors(start, arc, distance);
+                    for n in first..first + count {
+                        let sector = n.rem_euclid(SECTORS as i64) as usize;
+                        let Some((t0, t1)) = clip_to_wedge(local(sector, a), local(sector, b), tan)
+                        else {
+                            continue;
+                        };
+                        // The piece's point nearest to the cell's centre.
+                        if nearest(t0, t1) <= reach {
+                            cell[sector * words + point_words + j / 64] |= 1 << (j % 64);
                         }
                     }
                 }
@@ -289,29 +357,33 @@ pub(crate) struct RobotMark {
     pub variant: u16,
 }
 
-/// The robots on the field as cameras see them, as columns, with their slots.
+/// The robots on the field as cameras see them, with their slots.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct RobotMarks {
-    xs: Vec<f64>,
-    ys: Vec<f64>,
-    variants: Vec<u16>,
-    slots: Vec<usize>,
+    /// Rows, not columns: an image reads every field of every robot, and one slice walks
+    /// cheaper than four zipped ones.
+    marks: Vec<MarkRow>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct MarkRow {
+    x: f64,
+    y: f64,
+    slot: usize,
+    variant: u16,
 }
 
 impl RobotMarks {
+    #[inline]
     pub fn clear(&mut self) {
-        self.xs.clear();
-        self.ys.clear();
-        self.variants.clear();
-        self.slots.clear();
+        self.marks.clear();
     }
 
     /// Adds the robot of slot `slot` (slots in increasing order).
+    #[inline]
     pub fn push(&mut self, slot: usize, mark: RobotMark) {
-        self.xs.push(mark.position.x);
-        self.ys.push(mark.position.y);
-        self.variants.push(mark.variant);
-        self.slots.push(slot);
+        let (x, y) = (mark.position.x, mark.position.y);
+        self.marks.push(MarkRow { x, y, slot, variant: mark.variant });
     }
 }
 
@@ -396,9 +468,9 @@ impl Camera<'_> {
         let axis = viewer.pose.theta + viewer.head.yaw;
         let (sin, cos) = viewer.axis;
         let (ox, oy) = (viewer.pose.x, viewer.pose.y);
-        let to_local = |p: Point<FieldFrame>| {
-            let dx = p.x - ox;
-            let dy = p.y - oy;
+        let to_local = |x: f64, y: f64| {
+            let dx = x - ox;
+            let dy = y - oy;
             (cos * dx + sin * dy, -sin * dx + cos * dy)
         };
         let tan_half = self.tan_half;
@@ -414,9 +486,8 @@ impl Camera<'_> {
         scratch.occluders.clear();
         scratch.seen.clear();
         let own = viewer.index.unwrap_or(usize::MAX);
-        let marks = robots.xs.iter().zip(&robots.ys).zip(robots.slots.iter().zip(&robots.variants));
-        for ((&mx, &my), (&slot, &variant)) in marks {
-            let (x, y) = to_local(Point::new(mx, my));
+        for &MarkRow { x: mx, y: my, slot, variant } in &robots.marks {
+            let (x, y) = to_local(mx, my);
             if (x > -radius) & (y.abs() <= x * tan_half + beside) & (x * x + y * y < range2)
                 && slot != own
             {
@@ -436,9 +507,19 @@ impl Camera<'_> {
             })
         };
 
+        let (point_mask, line_mask) = if scene.grid.fits(config) {
+            scene.grid.candidates(ox, oy, axis)
+        } else {
+            scene.grid.all[..].split_at(scene.grid.point_words)
+        };
+        // Room for the detections of nearly every image at once: a fresh buffer (its platform
+        // keeps the one it read) is allocated once, where growing by pushes reallocated it
+        // two or three times.
+        out.reserve(DETECTIONS_RESERVED);
+
         let reporter = Reporter::new(self.noise, range, viewer.head_rate);
         if let Some(ball) = ball {
-            let (x, y) = to_local(ball);
+            let (x, y) = to_local(ball.x, ball.y);
             if in_view(x, y) {
                 let local = Local::new(x, y);
                 if local.distance >= near && local.distance <= far {
@@ -447,8 +528,8 @@ impl Camera<'_> {
                 }
             }
         }
+        let robot = class(ObjectKind::Robot);
         for (local, variant) in &scratch.seen {
-            let robot = class(ObjectKind::Robot);
             reporter.report(rng, out, robot, Some(*variant), local, Facing::None, 1.0, &hidden);
         }
 
@@ -458,18 +539,13 @@ impl Camera<'_> {
         let points = scene.points.len();
         let lines = scene.lines.len();
         let (px, py) = (&scene.xs[..points + 2 * lines], &scene.ys[..points + 2 * lines]);
-        let (point_mask, line_mask) = if scene.grid.fits(config) {
-            scene.grid.candidates(ox, oy, axis)
-        } else {
-            scene.grid.all[..].split_at(scene.grid.point_words)
-        };
         for (word, &bits) in point_mask.iter().enumerate() {
             let mut bits = bits;
             while bits != 0 {
                 let i = word * 64 + bits.trailing_zeros() as usize;
                 bits &= bits - 1;
                 let Some(feature) = scene.points.get(i) else { continue };
-                let (x, y) = to_local(Point::new(px[i], py[i]));
+                let (x, y) = to_local(px[i], py[i]);
                 let inside = (x * tan_half - y >= 0.0) & (x * tan_half + y >= 0.0);
                 if !inside || x * x + y * y > range2 || x <= 0.0 {
                     continue;
@@ -492,8 +568,8 @@ impl Camera<'_> {
                 bits &= bits - 1;
                 let Some(line) = scene.lines.get(j) else { continue };
                 let (a, b) = (points + j, points + lines + j);
-                let start = to_local(Point::new(px[a], py[a]));
-                let end = to_local(Point::new(px[b], py[b]));
+                let start = to_local(px[a], py[a]);
+                let end = to_local(px[b], py[b]);
                 let Some(closest) =
                     visible_piece(start, end, tan_half, config.min_line_length, line)
                 else {
@@ -526,6 +602,10 @@ impl Camera<'_> {
         }
     }
 }
+
+/// Detections an image buffer is given room for (about five on average, rarely more than
+/// sixteen).
+const DETECTIONS_RESERVED: usize = 16;
 
 /// Decides whether a detection is made and adds its noise.
 struct Reporter<'a> {
@@ -764,6 +844,80 @@ mod tests {
             let per_image = candidates as f64 / 20_000.0;
             assert!(per_image < 0.5 * (points + lines) as f64, "{preset}: {per_image} candidates");
             assert!(visible > 0);
+        }
+    }
+
+    /// The grid's masks as computed before the per-cell pre-selection: every point and line
+    /// tested in every sector.
+    fn plain_masks(scene: &Scene, camera: &CameraConfig) -> Vec<u64> {
+        use std::f64::consts::TAU;
+        let (xs, ys, grid) = (&scene.xs, &scene.ys, &scene.grid);
+        let (points, lines) = (scene.points.len(), scene.lines.len());
+        let words = grid.point_words + grid.line_words;
+        let width = TAU / SECTORS as f64;
+        let half = camera.fov / 2.0 + width / 2.0 + SECTOR_MARGIN;
+        let r = CELL * std::f64::consts::FRAC_1_SQRT_2 + 1e-6;
+        let k = r / half.sin();
+        let reach = camera.range + r + 1e-6;
+        let tan = half.tan();
+        let mut masks = vec![0u64; grid.nx * grid.ny * SECTORS * words];
+        for cy in 0..grid.ny {
+            for cx in 0..grid.nx {
+                let ccx = grid.x0 + (cx as f64 + 0.5) * CELL;
+                let ccy = grid.y0 + (cy as f64 + 0.5) * CELL;
+                for sector in 0..SECTORS {
+                    let (sin, cos) = ((sector as f64 + 0.5) * width).sin_cos();
+                    let (ax, ay) = (ccx - k * cos, ccy - k * sin);
+                    let local = |i: usize| {
+                        let (dx, dy) = (xs[i] - ax, ys[i] - ay);
+                        (cos * dx + sin * dy, -sin * dx + cos * dy)
+                    };
+                    let mask =
+                        &mut masks[((cy * grid.nx + cx) * SECTORS + sector) * words..][..words];
+                    for i in 0..points {
+                        let (x, y) = local(i);
+                        let near = length(xs[i] - ccx, ys[i] - ccy) <= reach;
+                        if near && x * tan >= y.abs() {
+                            mask[i / 64] |= 1 << (i % 64);
+                        }
+                    }
+                    for j in 0..lines {
+                        let (a, b) = (points + j, points + lines + j);
+                        let Some((t0, t1)) = clip_to_wedge(local(a), local(b), tan) else {
+                            continue;
+                        };
+                        let (dx, dy) = (xs[b] - xs[a], ys[b] - ys[a]);
+                        let len2 = dx * dx + dy * dy;
+                        let t = if len2 > 0.0 {
+                            (((ccx - xs[a]) * dx + (ccy - ys[a]) * dy) / len2).clamp(t0, t1)
+                        } else {
+                            t0
+                        };
+                        if length(xs[a] + dx * t - ccx, ys[a] + dy * t - ccy) <= reach {
+                            mask[grid.point_words + j / 64] |= 1 << (j % 64);
+                        }
+                    }
+                }
+            }
+        }
+        masks
+    }
+
+    #[test]
+    fn the_grid_preselection_per_cell_changes_no_mask() {
+        for preset in ["spl", "paper2010"] {
+            let field = Field::preset(preset).expect("preset");
+            for (fov, range) in [(1.0, 6.0), (0.6, 3.0), (1.4, 9.0), (0.2, 1.0), (1.2, 0.5)] {
+                let config = CameraConfig { fov, range, ..CameraConfig::default() };
+                let carpet = [field.half_length() + 0.7, field.half_width() + 0.7];
+                let scene = Scene::new(&field, &config, carpet);
+                assert!(scene.grid.fits(&config) && !scene.grid.masks.is_empty());
+                assert_eq!(
+                    scene.grid.masks,
+                    plain_masks(&scene, &config),
+                    "{preset} {fov} {range}"
+                );
+            }
         }
     }
 

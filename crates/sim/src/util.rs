@@ -236,6 +236,11 @@ pub(crate) struct Rotating {
 }
 
 impl Rotating {
+    /// `Rotating::new(0.0)` written out: the odometry's turn is reset to it at every read
+    /// (the same bits, see the test `the_zero_rotation_is_new_of_zero`).
+    pub const ZERO: Rotating =
+        Rotating { sin: 0.0, cos: 1.0, steps: 0, delta: 0.0, delta_sin: 0.0, delta_cos: 1.0 };
+
     pub fn new(angle: f64) -> Rotating {
         let (sin, cos) = sin_cos(angle);
         Rotating { sin, cos, steps: 0, delta: 0.0, delta_sin: 0.0, delta_cos: 1.0 }
@@ -347,6 +352,15 @@ mod tests {
             // The reference accumulates rounding in `angle` itself (1e-15 per addition).
             assert!(error < 1e-13, "{angle}: {error} {r:?}");
         }
+    }
+
+    #[test]
+    fn the_zero_rotation_is_new_of_zero() {
+        let (zero, new) = (Rotating::ZERO, Rotating::new(0.0));
+        let bits =
+            |r: &Rotating| [r.sin, r.cos, r.delta, r.delta_sin, r.delta_cos].map(f64::to_bits);
+        assert_eq!(bits(&zero), bits(&new));
+        assert_eq!(zero.steps, new.steps);
     }
 
     #[test]
