@@ -111,6 +111,10 @@ struct Correction {
     /// The Jacobian of a landmark's measurement with respect to the pose, when the observation
     /// corrects the pose (a map position and a pose that is not lost).
     landmark: Option<SMatrix<f64, 2, 3>>,
+    /// The pose covariance after a detection of the landmark by a view that has corrected the
+    /// pose with no other landmark yet (the pose's prior covariance is then corrected, whatever
+    /// the view): made the first time a view needs it. The inner `None` is a singular update.
+    first_pose_posterior: Option<Option<Matrix3<f64>>>,
 }
 
 impl Correction {
@@ -139,7 +143,13 @@ impl Correction {
             }
             _ => None,
         };
-        Correction { covariance: object.covariance, gained, posterior, landmark }
+        Correction {
+            covariance: object.covariance,
+            gained,
+            posterior,
+            landmark,
+            first_pose_posterior: None,
+        }
     }
 
     /// Folds the observation into `out`: the object's and the pose's covariances, each the
@@ -156,9 +166,40 @@ impl Correction {
         if let Some(jacobian) = &self.landmark
             && let Some(post) = posterior_covariance(&out.pose, jacobian, &self.gained)
         {
-            out.pose = post * pd + out.pose * (1.0 - pd);
-            out.pose = (out.pose + out.pose.transpose()) * 0.5;
+            Self::fold_pose(&post, pd, out);
         }
+    }
+
+    /// As [`Correction::fold`], for a first observation (`previous` is `None`); `pose_at_prior`
+    /// says that `out.pose` is still the belief's prior pose covariance, whose correction by
+    /// this landmark is then made once and reused. Returns whether the pose was corrected.
+    fn fold_first(
+        &mut self,
+        obs: &ExpectedObservation,
+        pose_at_prior: bool,
+        out: &mut ExpectedBelief,
+    ) -> bool {
+        let Some(posterior) = self.posterior else { return false };
+        let pd = obs.detection_probability.clamp(0.0, 1.0);
+        let expected = symmetrize2(posterior * pd + self.covariance * (1.0 - pd));
+        out.objects.push(ExpectedObject { id: obs.object, covariance: expected });
+        let Some(jacobian) = &self.landmark else { return false };
+        let post = if pose_at_prior {
+            *self
+                .first_pose_posterior
+                .get_or_insert_with(|| posterior_covariance(&out.pose, jacobian, &self.gained))
+        } else {
+            posterior_covariance(&out.pose, jacobian, &self.gained)
+        };
+        let Some(post) = post else { return false };
+        Self::fold_pose(&post, pd, out);
+        true
+    }
+
+    /// The pose's covariance averaged over the detection's posterior `post` and the miss.
+    fn fold_pose(post: &Matrix3<f64>, pd: f64, out: &mut ExpectedBelief) {
+        out.pose = post * pd + out.pose * (1.0 - pd);
+        out.pose = (out.pose + out.pose.transpose()) * 0.5;
     }
 }
 
@@ -204,7 +245,27 @@ pub(crate) fn expected_update_into(
 }
 
 /// Standard normal cumulative distribution (Abramowitz & Stegun 7.1.26, error < 1.5e-7).
+///
+/// Beyond [`CDF_SATURATION`] standard deviations the approximation rounds to exactly 1 or 0:
+/// its tail `poly(t) exp(-z^2)` (`poly(t) <= 1`, `z = |x| / sqrt(2)`) is then below
+/// `exp(-40.5) < 2.6e-18`, under half an ulp of 1 (`2^-54`, 5.6e-17), so `erf` rounds to 1.
+/// Those values are returned without the exponential (active vision asks for many: objects
+/// well inside or outside a view's cone).
 pub(crate) fn normal_cdf(x: f64) -> f64 {
+    if x >= CDF_SATURATION {
+        1.0
+    } else if x <= -CDF_SATURATION {
+        0.0
+    } else {
+        normal_cdf_approximation(x)
+    }
+}
+
+/// See [`normal_cdf`].
+const CDF_SATURATION: f64 = 9.0;
+
+/// The approximation [`normal_cdf`] evaluates (NaN gives NaN).
+fn normal_cdf_approximation(x: f64) -> f64 {
     let z = x.abs() / std::f64::consts::SQRT_2;
     let t = 1.0 / (1.0 + 0.327_591_1 * z);
     let poly = t
@@ -393,8 +454,9 @@ impl WorldState {
     /// in one pass and with the same results, for active vision's many views of one belief
     /// (paper 3.6 (c)): what an observation's simulated correction needs that does not depend
     /// on the view (the measurement noise in the robot frame, the object's posterior, the
-    /// landmark's Jacobian) is kept in the object's prior the first time a view observes it,
-    /// and reused by the next views. `priors` must come from this world state.
+    /// landmark's Jacobian; the pose's posterior when the landmark is the first to correct a
+    /// view's prior pose) is kept in the object's prior the first time a view needs it, and
+    /// reused by the next views. `priors` must come from this world state.
     pub fn expected_view_update_into(
         &self,
         priors: &mut [ObservationPrior],
@@ -408,6 +470,9 @@ impl WorldState {
         out.pose = self.pose_covariance();
         let pose = self.pose_prior().map(|(pose, _)| pose);
         let cut = bearing_cut(min_visibility);
+        // Until a landmark corrects it, `out.pose` is the prior pose covariance, the same for
+        // every view of this belief.
+        let mut pose_at_prior = true;
         for prior in priors.iter_mut() {
             let Some(visibility) = self.visibility_reaching(prior, view, min_visibility, cut)
             else {
@@ -424,8 +489,10 @@ impl WorldState {
                         prior.correction =
                             Some(Correction::of(&object, at, pose.as_ref(), sigmas.0, sigmas.1));
                     }
-                    if let Some(correction) = &prior.correction {
-                        correction.fold(&obs, None, out);
+                    if let Some(correction) = &mut prior.correction
+                        && correction.fold_first(&obs, pose_at_prior, out)
+                    {
+                        pose_at_prior = false;
                     }
                 }
                 Some(k) => {
@@ -434,8 +501,12 @@ impl WorldState {
                     let Some(mut object) = self.object_prior(obs.object) else { continue };
                     object.tracked = true;
                     object.covariance = out.objects[k].covariance;
+                    let before = out.pose;
                     Correction::of(&object, at, pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
                         .fold(&obs, Some(k), out);
+                    if before.map(f64::to_bits) != out.pose.map(f64::to_bits) {
+                        pose_at_prior = false;
+                    }
                 }
             }
         }
@@ -518,6 +589,24 @@ mod tests {
                 assert_eq!(c.posterior.map(|p| bits(&p)), posterior.map(|p| bits(&p)));
             }
         }
+    }
+
+    #[test]
+    fn the_normal_cdf_saturates_as_its_approximation_rounds() {
+        let mut x = CDF_SATURATION;
+        while x < 60.0 {
+            for v in [x, -x, f64::from_bits(x.to_bits() + 1), -f64::from_bits(x.to_bits() + 1)] {
+                assert_eq!(normal_cdf(v).to_bits(), normal_cdf_approximation(v).to_bits(), "{v}");
+            }
+            x += 0.001;
+        }
+        for v in [f64::INFINITY, f64::NEG_INFINITY, f64::MAX, f64::MIN, 1e300, -1e300] {
+            assert_eq!(normal_cdf(v).to_bits(), normal_cdf_approximation(v).to_bits(), "{v}");
+        }
+        // Just inside the cut the approximation is not yet saturated: the cut is not too low
+        // for a test of it to mean something.
+        assert!(normal_cdf(-8.0) > 0.0 && normal_cdf(-8.0) < 1e-14);
+        assert!(normal_cdf(f64::NAN).is_nan());
     }
 
     #[test]
