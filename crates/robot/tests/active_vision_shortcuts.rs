@@ -92,6 +92,45 @@ fn the_one_pass_view_update_equals_the_prediction_and_the_expected_update() {
 }
 
 #[test]
+fn priors_left_out_for_a_range_are_those_no_view_of_it_observes() {
+    for world in &states() {
+        for (range, min) in [(6.0, 0.05), (4.0, 0.05), (2.5, 0.3), (6.0, 0.6), (6.0, 1e-13)] {
+            let mut reaching = Vec::new();
+            world.observation_priors_reaching_into(range, min, &mut reaching);
+            let mut within = Vec::new();
+            world.observation_priors_within_into(range, &mut within);
+            // The same priors, a subset of them.
+            let mut kept = reaching.iter().peekable();
+            let mut left_out = Vec::new();
+            for prior in &within {
+                if kept.peek().is_some_and(|k| k.object == prior.object) {
+                    let k = kept.next().expect("peeked");
+                    assert_eq!(format!("{k:?}"), format!("{prior:?}"));
+                } else {
+                    left_out.push(*prior);
+                }
+            }
+            assert!(kept.next().is_none());
+            if range < 5.0 {
+                assert!(!left_out.is_empty(), "{range} {min}");
+            }
+            for step in -80..=80 {
+                let direction = f64::from(step) * 0.025;
+                for fov in [1.06, 0.5, 2.0] {
+                    let view = ViewCone { direction, fov, range };
+                    // Those left out are observed by no view of that range...
+                    let mut sensing = SensingCandidate::default();
+                    world.sensing_candidate_into(&left_out, &view, min, &mut sensing);
+                    assert!(sensing.observations.is_empty(), "{view:?} {min}");
+                    // ...and the views' updates from the others are the plain ones.
+                    check(world, &mut reaching, &view, min);
+                }
+            }
+        }
+    }
+}
+
+#[test]
 fn an_object_listed_twice_builds_on_its_first_observation_as_in_the_expected_update() {
     let world = &states()[2];
     let mut priors = Vec::new();

@@ -334,10 +334,14 @@ impl WorldState {
     /// The part of `object`'s predicted observation that does not depend on the view.
     pub fn observation_prior(&self, object: ObjectId) -> Option<ObservationPrior> {
         let prior = self.object_prior(object)?;
+        Some(self.observation_prior_of(object, &prior))
+    }
+
+    fn observation_prior_of(&self, object: ObjectId, prior: &ObjectPrior) -> ObservationPrior {
         let (z, h) = polar(prior.position);
         let s = h * prior.covariance * h.transpose();
         let (range_sigma, bearing_sigma) = self.camera.sigmas(z.x);
-        Some(ObservationPrior {
+        ObservationPrior {
             object,
             range: z.x,
             bearing: z.y,
@@ -348,7 +352,7 @@ impl WorldState {
             distance: Point::<Robot>::new(prior.position.x, prior.position.y).range(),
             within: None,
             correction: None,
-        })
+        }
     }
 
     /// Probability that the object lies inside `view`, given its uncertainty.
@@ -406,6 +410,35 @@ impl WorldState {
         for prior in out.iter_mut() {
             let probability = normal_cdf((range - prior.range) / prior.range_spread);
             prior.within = Some(WithinRange { range, probability });
+        }
+    }
+
+    /// As [`WorldState::observation_priors_within_into`], without the objects that no view of
+    /// detection range `range` observes with a visibility of at least `min_visibility`: those
+    /// whose probability of being within that range is below it (the first test of
+    /// [`WorldState::expected_view_update_into`]). Objects surely that far are left out before
+    /// their prior is made (see [`surely_out_of_range`]). Active vision compares views of one
+    /// range and one threshold.
+    pub fn observation_priors_reaching_into(
+        &self,
+        range: f64,
+        min_visibility: f64,
+        out: &mut Vec<ObservationPrior>,
+    ) {
+        out.clear();
+        let cut = bearing_cut(min_visibility);
+        for i in (0..self.objects.len()).filter_map(|i| u16::try_from(i).ok()) {
+            let Some(object) = self.object_prior(ObjectId(i)) else { continue };
+            if surely_out_of_range(&object, range, cut) {
+                continue;
+            }
+            let mut prior = self.observation_prior_of(ObjectId(i), &object);
+            let probability = normal_cdf((range - prior.range) / prior.range_spread);
+            if probability < min_visibility {
+                continue;
+            }
+            prior.within = Some(WithinRange { range, probability });
+            out.push(prior);
         }
     }
 
@@ -473,6 +506,9 @@ impl WorldState {
         // Until a landmark corrects it, `out.pose` is the prior pose covariance, the same for
         // every view of this belief.
         let mut pose_at_prior = true;
+        // The greatest object observed so far: one beyond it is surely a first observation
+        // (priors come in id order), without looking for it among the kept ones.
+        let mut greatest: Option<ObjectId> = None;
         for prior in priors.iter_mut() {
             let Some(visibility) = self.visibility_reaching(prior, view, min_visibility, cut)
             else {
@@ -481,7 +517,13 @@ impl WorldState {
             let obs = self.expected_observation(prior, visibility);
             sensing.observations.push(obs);
             let at = (prior.range, prior.bearing);
-            match out.objects.iter().position(|o| o.id == obs.object) {
+            let previous = if greatest.is_none_or(|g| obs.object > g) {
+                greatest = Some(obs.object);
+                None
+            } else {
+                out.objects.iter().position(|o| o.id == obs.object)
+            };
+            match previous {
                 None => {
                     if prior.correction.is_none() {
                         let Some(object) = self.object_prior(obs.object) else { continue };
@@ -526,6 +568,24 @@ fn range_probability(prior: &ObservationPrior, range: f64) -> f64 {
         Some(w) if w.range.to_bits() == range.to_bits() => w.probability,
         _ => normal_cdf((range - prior.range) / prior.range_spread),
     }
+}
+
+/// Whether `object` is so far beyond `range` that its probability of being within it is below
+/// the threshold whose [`bearing_cut`] is `cut`, whatever its range spread: the probability is
+/// the normal tail at u = (distance - range) / spread, below the threshold when u^2 >= `cut`
+/// (as for the bearing). The spread's square, `h P h^T + 1e-12` with `h` a unit row, is at most
+/// the sum of the covariance's absolute entries plus 1e-12; the margins of 1 % cover rounding.
+/// (A covariance negative along the range gives a NaN probability: never observed either.)
+fn surely_out_of_range(object: &ObjectPrior, range: f64, cut: f64) -> bool {
+    let beyond = object.position.norm() - range;
+    let p = &object.covariance;
+    let spread_bound =
+        1.01 * (p[(0, 0)].abs() + p[(0, 1)].abs() + p[(1, 0)].abs() + p[(1, 1)].abs()) + 1e-12;
+    cut.is_finite()
+        && spread_bound.is_finite()
+        && beyond.is_finite()
+        && beyond > 0.0
+        && beyond * beyond >= 1.01 * cut * spread_bound
 }
 
 /// The square of the number u of bearing standard deviations outside a view's cone beyond
@@ -607,6 +667,43 @@ mod tests {
         // for a test of it to mean something.
         assert!(normal_cdf(-8.0) > 0.0 && normal_cdf(-8.0) < 1e-14);
         assert!(normal_cdf(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn an_object_surely_out_of_range_is_below_the_threshold() {
+        // A fixed-seed walk over distances, directions and covariances (some not positive).
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut cut_some = 0;
+        for _ in 0..20_000 {
+            let range = 1.0 + 7.0 * next();
+            let distance = range + 3.0 * next() * next();
+            let angle = 7.0 * next() - 3.5;
+            let position = Vector2::new(distance * angle.cos(), distance * angle.sin());
+            let scale = 10f64.powf(-6.0 + 6.0 * next());
+            let (a, b, c) = (next() * scale, (next() - 0.5) * scale, next() * scale);
+            let covariance = Matrix2::new(a, b, b, if next() < 0.1 { -c } else { c });
+            let object = ObjectPrior { tracked: true, position, covariance, map_position: None };
+            let (z, h) = polar(position);
+            let spread = ((h * covariance * h.transpose())[(0, 0)] + 1e-12).sqrt();
+            let probability = normal_cdf((range - z.x) / spread);
+            for min_visibility in [0.01, 0.05, 0.2, 0.6, 1e-13] {
+                if surely_out_of_range(&object, range, bearing_cut(min_visibility)) {
+                    cut_some += 1;
+                    // NaN (a covariance negative along the range) is never observed either.
+                    assert!(
+                        probability < min_visibility || probability.is_nan(),
+                        "{object:?} {range} {min_visibility}"
+                    );
+                }
+            }
+        }
+        assert!(cut_some > 1000, "{cut_some}");
     }
 
     #[test]
