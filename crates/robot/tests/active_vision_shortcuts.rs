@@ -130,6 +130,51 @@ fn priors_left_out_for_a_range_are_those_no_view_of_it_observes() {
     }
 }
 
+/// The update of a reader of some objects: the full update's pose, and its entries for them.
+fn check_only(
+    world: &WorldState,
+    priors: &mut [ObservationPrior],
+    view: &ViewCone,
+    ids: &[ObjectId],
+) {
+    let mut sensing = SensingCandidate::default();
+    let mut full = ExpectedBelief::default();
+    world.expected_view_update_into(priors, view, 0.05, &mut sensing, &mut full);
+    let mut only_sensing = SensingCandidate::default();
+    let mut only = ExpectedBelief::default();
+    world.expected_view_update_of_into(priors, view, 0.05, ids, &mut only_sensing, &mut only);
+    assert_eq!(only_sensing, sensing);
+    assert_eq!(format!("{:?}", only.pose), format!("{:?}", full.pose), "{view:?}");
+    for id in ids {
+        assert_eq!(format!("{:?}", only.object(*id)), format!("{:?}", full.object(*id)));
+    }
+}
+
+#[test]
+fn an_update_for_some_objects_has_the_full_updates_pose_and_their_covariances() {
+    for world in &states() {
+        let tracked: Vec<ObjectId> =
+            world.objects.iter().filter(|o| o.tracked).map(|o| o.id).collect();
+        let sets: [Vec<ObjectId>; 4] = [
+            Vec::new(),
+            vec![ObjectId(0)],
+            tracked.iter().copied().step_by(3).collect(),
+            vec![ObjectId(u16::MAX), tracked[tracked.len() / 2]],
+        ];
+        let mut priors = Vec::new();
+        world.observation_priors_reaching_into(6.0, 0.05, &mut priors);
+        let mut twice: Vec<ObservationPrior> =
+            priors.iter().chain(priors.iter()).copied().collect();
+        for step in -40..=40 {
+            let view = ViewCone { direction: f64::from(step) * 0.05, fov: 1.06, range: 6.0 };
+            for ids in &sets {
+                check_only(world, &mut priors, &view, ids);
+                check_only(world, &mut twice, &view, ids);
+            }
+        }
+    }
+}
+
 #[test]
 fn an_object_listed_twice_builds_on_its_first_observation_as_in_the_expected_update() {
     let world = &states()[2];

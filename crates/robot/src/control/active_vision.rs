@@ -228,6 +228,8 @@ pub struct ActiveVision {
     /// evaluation.
     priors: Vec<ObservationPrior>,
     sensing: SensingCandidate,
+    /// The objects whose covariances the value function's moments read.
+    wanted: Vec<ObjectId>,
 }
 
 impl ActiveVision {
@@ -321,6 +323,9 @@ impl ActiveVision {
         let (range, min_visibility) = (self.config.range, self.config.min_visibility);
         // Objects no view of this range can observe are left out once for all candidates.
         world.observation_priors_reaching_into(range, min_visibility, &mut self.priors);
+        // Only the pose's and these objects' posteriors are read (by `moments`).
+        self.wanted.clear();
+        self.wanted.extend(d.objects.iter().map(|(id, _, _)| *id));
         let evaluations = &mut report.candidates;
         evaluations.truncate(candidates.len());
         for (i, candidate) in candidates.iter().enumerate() {
@@ -350,10 +355,11 @@ impl ActiveVision {
                 continue;
             }
             let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
-            world.expected_view_update_into(
+            world.expected_view_update_of_into(
                 &mut self.priors,
                 &view,
                 self.config.min_visibility,
+                &self.wanted,
                 &mut self.sensing,
                 &mut self.scratch,
             );

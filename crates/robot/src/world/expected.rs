@@ -84,6 +84,8 @@ pub struct ObservationPrior {
     pub bearing_spread: f64,
     /// Distance of the estimated position (for the view cone's test).
     pub distance: f64,
+    /// An observation would correct the pose (a map position, and a pose that is not lost).
+    corrects_pose: bool,
     /// The probability that the object is within a camera's range, for the range it was made
     /// for: it does not depend on the view's direction.
     within: Option<WithinRange>,
@@ -172,17 +174,21 @@ impl Correction {
 
     /// As [`Correction::fold`], for a first observation (`previous` is `None`); `pose_at_prior`
     /// says that `out.pose` is still the belief's prior pose covariance, whose correction by
-    /// this landmark is then made once and reused. Returns whether the pose was corrected.
+    /// this landmark is then made once and reused; the object's covariance is kept when
+    /// `keep_object`. Returns whether the pose was corrected.
     fn fold_first(
         &mut self,
         obs: &ExpectedObservation,
         pose_at_prior: bool,
+        keep_object: bool,
         out: &mut ExpectedBelief,
     ) -> bool {
         let Some(posterior) = self.posterior else { return false };
         let pd = obs.detection_probability.clamp(0.0, 1.0);
-        let expected = symmetrize2(posterior * pd + self.covariance * (1.0 - pd));
-        out.objects.push(ExpectedObject { id: obs.object, covariance: expected });
+        if keep_object {
+            let expected = symmetrize2(posterior * pd + self.covariance * (1.0 - pd));
+            out.objects.push(ExpectedObject { id: obs.object, covariance: expected });
+        }
         let Some(jacobian) = &self.landmark else { return false };
         let post = if pose_at_prior {
             *self
@@ -350,6 +356,7 @@ impl WorldState {
             range_spread: (s[(0, 0)] + 1e-12).sqrt(),
             bearing_spread: (s[(1, 1)] + 1e-12).sqrt(),
             distance: Point::<Robot>::new(prior.position.x, prior.position.y).range(),
+            corrects_pose: prior.map_position.is_some() && !self.pose.lost,
             within: None,
             correction: None,
         }
@@ -498,6 +505,37 @@ impl WorldState {
         sensing: &mut SensingCandidate,
         out: &mut ExpectedBelief,
     ) {
+        self.expected_view_update_only_into(priors, view, min_visibility, None, sensing, out);
+    }
+
+    /// As [`WorldState::expected_view_update_into`], for a reader of the pose and of the
+    /// `objects`' covariances only (active vision's value function): `out.objects` holds just
+    /// theirs, and an observation that would correct neither is not simulated. When `priors`
+    /// do not come in increasing id order (an object listed twice), every object is kept, as
+    /// a second observation builds on the first one's outcome.
+    pub fn expected_view_update_of_into(
+        &self,
+        priors: &mut [ObservationPrior],
+        view: &ViewCone,
+        min_visibility: f64,
+        objects: &[ObjectId],
+        sensing: &mut SensingCandidate,
+        out: &mut ExpectedBelief,
+    ) {
+        let only = Some(objects).filter(|_| priors.is_sorted_by(|a, b| a.object < b.object));
+        self.expected_view_update_only_into(priors, view, min_visibility, only, sensing, out);
+    }
+
+    /// The view update keeping the covariances of `only` (of every object when `None`).
+    fn expected_view_update_only_into(
+        &self,
+        priors: &mut [ObservationPrior],
+        view: &ViewCone,
+        min_visibility: f64,
+        only: Option<&[ObjectId]>,
+        sensing: &mut SensingCandidate,
+        out: &mut ExpectedBelief,
+    ) {
         sensing.observations.clear();
         out.objects.clear();
         out.pose = self.pose_covariance();
@@ -525,6 +563,10 @@ impl WorldState {
             };
             match previous {
                 None => {
+                    let keep_object = only.is_none_or(|ids| ids.contains(&obs.object));
+                    if !keep_object && !prior.corrects_pose {
+                        continue;
+                    }
                     if prior.correction.is_none() {
                         let Some(object) = self.object_prior(obs.object) else { continue };
                         let sigmas = (obs.range_sigma, obs.bearing_sigma);
@@ -532,7 +574,7 @@ impl WorldState {
                             Some(Correction::of(&object, at, pose.as_ref(), sigmas.0, sigmas.1));
                     }
                     if let Some(correction) = &mut prior.correction
-                        && correction.fold_first(&obs, pose_at_prior, out)
+                        && correction.fold_first(&obs, pose_at_prior, keep_object, out)
                     {
                         pose_at_prior = false;
                     }
