@@ -7,9 +7,7 @@
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::math::{
-    MIN_RANGE, RangeBearing, polar, polar_to_cartesian_jacobian, posterior_covariance, symmetrize2,
-};
+use super::math::{MIN_RANGE, RangeBearing, polar, posterior_covariance, symmetrize2};
 use super::pose::landmark_measurement;
 use super::state::{ObjectId, WorldState};
 use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
@@ -86,6 +84,8 @@ pub struct ObservationPrior {
     pub distance: f64,
     /// An observation would correct the pose (a map position, and a pose that is not lost).
     corrects_pose: bool,
+    /// Sine and cosine of the bearing, as [`polar`] computed them.
+    bearing_sin_cos: (f64, f64),
     /// The probability that the object is within a camera's range, for the range it was made
     /// for: it does not depend on the view's direction.
     within: Option<WithinRange>,
@@ -120,19 +120,23 @@ struct Correction {
 }
 
 impl Correction {
-    /// The correction of observing `object`, at range and bearing `polar` (those of its
-    /// position, as [`ObservationPrior`] has them), with the given noise.
+    /// The correction of observing `object`, at the range and the bearing's sine and cosine
+    /// of its position (as [`polar`] computes them, kept in [`ObservationPrior`]), with the
+    /// given noise.
     fn of(
         object: &ObjectPrior,
-        (range, bearing): (f64, f64),
+        (range, (s, c)): (f64, (f64, f64)),
         pose: Option<&Pose>,
         range_sigma: f64,
         bearing_sigma: f64,
     ) -> Correction {
         let r = Matrix2::new(range_sigma.powi(2), 0.0, 0.0, bearing_sigma.powi(2));
         // `cartesian_noise_at(position, r)` and `posterior_position_covariance(covariance,
-        // position, r)` (object.rs), without computing the polar coordinates again.
-        let j = polar_to_cartesian_jacobian(range.max(MIN_RANGE), bearing);
+        // position, r)` (object.rs), without computing the polar coordinates again: this is
+        // `polar_to_cartesian_jacobian(range.max(MIN_RANGE), bearing)` with the bearing's
+        // sine and cosine known.
+        let range = range.max(MIN_RANGE);
+        let j = Matrix2::new(c, -range * s, s, range * c);
         let gained = symmetrize2(j * r * j.transpose());
         let posterior = if object.tracked {
             posterior_covariance(&object.covariance, &Matrix2::identity(), &gained)
@@ -244,8 +248,9 @@ pub(crate) fn expected_update_into(
             prior.tracked = true;
             prior.covariance = out.objects[k].covariance;
         }
-        let (z, _) = polar(prior.position);
-        Correction::of(&prior, (z.x, z.y), pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
+        let (z, h) = polar(prior.position);
+        let at = (z.x, bearing_sin_cos(&h));
+        Correction::of(&prior, at, pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
             .fold(obs, previous, out);
     }
 }
@@ -357,6 +362,7 @@ impl WorldState {
             bearing_spread: (s[(1, 1)] + 1e-12).sqrt(),
             distance: Point::<Robot>::new(prior.position.x, prior.position.y).range(),
             corrects_pose: prior.map_position.is_some() && !self.pose.lost,
+            bearing_sin_cos: bearing_sin_cos(&h),
             within: None,
             correction: None,
         }
@@ -554,7 +560,7 @@ impl WorldState {
             };
             let obs = self.expected_observation(prior, visibility);
             sensing.observations.push(obs);
-            let at = (prior.range, prior.bearing);
+            let at = (prior.range, prior.bearing_sin_cos);
             let previous = if greatest.is_none_or(|g| obs.object > g) {
                 greatest = Some(obs.object);
                 None
@@ -595,6 +601,11 @@ impl WorldState {
             }
         }
     }
+}
+
+/// Sine and cosine of the bearing, from [`polar`]'s Jacobian `[c, s; -s/r, c/r]`.
+fn bearing_sin_cos(h: &Matrix2<f64>) -> (f64, f64) {
+    (h[(0, 1)], h[(0, 0)])
 }
 
 /// Probability that an object at `angle` from a view's direction, with bearing spread `sb`,
@@ -678,8 +689,10 @@ mod tests {
             let position = Vector2::new(x, y);
             for tracked in [true, false] {
                 let object = ObjectPrior { tracked, position, covariance, map_position: None };
-                let (z, _) = polar(position);
-                let c = Correction::of(&object, (z.x, z.y), None, 0.1 + 0.05 * x.abs(), 0.035);
+                let (z, h) = polar(position);
+                assert_eq!(bearing_sin_cos(&h), z.y.sin_cos());
+                let at = (z.x, bearing_sin_cos(&h));
+                let c = Correction::of(&object, at, None, 0.1 + 0.05 * x.abs(), 0.035);
                 let r = Matrix2::new((0.1 + 0.05 * x.abs()).powi(2), 0.0, 0.0, 0.035f64.powi(2));
                 let bits = |m: &Matrix2<f64>| m.map(f64::to_bits);
                 assert_eq!(bits(&c.gained), bits(&cartesian_noise_at(position, &r)));
