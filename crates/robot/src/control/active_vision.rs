@@ -103,8 +103,13 @@ impl GazeCandidate {
         id: ObjectId,
         label: impl Into<String>,
     ) -> Option<GazeCandidate> {
-        let object = world.get(id)?;
-        Some(GazeCandidate { label: label.into(), direction: object.position.bearing() })
+        let direction = Self::toward_direction(world, id)?;
+        Some(GazeCandidate { label: label.into(), direction })
+    }
+
+    /// The direction [`GazeCandidate::toward`] would look along, without making a candidate.
+    pub fn toward_direction(world: &WorldState, id: ObjectId) -> Option<f64> {
+        Some(world.get(id)?.position.bearing())
     }
 
     /// Look at a point from which all `ids` are seen, when one exists (their bearings span
