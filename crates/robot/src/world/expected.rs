@@ -370,7 +370,7 @@ impl WorldState {
 
     /// Probability that the object lies inside `view`, given its uncertainty.
     fn visibility(&self, prior: &ObservationPrior, view: &ViewCone) -> f64 {
-        let half = (view.fov / 2.0 - self.view_margin).max(0.0);
+        let half = self.half_angle(view);
         let angle = normalize_angle(prior.bearing - view.direction);
         let p_angle = angle_probability(half, angle, prior.bearing_spread);
         let p_range = range_probability(prior, view.range);
@@ -381,10 +381,15 @@ impl WorldState {
     /// otherwise. Objects that surely fall short are left out before their angular
     /// probability is computed: those too far for the view's range, and those whose bearing
     /// lies more than `bearing_cut` standard deviations (see [`bearing_cut`]) outside the cone.
+    ///
+    /// `half` is the view's half angle less the margin, `(view.fov / 2 - view_margin).max(0)`
+    /// (see [`WorldState::half_angle`]), the same for every object of a view. The tests that
+    /// leave most objects out are inlined into the caller's loop, the probabilities are not.
+    #[inline(always)]
     fn visibility_reaching(
-        &self,
         prior: &ObservationPrior,
         view: &ViewCone,
+        half: f64,
         min_visibility: f64,
         bearing_cut: f64,
     ) -> Option<f64> {
@@ -393,15 +398,18 @@ impl WorldState {
         if p_range < min_visibility {
             return None;
         }
-        let half = (view.fov / 2.0 - self.view_margin).max(0.0);
         let angle = normalize_angle(prior.bearing - view.direction);
         let sb = prior.bearing_spread;
         let outside = angle.abs() - half;
         if outside > 0.0 && outside * outside > bearing_cut * sb * sb {
             return None;
         }
-        let visibility = (angle_probability(half, angle, sb) * p_range).clamp(0.0, 1.0);
-        (visibility >= min_visibility && visibility > 0.0).then_some(visibility)
+        angular_visibility(half, angle, sb, p_range, min_visibility)
+    }
+
+    /// What [`WorldState::visibility`] uses as the half angle of `view`'s cone.
+    fn half_angle(&self, view: &ViewCone) -> f64 {
+        (view.fov / 2.0 - self.view_margin).max(0.0)
     }
 
     /// Every object's [`ObservationPrior`], in id order, into `out`: made once when several
@@ -476,8 +484,11 @@ impl WorldState {
     ) {
         out.observations.clear();
         let cut = bearing_cut(min_visibility);
+        let half = self.half_angle(view);
         for prior in priors {
-            if let Some(visibility) = self.visibility_reaching(prior, view, min_visibility, cut) {
+            if let Some(visibility) =
+                Self::visibility_reaching(prior, view, half, min_visibility, cut)
+            {
                 out.observations.push(self.expected_observation(prior, visibility));
             }
         }
@@ -547,6 +558,7 @@ impl WorldState {
         out.pose = self.pose_covariance();
         let pose = self.pose_prior().map(|(pose, _)| pose);
         let cut = bearing_cut(min_visibility);
+        let half = self.half_angle(view);
         // Until a landmark corrects it, `out.pose` is the prior pose covariance, the same for
         // every view of this belief.
         let mut pose_at_prior = true;
@@ -554,7 +566,8 @@ impl WorldState {
         // (priors come in id order), without looking for it among the kept ones.
         let mut greatest: Option<ObjectId> = None;
         for prior in priors.iter_mut() {
-            let Some(visibility) = self.visibility_reaching(prior, view, min_visibility, cut)
+            let Some(visibility) =
+                Self::visibility_reaching(prior, view, half, min_visibility, cut)
             else {
                 continue;
             };
@@ -606,6 +619,19 @@ impl WorldState {
 /// Sine and cosine of the bearing, from [`polar`]'s Jacobian `[c, s; -s/r, c/r]`.
 fn bearing_sin_cos(h: &Matrix2<f64>) -> (f64, f64) {
     (h[(0, 1)], h[(0, 0)])
+}
+
+/// The end of [`WorldState::visibility_reaching`], for the objects its tests keep.
+#[inline(never)]
+fn angular_visibility(
+    half: f64,
+    angle: f64,
+    sb: f64,
+    p_range: f64,
+    min_visibility: f64,
+) -> Option<f64> {
+    let visibility = (angle_probability(half, angle, sb) * p_range).clamp(0.0, 1.0);
+    (visibility >= min_visibility && visibility > 0.0).then_some(visibility)
 }
 
 /// Probability that an object at `angle` from a view's direction, with bearing spread `sb`,
