@@ -92,6 +92,90 @@ fn the_one_pass_view_update_equals_the_prediction_and_the_expected_update() {
 }
 
 #[test]
+fn priors_left_out_for_a_range_are_those_no_view_of_it_observes() {
+    for world in &states() {
+        for (range, min) in [(6.0, 0.05), (4.0, 0.05), (2.5, 0.3), (6.0, 0.6), (6.0, 1e-13)] {
+            let mut reaching = Vec::new();
+            world.observation_priors_reaching_into(range, min, &mut reaching);
+            let mut within = Vec::new();
+            world.observation_priors_within_into(range, &mut within);
+            // The same priors, a subset of them.
+            let mut kept = reaching.iter().peekable();
+            let mut left_out = Vec::new();
+            for prior in &within {
+                if kept.peek().is_some_and(|k| k.object == prior.object) {
+                    let k = kept.next().expect("peeked");
+                    assert_eq!(format!("{k:?}"), format!("{prior:?}"));
+                } else {
+                    left_out.push(*prior);
+                }
+            }
+            assert!(kept.next().is_none());
+            if range < 5.0 {
+                assert!(!left_out.is_empty(), "{range} {min}");
+            }
+            for step in -80..=80 {
+                let direction = f64::from(step) * 0.025;
+                for fov in [1.06, 0.5, 2.0] {
+                    let view = ViewCone { direction, fov, range };
+                    // Those left out are observed by no view of that range...
+                    let mut sensing = SensingCandidate::default();
+                    world.sensing_candidate_into(&left_out, &view, min, &mut sensing);
+                    assert!(sensing.observations.is_empty(), "{view:?} {min}");
+                    // ...and the views' updates from the others are the plain ones.
+                    check(world, &mut reaching, &view, min);
+                }
+            }
+        }
+    }
+}
+
+/// The update of a reader of some objects: the full update's pose, and its entries for them.
+fn check_only(
+    world: &WorldState,
+    priors: &mut [ObservationPrior],
+    view: &ViewCone,
+    ids: &[ObjectId],
+) {
+    let mut sensing = SensingCandidate::default();
+    let mut full = ExpectedBelief::default();
+    world.expected_view_update_into(priors, view, 0.05, &mut sensing, &mut full);
+    let mut only_sensing = SensingCandidate::default();
+    let mut only = ExpectedBelief::default();
+    world.expected_view_update_of_into(priors, view, 0.05, ids, &mut only_sensing, &mut only);
+    assert_eq!(only_sensing, sensing);
+    assert_eq!(format!("{:?}", only.pose), format!("{:?}", full.pose), "{view:?}");
+    for id in ids {
+        assert_eq!(format!("{:?}", only.object(*id)), format!("{:?}", full.object(*id)));
+    }
+}
+
+#[test]
+fn an_update_for_some_objects_has_the_full_updates_pose_and_their_covariances() {
+    for world in &states() {
+        let tracked: Vec<ObjectId> =
+            world.objects.iter().filter(|o| o.tracked).map(|o| o.id).collect();
+        let sets: [Vec<ObjectId>; 4] = [
+            Vec::new(),
+            vec![ObjectId(0)],
+            tracked.iter().copied().step_by(3).collect(),
+            vec![ObjectId(u16::MAX), tracked[tracked.len() / 2]],
+        ];
+        let mut priors = Vec::new();
+        world.observation_priors_reaching_into(6.0, 0.05, &mut priors);
+        let mut twice: Vec<ObservationPrior> =
+            priors.iter().chain(priors.iter()).copied().collect();
+        for step in -40..=40 {
+            let view = ViewCone { direction: f64::from(step) * 0.05, fov: 1.06, range: 6.0 };
+            for ids in &sets {
+                check_only(world, &mut priors, &view, ids);
+                check_only(world, &mut twice, &view, ids);
+            }
+        }
+    }
+}
+
+#[test]
 fn an_object_listed_twice_builds_on_its_first_observation_as_in_the_expected_update() {
     let world = &states()[2];
     let mut priors = Vec::new();

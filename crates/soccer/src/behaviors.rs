@@ -109,6 +109,9 @@ pub struct Ctx {
     pub vision_report: Option<ActiveVisionReport>,
     /// The last report's storage, reused by the next evaluation.
     spare_report: ActiveVisionReport,
+    /// The last gaze candidates (their labels' storage reused) and what each looks at.
+    gazes: Vec<GazeCandidate>,
+    gaze_looks: Vec<Looks>,
     ball_unknown_since: Option<Time>,
     landmark_groups: Vec<String>,
 }
@@ -222,21 +225,59 @@ fn head_goal_for(label: &str) -> HeadGoal {
     }
 }
 
+/// What a gaze candidate looks at: the ball, a landmark (the label is its name), or the ball
+/// and a landmark together (the label is `ball+` and its name).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Looks {
+    Ball,
+    Landmark,
+    Together,
+}
+
+impl Looks {
+    /// The objects a candidate with this `label` looks at (the head goal's objects).
+    fn objects(self, label: &str) -> Vec<String> {
+        match self {
+            Looks::Ball => vec![BALL.to_owned()],
+            Looks::Landmark => vec![label.to_owned()],
+            Looks::Together => {
+                let landmark = label.strip_prefix(BALL).and_then(|l| l.strip_prefix('+'));
+                vec![BALL.to_owned(), landmark.unwrap_or_default().to_owned()]
+            }
+        }
+    }
+}
+
 /// Sensing candidates: the ball, the best instance of each landmark group, and the ball
-/// together with the nearest landmarks when they fit in one gaze; each with the objects it
-/// looks at.
-fn gaze_candidates(ctx: &Ctx, world: &WorldState) -> (Vec<GazeCandidate>, Vec<Vec<String>>) {
-    let mut gazes = Vec::new();
-    let mut objects = Vec::new();
-    let mut out = |c: GazeCandidate, about: Vec<String>| {
-        gazes.push(c);
-        objects.push(about);
+/// together with the nearest landmarks when they fit in one gaze; each with what it looks at.
+/// `gazes` keeps its labels' storage from the last tick.
+fn gaze_candidates(
+    ctx: &Ctx,
+    world: &WorldState,
+    gazes: &mut Vec<GazeCandidate>,
+    looks: &mut Vec<Looks>,
+) {
+    looks.clear();
+    let mut n = 0;
+    let mut out = |direction: f64, label: &[&str], what: Looks| {
+        match gazes.get_mut(n) {
+            Some(kept) => {
+                kept.label.clear();
+                kept.direction = direction;
+            }
+            None => gazes.push(GazeCandidate { label: String::new(), direction }),
+        }
+        for part in label {
+            gazes[n].label.push_str(part);
+        }
+        looks.push(what);
+        n += 1;
     };
     let ball_id = world.object(BALL).map(|o| o.id);
     if let Some(id) = ball_id
-        && let Some(c) = GazeCandidate::toward(world, id, BALL)
+        && let Some(direction) = GazeCandidate::toward_direction(world, id)
     {
-        out(c, vec![BALL.to_owned()]);
+        out(direction, &[BALL], Looks::Ball);
     }
     let mut landmarks: Vec<_> = ctx
         .landmark_groups
@@ -246,19 +287,17 @@ fn gaze_candidates(ctx: &Ctx, world: &WorldState) -> (Vec<GazeCandidate>, Vec<Ve
         .collect();
     landmarks.sort_by(|a, b| a.position.range().total_cmp(&b.position.range()));
     for landmark in landmarks.iter().take(6) {
-        if let Some(c) = GazeCandidate::toward(world, landmark.id, landmark.name.clone()) {
-            out(c, vec![landmark.name.to_string()]);
+        if let Some(direction) = GazeCandidate::toward_direction(world, landmark.id) {
+            out(direction, &[landmark.name.as_str()], Looks::Landmark);
         }
-        if let Some(ball) = ball_id {
-            let label = format!("{BALL}+{}", landmark.name);
-            if let Some(c) =
-                GazeCandidate::covering(world, &[ball, landmark.id], ctx.config.fov * 0.8, label)
-            {
-                out(c, vec![BALL.to_owned(), landmark.name.to_string()]);
-            }
+        if let Some(ball) = ball_id
+            && let Some(direction) =
+                GazeCandidate::covering_direction(world, [ball, landmark.id], ctx.config.fov * 0.8)
+        {
+            out(direction, &[BALL, "+", landmark.name.as_str()], Looks::Together);
         }
     }
-    (gazes, objects)
+    gazes.truncate(n);
 }
 
 /// The head's score vector for a behavior whose value function is `value`.
@@ -274,9 +313,11 @@ fn gaze(ctx: &mut Ctx, value: Option<&dyn ValueFunction>) {
         GazeStrategy::ActiveVision
         | GazeStrategy::ActiveVisionTaskValue
         | GazeStrategy::Entropy => {
-            let (gazes, objects) = gaze_candidates(ctx, &world);
-            let scores: Vec<f64> = if strategy == GazeStrategy::Entropy {
-                entropy_scores(&world, &gazes, &ctx.vision.config)
+            let mut gazes = std::mem::take(&mut ctx.gazes);
+            let mut looks = std::mem::take(&mut ctx.gaze_looks);
+            gaze_candidates(ctx, &world, &mut gazes, &mut looks);
+            let entropy = if strategy == GazeStrategy::Entropy {
+                Some(entropy_scores(&world, &gazes, &ctx.vision.config))
             } else {
                 ctx.vision.config.criterion = if strategy == GazeStrategy::ActiveVisionTaskValue {
                     Criterion::MaxExpectedTaskValue
@@ -287,18 +328,26 @@ fn gaze(ctx: &mut Ctx, value: Option<&dyn ValueFunction>) {
                 let vf: &dyn ValueFunction = value.unwrap_or(&fallback);
                 let mut report = std::mem::take(&mut ctx.spare_report);
                 ctx.vision.evaluate_into(&world, vf, &gazes, &mut report);
-                let scores = report.candidates.iter().map(|c| c.score).collect();
                 ctx.vision_report = Some(report);
-                scores
+                None
             };
+            let scores: &[f64] = entropy.as_deref().unwrap_or_default();
+            let evaluations = ctx.vision_report.as_ref().map_or(&[][..], |r| &r.candidates);
             let mut vector = ScoreVector::default();
-            for ((candidate, objects), score) in gazes.iter().zip(objects).zip(scores) {
+            for (i, (candidate, what)) in gazes.iter().zip(&looks).enumerate() {
+                let score = match &entropy {
+                    Some(_) => scores.get(i).copied(),
+                    None => evaluations.get(i).map(|e| e.score),
+                };
+                let Some(score) = score else { break };
                 vector.push(GoalScore {
                     goal: head_goal_for(&candidate.label),
                     deliberative: score,
-                    objects,
+                    objects: what.objects(&candidate.label),
                 });
             }
+            ctx.gazes = gazes;
+            ctx.gaze_looks = looks;
             if !vector.goals.iter().any(|g| g.goal == HeadGoal::ObserveBall) {
                 // The ball must stay a goal even when no value function wants it: its reactive
                 // score (its uncertainty) can still win the head.
@@ -743,6 +792,8 @@ impl SoccerBehavior {
                 vision: ActiveVision::new(vision),
                 vision_report: None,
                 spare_report: ActiveVisionReport::default(),
+                gazes: Vec::new(),
+                gaze_looks: Vec::new(),
                 ball_unknown_since: None,
                 landmark_groups: groups,
             },
@@ -807,6 +858,75 @@ mod tests {
         // It faces the ball.
         let to_ball = (Point::<FieldFrame>::new(-3.0, 2.5) - wide.position()).angle();
         assert!((strata_robot::normalize_angle(to_ball - wide.theta)).abs() < 1e-9);
+    }
+
+    /// The candidates as made before their storage was reused: each with a new label and a
+    /// list of the objects it looks at.
+    fn plain_candidates(ctx: &Ctx, world: &WorldState) -> Vec<(GazeCandidate, Vec<String>)> {
+        let mut out = Vec::new();
+        let ball_id = world.object(BALL).map(|o| o.id);
+        if let Some(id) = ball_id
+            && let Some(c) = GazeCandidate::toward(world, id, BALL)
+        {
+            out.push((c, vec![BALL.to_owned()]));
+        }
+        let mut landmarks: Vec<_> = ctx
+            .landmark_groups
+            .iter()
+            .filter_map(|g| best_instance(world, g))
+            .filter(|o| o.category == ObjectCategory::Landmark)
+            .collect();
+        landmarks.sort_by(|a, b| a.position.range().total_cmp(&b.position.range()));
+        for landmark in landmarks.iter().take(6) {
+            if let Some(c) = GazeCandidate::toward(world, landmark.id, landmark.name.clone()) {
+                out.push((c, vec![landmark.name.to_string()]));
+            }
+            if let Some(ball) = ball_id {
+                let label = format!("{BALL}+{}", landmark.name);
+                let ids = [ball, landmark.id];
+                if let Some(c) = GazeCandidate::covering(world, &ids, ctx.config.fov * 0.8, label) {
+                    out.push((c, vec![BALL.to_owned(), landmark.name.to_string()]));
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn gaze_candidates_in_reused_storage_are_the_plain_ones() {
+        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+        let field =
+            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
+        let behavior = SoccerBehavior::new(
+            2,
+            Arc::clone(&field),
+            BehaviorConfig::default(),
+            ActiveVisionConfig::default(),
+        )
+        .expect("behavior");
+        let mut model =
+            WorldModel::new(crate::world_config::world_config(&field)).expect("valid config");
+        let (mut gazes, mut looks) = (Vec::new(), Vec::new());
+        let mut lengths = std::collections::BTreeSet::new();
+        for k in 0..60 {
+            let t = f64::from(k);
+            let pose = Pose::new(-4.0 + 0.14 * t, 2.5 * (0.3 * t).sin(), 0.37 * t);
+            let prior = PosePrior { pose, sigma: [0.1, 0.1, 0.05] };
+            let _ = model.command(WorldCommand::SetPose { prior });
+            let world = model.state();
+            gaze_candidates(&behavior.ctx, &world, &mut gazes, &mut looks);
+            let plain = plain_candidates(&behavior.ctx, &world);
+            assert_eq!(gazes.len(), plain.len());
+            assert_eq!(looks.len(), plain.len());
+            for ((gaze, what), (c, objects)) in gazes.iter().zip(&looks).zip(&plain) {
+                assert_eq!(gaze.label, c.label);
+                assert_eq!(gaze.direction.to_bits(), c.direction.to_bits());
+                assert_eq!(&what.objects(&gaze.label), objects);
+            }
+            lengths.insert(plain.len());
+        }
+        // Longer and shorter lists followed one another.
+        assert!(lengths.len() > 2, "{lengths:?}");
     }
 
     #[test]

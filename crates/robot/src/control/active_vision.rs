@@ -103,8 +103,13 @@ impl GazeCandidate {
         id: ObjectId,
         label: impl Into<String>,
     ) -> Option<GazeCandidate> {
-        let object = world.get(id)?;
-        Some(GazeCandidate { label: label.into(), direction: object.position.bearing() })
+        let direction = Self::toward_direction(world, id)?;
+        Some(GazeCandidate { label: label.into(), direction })
+    }
+
+    /// The direction [`GazeCandidate::toward`] would look along, without making a candidate.
+    pub fn toward_direction(world: &WorldState, id: ObjectId) -> Option<f64> {
+        Some(world.get(id)?.position.bearing())
     }
 
     /// Look at a point from which all `ids` are seen, when one exists (their bearings span
@@ -228,6 +233,8 @@ pub struct ActiveVision {
     /// evaluation.
     priors: Vec<ObservationPrior>,
     sensing: SensingCandidate,
+    /// The objects whose covariances the value function's moments read.
+    wanted: Vec<ObjectId>,
 }
 
 impl ActiveVision {
@@ -236,28 +243,31 @@ impl ActiveVision {
     }
 
     fn derivatives(&self, world: &WorldState, vf: &dyn ValueFunction) -> Derivatives {
-        let base = ValueState::of(world);
-        let value = vf.value(&base);
+        // One state, perturbed and restored in place: each perturbed state is the world
+        // state's own but for one block, as a fresh copy would be.
+        let mut state = ValueState::of(world);
+        let base = state.pose;
+        let value = vf.value(&state);
         // Pose block: x, y, theta.
         let steps =
             [self.config.position_step, self.config.position_step, self.config.heading_step];
-        let perturbed_pose = |deltas: [f64; 3]| {
-            let mut s = base.clone();
-            s.pose =
-                Pose::new(s.pose.x + deltas[0], s.pose.y + deltas[1], s.pose.theta + deltas[2]);
-            vf.value(&s)
+        let perturbed_pose = |s: &mut ValueState<'_>, deltas: [f64; 3]| {
+            s.pose = Pose::new(base.x + deltas[0], base.y + deltas[1], base.theta + deltas[2]);
+            vf.value(s)
         };
-        let (pose_gradient, pose_hessian) = derivatives_of::<3>(value, &steps, perturbed_pose);
+        let (pose_gradient, pose_hessian) =
+            derivatives_of::<3, _>(value, &steps, &mut state, perturbed_pose);
+        state.pose = base;
         let mut objects = Vec::new();
         for id in vf.objects() {
-            let Some(position) = base.object(id) else { continue };
+            let Some(position) = state.object(id) else { continue };
             let steps = [self.config.position_step; 2];
-            let perturbed = |d: [f64; 2]| {
-                let mut s = base.clone();
+            let perturbed = |s: &mut ValueState<'_>, d: [f64; 2]| {
                 s.set_object(id, Point::new(position.x + d[0], position.y + d[1]));
-                vf.value(&s)
+                vf.value(s)
             };
-            let (g, h) = derivatives_of::<2>(value, &steps, perturbed);
+            let (g, h) = derivatives_of::<2, _>(value, &steps, &mut state, perturbed);
+            state.objects.clear();
             objects.push((
                 id,
                 Vector2::new(g[0], g[1]),
@@ -315,7 +325,12 @@ impl ActiveVision {
         let (prior_variance, prior_expected_value) =
             Self::moments(&d, &world.pose.covariance, prior_object);
         let (lo, hi) = self.config.yaw_limits;
-        world.observation_priors_within_into(self.config.range, &mut self.priors);
+        let (range, min_visibility) = (self.config.range, self.config.min_visibility);
+        // Objects no view of this range can observe are left out once for all candidates.
+        world.observation_priors_reaching_into(range, min_visibility, &mut self.priors);
+        // Only the pose's and these objects' posteriors are read (by `moments`).
+        self.wanted.clear();
+        self.wanted.extend(d.objects.iter().map(|(id, _, _)| *id));
         let evaluations = &mut report.candidates;
         evaluations.truncate(candidates.len());
         for (i, candidate) in candidates.iter().enumerate() {
@@ -345,10 +360,11 @@ impl ActiveVision {
                 continue;
             }
             let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
-            world.expected_view_update_into(
+            world.expected_view_update_of_into(
                 &mut self.priors,
                 &view,
                 self.config.min_visibility,
+                &self.wanted,
                 &mut self.sensing,
                 &mut self.scratch,
             );
@@ -396,18 +412,20 @@ fn overwrite<'a>(target: &mut Vec<String>, texts: impl Iterator<Item = &'a str>)
 }
 
 /// Central-difference gradient and Hessian of `f` around 0 with the given steps.
-fn derivatives_of<const N: usize>(
+/// `f` is evaluated on `state` (which it may change).
+fn derivatives_of<const N: usize, S>(
     f0: f64,
     steps: &[f64; N],
-    f: impl Fn([f64; N]) -> f64,
+    state: &mut S,
+    f: impl Fn(&mut S, [f64; N]) -> f64,
 ) -> ([f64; N], nalgebra::SMatrix<f64, N, N>) {
     let mut gradient = [0.0; N];
     let mut hessian = nalgebra::SMatrix::<f64, N, N>::zeros();
-    let shifted = |i: usize, a: f64, j: usize, b: f64| {
+    let mut shifted = |i: usize, a: f64, j: usize, b: f64| {
         let mut d = [0.0; N];
         d[i] += a;
         d[j] += b;
-        f(d)
+        f(state, d)
     };
     for i in 0..N {
         let h = steps[i];
@@ -439,7 +457,7 @@ mod tests {
         let f = |d: [f64; 2]| {
             3.0 * d[0] - 2.0 * d[1] + d[0] * d[0] + 4.0 * d[0] * d[1] - 5.0 * d[1] * d[1]
         };
-        let (g, h) = derivatives_of::<2>(f([0.0, 0.0]), &[0.01, 0.01], f);
+        let (g, h) = derivatives_of::<2, _>(f([0.0, 0.0]), &[0.01, 0.01], &mut (), |_, d| f(d));
         assert!((g[0] - 3.0).abs() < 1e-9 && (g[1] + 2.0).abs() < 1e-9);
         assert!((h[(0, 0)] - 2.0).abs() < 1e-6);
         assert!((h[(0, 1)] - 4.0).abs() < 1e-6 && (h[(1, 0)] - 4.0).abs() < 1e-6);

@@ -7,9 +7,7 @@
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::math::{
-    MIN_RANGE, RangeBearing, polar, polar_to_cartesian_jacobian, posterior_covariance, symmetrize2,
-};
+use super::math::{MIN_RANGE, RangeBearing, polar, posterior_covariance, symmetrize2};
 use super::pose::landmark_measurement;
 use super::state::{ObjectId, WorldState};
 use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
@@ -84,6 +82,10 @@ pub struct ObservationPrior {
     pub bearing_spread: f64,
     /// Distance of the estimated position (for the view cone's test).
     pub distance: f64,
+    /// An observation would correct the pose (a map position, and a pose that is not lost).
+    corrects_pose: bool,
+    /// Sine and cosine of the bearing, as [`polar`] computed them.
+    bearing_sin_cos: (f64, f64),
     /// The probability that the object is within a camera's range, for the range it was made
     /// for: it does not depend on the view's direction.
     within: Option<WithinRange>,
@@ -111,22 +113,30 @@ struct Correction {
     /// The Jacobian of a landmark's measurement with respect to the pose, when the observation
     /// corrects the pose (a map position and a pose that is not lost).
     landmark: Option<SMatrix<f64, 2, 3>>,
+    /// The pose covariance after a detection of the landmark by a view that has corrected the
+    /// pose with no other landmark yet (the pose's prior covariance is then corrected, whatever
+    /// the view): made the first time a view needs it. The inner `None` is a singular update.
+    first_pose_posterior: Option<Option<Matrix3<f64>>>,
 }
 
 impl Correction {
-    /// The correction of observing `object`, at range and bearing `polar` (those of its
-    /// position, as [`ObservationPrior`] has them), with the given noise.
+    /// The correction of observing `object`, at the range and the bearing's sine and cosine
+    /// of its position (as [`polar`] computes them, kept in [`ObservationPrior`]), with the
+    /// given noise.
     fn of(
         object: &ObjectPrior,
-        (range, bearing): (f64, f64),
+        (range, (s, c)): (f64, (f64, f64)),
         pose: Option<&Pose>,
         range_sigma: f64,
         bearing_sigma: f64,
     ) -> Correction {
         let r = Matrix2::new(range_sigma.powi(2), 0.0, 0.0, bearing_sigma.powi(2));
         // `cartesian_noise_at(position, r)` and `posterior_position_covariance(covariance,
-        // position, r)` (object.rs), without computing the polar coordinates again.
-        let j = polar_to_cartesian_jacobian(range.max(MIN_RANGE), bearing);
+        // position, r)` (object.rs), without computing the polar coordinates again: this is
+        // `polar_to_cartesian_jacobian(range.max(MIN_RANGE), bearing)` with the bearing's
+        // sine and cosine known.
+        let range = range.max(MIN_RANGE);
+        let j = Matrix2::new(c, -range * s, s, range * c);
         let gained = symmetrize2(j * r * j.transpose());
         let posterior = if object.tracked {
             posterior_covariance(&object.covariance, &Matrix2::identity(), &gained)
@@ -139,7 +149,13 @@ impl Correction {
             }
             _ => None,
         };
-        Correction { covariance: object.covariance, gained, posterior, landmark }
+        Correction {
+            covariance: object.covariance,
+            gained,
+            posterior,
+            landmark,
+            first_pose_posterior: None,
+        }
     }
 
     /// Folds the observation into `out`: the object's and the pose's covariances, each the
@@ -156,9 +172,44 @@ impl Correction {
         if let Some(jacobian) = &self.landmark
             && let Some(post) = posterior_covariance(&out.pose, jacobian, &self.gained)
         {
-            out.pose = post * pd + out.pose * (1.0 - pd);
-            out.pose = (out.pose + out.pose.transpose()) * 0.5;
+            Self::fold_pose(&post, pd, out);
         }
+    }
+
+    /// As [`Correction::fold`], for a first observation (`previous` is `None`); `pose_at_prior`
+    /// says that `out.pose` is still the belief's prior pose covariance, whose correction by
+    /// this landmark is then made once and reused; the object's covariance is kept when
+    /// `keep_object`. Returns whether the pose was corrected.
+    fn fold_first(
+        &mut self,
+        obs: &ExpectedObservation,
+        pose_at_prior: bool,
+        keep_object: bool,
+        out: &mut ExpectedBelief,
+    ) -> bool {
+        let Some(posterior) = self.posterior else { return false };
+        let pd = obs.detection_probability.clamp(0.0, 1.0);
+        if keep_object {
+            let expected = symmetrize2(posterior * pd + self.covariance * (1.0 - pd));
+            out.objects.push(ExpectedObject { id: obs.object, covariance: expected });
+        }
+        let Some(jacobian) = &self.landmark else { return false };
+        let post = if pose_at_prior {
+            *self
+                .first_pose_posterior
+                .get_or_insert_with(|| posterior_covariance(&out.pose, jacobian, &self.gained))
+        } else {
+            posterior_covariance(&out.pose, jacobian, &self.gained)
+        };
+        let Some(post) = post else { return false };
+        Self::fold_pose(&post, pd, out);
+        true
+    }
+
+    /// The pose's covariance averaged over the detection's posterior `post` and the miss.
+    fn fold_pose(post: &Matrix3<f64>, pd: f64, out: &mut ExpectedBelief) {
+        out.pose = post * pd + out.pose * (1.0 - pd);
+        out.pose = (out.pose + out.pose.transpose()) * 0.5;
     }
 }
 
@@ -197,14 +248,35 @@ pub(crate) fn expected_update_into(
             prior.tracked = true;
             prior.covariance = out.objects[k].covariance;
         }
-        let (z, _) = polar(prior.position);
-        Correction::of(&prior, (z.x, z.y), pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
+        let (z, h) = polar(prior.position);
+        let at = (z.x, bearing_sin_cos(&h));
+        Correction::of(&prior, at, pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
             .fold(obs, previous, out);
     }
 }
 
 /// Standard normal cumulative distribution (Abramowitz & Stegun 7.1.26, error < 1.5e-7).
+///
+/// Beyond [`CDF_SATURATION`] standard deviations the approximation rounds to exactly 1 or 0:
+/// its tail `poly(t) exp(-z^2)` (`poly(t) <= 1`, `z = |x| / sqrt(2)`) is then below
+/// `exp(-40.5) < 2.6e-18`, under half an ulp of 1 (`2^-54`, 5.6e-17), so `erf` rounds to 1.
+/// Those values are returned without the exponential (active vision asks for many: objects
+/// well inside or outside a view's cone).
 pub(crate) fn normal_cdf(x: f64) -> f64 {
+    if x >= CDF_SATURATION {
+        1.0
+    } else if x <= -CDF_SATURATION {
+        0.0
+    } else {
+        normal_cdf_approximation(x)
+    }
+}
+
+/// See [`normal_cdf`].
+const CDF_SATURATION: f64 = 9.0;
+
+/// The approximation [`normal_cdf`] evaluates (NaN gives NaN).
+fn normal_cdf_approximation(x: f64) -> f64 {
     let z = x.abs() / std::f64::consts::SQRT_2;
     let t = 1.0 / (1.0 + 0.327_591_1 * z);
     let poly = t
@@ -273,10 +345,14 @@ impl WorldState {
     /// The part of `object`'s predicted observation that does not depend on the view.
     pub fn observation_prior(&self, object: ObjectId) -> Option<ObservationPrior> {
         let prior = self.object_prior(object)?;
+        Some(self.observation_prior_of(object, &prior))
+    }
+
+    fn observation_prior_of(&self, object: ObjectId, prior: &ObjectPrior) -> ObservationPrior {
         let (z, h) = polar(prior.position);
         let s = h * prior.covariance * h.transpose();
         let (range_sigma, bearing_sigma) = self.camera.sigmas(z.x);
-        Some(ObservationPrior {
+        ObservationPrior {
             object,
             range: z.x,
             bearing: z.y,
@@ -285,14 +361,16 @@ impl WorldState {
             range_spread: (s[(0, 0)] + 1e-12).sqrt(),
             bearing_spread: (s[(1, 1)] + 1e-12).sqrt(),
             distance: Point::<Robot>::new(prior.position.x, prior.position.y).range(),
+            corrects_pose: prior.map_position.is_some() && !self.pose.lost,
+            bearing_sin_cos: bearing_sin_cos(&h),
             within: None,
             correction: None,
-        })
+        }
     }
 
     /// Probability that the object lies inside `view`, given its uncertainty.
     fn visibility(&self, prior: &ObservationPrior, view: &ViewCone) -> f64 {
-        let half = (view.fov / 2.0 - self.view_margin).max(0.0);
+        let half = self.half_angle(view);
         let angle = normalize_angle(prior.bearing - view.direction);
         let p_angle = angle_probability(half, angle, prior.bearing_spread);
         let p_range = range_probability(prior, view.range);
@@ -303,10 +381,15 @@ impl WorldState {
     /// otherwise. Objects that surely fall short are left out before their angular
     /// probability is computed: those too far for the view's range, and those whose bearing
     /// lies more than `bearing_cut` standard deviations (see [`bearing_cut`]) outside the cone.
+    ///
+    /// `half` is the view's half angle less the margin, `(view.fov / 2 - view_margin).max(0)`
+    /// (see [`WorldState::half_angle`]), the same for every object of a view. The tests that
+    /// leave most objects out are inlined into the caller's loop, the probabilities are not.
+    #[inline(always)]
     fn visibility_reaching(
-        &self,
         prior: &ObservationPrior,
         view: &ViewCone,
+        half: f64,
         min_visibility: f64,
         bearing_cut: f64,
     ) -> Option<f64> {
@@ -315,15 +398,18 @@ impl WorldState {
         if p_range < min_visibility {
             return None;
         }
-        let half = (view.fov / 2.0 - self.view_margin).max(0.0);
         let angle = normalize_angle(prior.bearing - view.direction);
         let sb = prior.bearing_spread;
         let outside = angle.abs() - half;
         if outside > 0.0 && outside * outside > bearing_cut * sb * sb {
             return None;
         }
-        let visibility = (angle_probability(half, angle, sb) * p_range).clamp(0.0, 1.0);
-        (visibility >= min_visibility && visibility > 0.0).then_some(visibility)
+        angular_visibility(half, angle, sb, p_range, min_visibility)
+    }
+
+    /// What [`WorldState::visibility`] uses as the half angle of `view`'s cone.
+    fn half_angle(&self, view: &ViewCone) -> f64 {
+        (view.fov / 2.0 - self.view_margin).max(0.0)
     }
 
     /// Every object's [`ObservationPrior`], in id order, into `out`: made once when several
@@ -348,6 +434,35 @@ impl WorldState {
         }
     }
 
+    /// As [`WorldState::observation_priors_within_into`], without the objects that no view of
+    /// detection range `range` observes with a visibility of at least `min_visibility`: those
+    /// whose probability of being within that range is below it (the first test of
+    /// [`WorldState::expected_view_update_into`]). Objects surely that far are left out before
+    /// their prior is made (see [`surely_out_of_range`]). Active vision compares views of one
+    /// range and one threshold.
+    pub fn observation_priors_reaching_into(
+        &self,
+        range: f64,
+        min_visibility: f64,
+        out: &mut Vec<ObservationPrior>,
+    ) {
+        out.clear();
+        let cut = bearing_cut(min_visibility);
+        for i in (0..self.objects.len()).filter_map(|i| u16::try_from(i).ok()) {
+            let Some(object) = self.object_prior(ObjectId(i)) else { continue };
+            if surely_out_of_range(&object, range, cut) {
+                continue;
+            }
+            let mut prior = self.observation_prior_of(ObjectId(i), &object);
+            let probability = normal_cdf((range - prior.range) / prior.range_spread);
+            if probability < min_visibility {
+                continue;
+            }
+            prior.within = Some(WithinRange { range, probability });
+            out.push(prior);
+        }
+    }
+
     /// The sensing candidate of looking along `view`: every object likely enough to be seen
     /// (visibility at least `min_visibility`), with the camera's predicted noise.
     pub fn sensing_candidate(&self, view: &ViewCone, min_visibility: f64) -> SensingCandidate {
@@ -369,8 +484,11 @@ impl WorldState {
     ) {
         out.observations.clear();
         let cut = bearing_cut(min_visibility);
+        let half = self.half_angle(view);
         for prior in priors {
-            if let Some(visibility) = self.visibility_reaching(prior, view, min_visibility, cut) {
+            if let Some(visibility) =
+                Self::visibility_reaching(prior, view, half, min_visibility, cut)
+            {
                 out.observations.push(self.expected_observation(prior, visibility));
             }
         }
@@ -393,8 +511,9 @@ impl WorldState {
     /// in one pass and with the same results, for active vision's many views of one belief
     /// (paper 3.6 (c)): what an observation's simulated correction needs that does not depend
     /// on the view (the measurement noise in the robot frame, the object's posterior, the
-    /// landmark's Jacobian) is kept in the object's prior the first time a view observes it,
-    /// and reused by the next views. `priors` must come from this world state.
+    /// landmark's Jacobian; the pose's posterior when the landmark is the first to correct a
+    /// view's prior pose) is kept in the object's prior the first time a view needs it, and
+    /// reused by the next views. `priors` must come from this world state.
     pub fn expected_view_update_into(
         &self,
         priors: &mut [ObservationPrior],
@@ -403,29 +522,80 @@ impl WorldState {
         sensing: &mut SensingCandidate,
         out: &mut ExpectedBelief,
     ) {
+        self.expected_view_update_only_into(priors, view, min_visibility, None, sensing, out);
+    }
+
+    /// As [`WorldState::expected_view_update_into`], for a reader of the pose and of the
+    /// `objects`' covariances only (active vision's value function): `out.objects` holds just
+    /// theirs, and an observation that would correct neither is not simulated. When `priors`
+    /// do not come in increasing id order (an object listed twice), every object is kept, as
+    /// a second observation builds on the first one's outcome.
+    pub fn expected_view_update_of_into(
+        &self,
+        priors: &mut [ObservationPrior],
+        view: &ViewCone,
+        min_visibility: f64,
+        objects: &[ObjectId],
+        sensing: &mut SensingCandidate,
+        out: &mut ExpectedBelief,
+    ) {
+        let only = Some(objects).filter(|_| priors.is_sorted_by(|a, b| a.object < b.object));
+        self.expected_view_update_only_into(priors, view, min_visibility, only, sensing, out);
+    }
+
+    /// The view update keeping the covariances of `only` (of every object when `None`).
+    fn expected_view_update_only_into(
+        &self,
+        priors: &mut [ObservationPrior],
+        view: &ViewCone,
+        min_visibility: f64,
+        only: Option<&[ObjectId]>,
+        sensing: &mut SensingCandidate,
+        out: &mut ExpectedBelief,
+    ) {
         sensing.observations.clear();
         out.objects.clear();
         out.pose = self.pose_covariance();
         let pose = self.pose_prior().map(|(pose, _)| pose);
         let cut = bearing_cut(min_visibility);
+        let half = self.half_angle(view);
+        // Until a landmark corrects it, `out.pose` is the prior pose covariance, the same for
+        // every view of this belief.
+        let mut pose_at_prior = true;
+        // The greatest object observed so far: one beyond it is surely a first observation
+        // (priors come in id order), without looking for it among the kept ones.
+        let mut greatest: Option<ObjectId> = None;
         for prior in priors.iter_mut() {
-            let Some(visibility) = self.visibility_reaching(prior, view, min_visibility, cut)
+            let Some(visibility) =
+                Self::visibility_reaching(prior, view, half, min_visibility, cut)
             else {
                 continue;
             };
             let obs = self.expected_observation(prior, visibility);
             sensing.observations.push(obs);
-            let at = (prior.range, prior.bearing);
-            match out.objects.iter().position(|o| o.id == obs.object) {
+            let at = (prior.range, prior.bearing_sin_cos);
+            let previous = if greatest.is_none_or(|g| obs.object > g) {
+                greatest = Some(obs.object);
+                None
+            } else {
+                out.objects.iter().position(|o| o.id == obs.object)
+            };
+            match previous {
                 None => {
+                    let keep_object = only.is_none_or(|ids| ids.contains(&obs.object));
+                    if !keep_object && !prior.corrects_pose {
+                        continue;
+                    }
                     if prior.correction.is_none() {
                         let Some(object) = self.object_prior(obs.object) else { continue };
                         let sigmas = (obs.range_sigma, obs.bearing_sigma);
                         prior.correction =
                             Some(Correction::of(&object, at, pose.as_ref(), sigmas.0, sigmas.1));
                     }
-                    if let Some(correction) = &prior.correction {
-                        correction.fold(&obs, None, out);
+                    if let Some(correction) = &mut prior.correction
+                        && correction.fold_first(&obs, pose_at_prior, keep_object, out)
+                    {
+                        pose_at_prior = false;
                     }
                 }
                 Some(k) => {
@@ -434,12 +604,34 @@ impl WorldState {
                     let Some(mut object) = self.object_prior(obs.object) else { continue };
                     object.tracked = true;
                     object.covariance = out.objects[k].covariance;
+                    let before = out.pose;
                     Correction::of(&object, at, pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
                         .fold(&obs, Some(k), out);
+                    if before.map(f64::to_bits) != out.pose.map(f64::to_bits) {
+                        pose_at_prior = false;
+                    }
                 }
             }
         }
     }
+}
+
+/// Sine and cosine of the bearing, from [`polar`]'s Jacobian `[c, s; -s/r, c/r]`.
+fn bearing_sin_cos(h: &Matrix2<f64>) -> (f64, f64) {
+    (h[(0, 1)], h[(0, 0)])
+}
+
+/// The end of [`WorldState::visibility_reaching`], for the objects its tests keep.
+#[inline(never)]
+fn angular_visibility(
+    half: f64,
+    angle: f64,
+    sb: f64,
+    p_range: f64,
+    min_visibility: f64,
+) -> Option<f64> {
+    let visibility = (angle_probability(half, angle, sb) * p_range).clamp(0.0, 1.0);
+    (visibility >= min_visibility && visibility > 0.0).then_some(visibility)
 }
 
 /// Probability that an object at `angle` from a view's direction, with bearing spread `sb`,
@@ -455,6 +647,24 @@ fn range_probability(prior: &ObservationPrior, range: f64) -> f64 {
         Some(w) if w.range.to_bits() == range.to_bits() => w.probability,
         _ => normal_cdf((range - prior.range) / prior.range_spread),
     }
+}
+
+/// Whether `object` is so far beyond `range` that its probability of being within it is below
+/// the threshold whose [`bearing_cut`] is `cut`, whatever its range spread: the probability is
+/// the normal tail at u = (distance - range) / spread, below the threshold when u^2 >= `cut`
+/// (as for the bearing). The spread's square, `h P h^T + 1e-12` with `h` a unit row, is at most
+/// the sum of the covariance's absolute entries plus 1e-12; the margins of 1 % cover rounding.
+/// (A covariance negative along the range gives a NaN probability: never observed either.)
+fn surely_out_of_range(object: &ObjectPrior, range: f64, cut: f64) -> bool {
+    let beyond = object.position.norm() - range;
+    let p = &object.covariance;
+    let spread_bound =
+        1.01 * (p[(0, 0)].abs() + p[(0, 1)].abs() + p[(1, 0)].abs() + p[(1, 1)].abs()) + 1e-12;
+    cut.is_finite()
+        && spread_bound.is_finite()
+        && beyond.is_finite()
+        && beyond > 0.0
+        && beyond * beyond >= 1.01 * cut * spread_bound
 }
 
 /// The square of the number u of bearing standard deviations outside a view's cone beyond
@@ -505,8 +715,10 @@ mod tests {
             let position = Vector2::new(x, y);
             for tracked in [true, false] {
                 let object = ObjectPrior { tracked, position, covariance, map_position: None };
-                let (z, _) = polar(position);
-                let c = Correction::of(&object, (z.x, z.y), None, 0.1 + 0.05 * x.abs(), 0.035);
+                let (z, h) = polar(position);
+                assert_eq!(bearing_sin_cos(&h), z.y.sin_cos());
+                let at = (z.x, bearing_sin_cos(&h));
+                let c = Correction::of(&object, at, None, 0.1 + 0.05 * x.abs(), 0.035);
                 let r = Matrix2::new((0.1 + 0.05 * x.abs()).powi(2), 0.0, 0.0, 0.035f64.powi(2));
                 let bits = |m: &Matrix2<f64>| m.map(f64::to_bits);
                 assert_eq!(bits(&c.gained), bits(&cartesian_noise_at(position, &r)));
@@ -518,6 +730,61 @@ mod tests {
                 assert_eq!(c.posterior.map(|p| bits(&p)), posterior.map(|p| bits(&p)));
             }
         }
+    }
+
+    #[test]
+    fn the_normal_cdf_saturates_as_its_approximation_rounds() {
+        let mut x = CDF_SATURATION;
+        while x < 60.0 {
+            for v in [x, -x, f64::from_bits(x.to_bits() + 1), -f64::from_bits(x.to_bits() + 1)] {
+                assert_eq!(normal_cdf(v).to_bits(), normal_cdf_approximation(v).to_bits(), "{v}");
+            }
+            x += 0.001;
+        }
+        for v in [f64::INFINITY, f64::NEG_INFINITY, f64::MAX, f64::MIN, 1e300, -1e300] {
+            assert_eq!(normal_cdf(v).to_bits(), normal_cdf_approximation(v).to_bits(), "{v}");
+        }
+        // Just inside the cut the approximation is not yet saturated: the cut is not too low
+        // for a test of it to mean something.
+        assert!(normal_cdf(-8.0) > 0.0 && normal_cdf(-8.0) < 1e-14);
+        assert!(normal_cdf(f64::NAN).is_nan());
+    }
+
+    #[test]
+    fn an_object_surely_out_of_range_is_below_the_threshold() {
+        // A fixed-seed walk over distances, directions and covariances (some not positive).
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut cut_some = 0;
+        for _ in 0..20_000 {
+            let range = 1.0 + 7.0 * next();
+            let distance = range + 3.0 * next() * next();
+            let angle = 7.0 * next() - 3.5;
+            let position = Vector2::new(distance * angle.cos(), distance * angle.sin());
+            let scale = 10f64.powf(-6.0 + 6.0 * next());
+            let (a, b, c) = (next() * scale, (next() - 0.5) * scale, next() * scale);
+            let covariance = Matrix2::new(a, b, b, if next() < 0.1 { -c } else { c });
+            let object = ObjectPrior { tracked: true, position, covariance, map_position: None };
+            let (z, h) = polar(position);
+            let spread = ((h * covariance * h.transpose())[(0, 0)] + 1e-12).sqrt();
+            let probability = normal_cdf((range - z.x) / spread);
+            for min_visibility in [0.01, 0.05, 0.2, 0.6, 1e-13] {
+                if surely_out_of_range(&object, range, bearing_cut(min_visibility)) {
+                    cut_some += 1;
+                    // NaN (a covariance negative along the range) is never observed either.
+                    assert!(
+                        probability < min_visibility || probability.is_nan(),
+                        "{object:?} {range} {min_visibility}"
+                    );
+                }
+            }
+        }
+        assert!(cut_some > 1000, "{cut_some}");
     }
 
     #[test]
