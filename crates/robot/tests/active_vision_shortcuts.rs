@@ -11,10 +11,9 @@ use strata_robot::control::active_vision::{
 use strata_robot::geometry::{Point, Pose};
 use strata_robot::percept::ViewCone;
 use strata_robot::world::{
-    ExpectedBelief, ExpectedObservation, ObjectId, ObservationPrior, PosePrior, SensingCandidate,
-    WorldModel, WorldState,
+    ExpectedBelief, ObjectId, ObservationPrior, PosePrior, SensingCandidate, WorldModel, WorldState,
 };
-use world_support::{Sim, config, patrol_step};
+use world_support::{Sim, config, patrol_step, plain_sensing_candidate};
 
 /// World states along a patrol: landmarks tracked and untracked, a ball, the pose localized;
 /// the last one also with the pose lost.
@@ -37,24 +36,8 @@ fn states() -> Vec<WorldState> {
     out
 }
 
-/// The plain path: every object's prediction, filtered by visibility, then the expected update.
-fn plain(world: &WorldState, view: &ViewCone, min_visibility: f64) -> SensingCandidate {
-    let observations = (0..world.objects.len())
-        .filter_map(|i| u16::try_from(i).ok())
-        .filter_map(|i| world.predicted_observation(ObjectId(i), view))
-        .filter(|p| p.visibility >= min_visibility && p.visibility > 0.0)
-        .map(|p| ExpectedObservation {
-            object: p.object,
-            range_sigma: p.range_sigma,
-            bearing_sigma: p.bearing_sigma,
-            detection_probability: p.visibility * world.detection_probability,
-        })
-        .collect();
-    SensingCandidate { observations }
-}
-
 fn check(world: &WorldState, priors: &mut [ObservationPrior], view: &ViewCone, min: f64) {
-    let expected = plain(world, view, min);
+    let expected = plain_sensing_candidate(world, view, min);
     let belief = world.expected_update(&expected);
     let mut sensing = SensingCandidate::default();
     let mut fast = ExpectedBelief::default();

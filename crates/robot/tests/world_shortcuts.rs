@@ -11,11 +11,10 @@ use strata_robot::control::active_vision::GazeCandidate;
 use strata_robot::geometry::{Odometry, Point, Pose, normalize_angle};
 use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use strata_robot::world::{
-    ExpectedObservation, ObjectEstimate, ObjectId, PosePrior, SensingCandidate, WorldModel,
-    WorldState,
+    ObjectEstimate, ObjectId, PosePrior, SensingCandidate, WorldModel, WorldState,
 };
 use strata_runtime::Time;
-use world_support::{BALL, DT, Sim, config, patrol_step};
+use world_support::{BALL, DT, Sim, config, patrol_step, plain_sensing_candidate};
 
 /// A world state with a tracked ball, a localized pose and untracked landmarks.
 fn state() -> WorldState {
@@ -100,17 +99,7 @@ fn sensing_candidates_from_shared_priors_match_per_object_predictions() {
     for direction in [-2.0, -0.7, 0.0, 0.3, 1.1, 2.0] {
         for (fov, range, min_visibility) in [(1.06, 6.0, 0.05), (0.5, 3.0, 0.0), (2.0, 9.0, 0.5)] {
             let view = ViewCone { direction, fov, range };
-            let expected: Vec<ExpectedObservation> = (0..world.objects.len())
-                .filter_map(|i| u16::try_from(i).ok())
-                .filter_map(|i| world.predicted_observation(ObjectId(i), &view))
-                .filter(|p| p.visibility >= min_visibility && p.visibility > 0.0)
-                .map(|p| ExpectedObservation {
-                    object: p.object,
-                    range_sigma: p.range_sigma,
-                    bearing_sigma: p.bearing_sigma,
-                    detection_probability: p.visibility * world.detection_probability,
-                })
-                .collect();
+            let expected = plain_sensing_candidate(&world, &view, min_visibility).observations;
             assert_eq!(world.sensing_candidate(&view, min_visibility).observations, expected);
             world.sensing_candidate_into(&priors, &view, min_visibility, &mut reused);
             assert_eq!(reused.observations, expected);

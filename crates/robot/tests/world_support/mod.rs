@@ -12,8 +12,8 @@ use strata_robot::geometry::{Field, Odometry, Point, Pose, normalize_angle};
 use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use strata_robot::platform::ObjectClass;
 use strata_robot::world::{
-    CameraNoise, FieldRegion, ObjectKind, ObjectOfInterest, OdometryNoise, PoseConfig, PosePrior,
-    WorldModelConfig,
+    CameraNoise, ExpectedObservation, FieldRegion, ObjectId, ObjectKind, ObjectOfInterest,
+    OdometryNoise, PoseConfig, PosePrior, SensingCandidate, WorldModelConfig, WorldState,
 };
 use strata_runtime::Time;
 
@@ -311,4 +311,25 @@ pub fn chi2_quantile(dof: f64, z: f64) -> f64 {
 pub fn anees_band(dof: f64, runs: usize) -> (f64, f64) {
     let k = dof * runs as f64;
     (chi2_quantile(k, -1.959_964) / runs as f64, chi2_quantile(k, 1.959_964) / runs as f64)
+}
+
+/// The plain path to a view's sensing candidate, the reference for the shortcuts: every
+/// object's prediction, filtered by visibility.
+pub fn plain_sensing_candidate(
+    world: &WorldState,
+    view: &ViewCone,
+    min_visibility: f64,
+) -> SensingCandidate {
+    let observations = (0..world.objects.len())
+        .filter_map(|i| u16::try_from(i).ok())
+        .filter_map(|i| world.predicted_observation(ObjectId(i), view))
+        .filter(|p| p.visibility >= min_visibility && p.visibility > 0.0)
+        .map(|p| ExpectedObservation {
+            object: p.object,
+            range_sigma: p.range_sigma,
+            bearing_sigma: p.bearing_sigma,
+            detection_probability: p.visibility * world.detection_probability,
+        })
+        .collect();
+    SensingCandidate { observations }
 }
