@@ -20,7 +20,7 @@ pub enum LogError {
     #[error("{}: the chunk index points past the end of the file (byte {offset})", path.display())]
     BadIndex { path: PathBuf, offset: u64 },
     #[error("writing log {} failed: {source}", path.display())]
-    Write { path: PathBuf, source: mcap::McapError },
+    Write { path: PathBuf, source: io::Error },
     #[error("{}: {what} is not valid JSON: {source}", path.display())]
     Json { path: PathBuf, what: String, source: serde_json::Error },
     #[error("{}: the configuration is not valid TOML: {source}", path.display())]

@@ -17,6 +17,7 @@
 
 mod error;
 mod info;
+mod mcap_file;
 pub mod overrides;
 mod reader;
 pub mod replay;
@@ -53,6 +54,15 @@ pub const PUBLISH_TIME_KEY: &str = "strata.publish_time";
 pub const WRAPPED_KEY: &str = "strata.wrapped";
 /// The field wrapped values are stored in.
 pub const WRAP_FIELD: &str = "value";
+
+/// Channel metadata key of CDR channels: the values' [`strata_runtime::cdr::Format`] as JSON,
+/// which Strata's readers use to show values without their Rust types (the schema itself is
+/// OMG IDL, for generic tools).
+pub const FORMAT_KEY: &str = "strata.format";
+
+/// Channel metadata key (value `true`) of the channels that hold shared values' records
+/// (`shared/...`), which packages refer to by id (see [`strata_runtime::shared`]).
+pub const SHARED_KEY: &str = "strata.shared";
 
 /// The topic a package of `output` of module `module` is logged under.
 pub fn package_topic(module: &str, output: &str) -> String {

@@ -15,12 +15,15 @@ use std::sync::Arc;
 use mcap::records::{Record, op};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
+use strata_runtime::cdr::{self, Format};
+use strata_runtime::shared;
 use strata_runtime::{Encoding, EncodingError, GraphDescription, Time};
 
 use crate::error::LogError;
 use crate::writer::{ConfigFormat, RunInfo, wrap_frame};
 use crate::{
-    CONFIG_ATTACHMENT_PREFIX, GRAPH_METADATA, RUN_METADATA, STATS_METADATA, WRAP_FIELD, WRAPPED_KEY,
+    CONFIG_ATTACHMENT_PREFIX, FORMAT_KEY, GRAPH_METADATA, RUN_METADATA, SHARED_KEY, STATS_METADATA,
+    WRAP_FIELD, WRAPPED_KEY,
 };
 
 const MAGIC: &[u8] = mcap::MAGIC;
@@ -41,12 +44,21 @@ pub struct LogMessage {
     pub encoding: Encoding,
     /// The value, encoded.
     pub data: Vec<u8>,
+    /// The value's format, for CDR (from the channel's metadata).
+    pub format: Option<Arc<Format>>,
 }
 
 impl LogMessage {
-    /// The value as a JSON value, whatever its encoding.
+    /// The value as a JSON value, whatever its encoding (CDR through its format).
     pub fn json(&self) -> Result<serde_json::Value, EncodingError> {
-        self.encoding.decode(&self.data)
+        match (self.encoding, &self.format) {
+            (Encoding::Cdr, Some(format)) => Ok(cdr::to_json(format, &self.data)?),
+            (Encoding::Cdr, None) => Err(cdr::CdrError::NotSelfDescribing(
+                "a CDR message of a channel without `strata.format`",
+            )
+            .into()),
+            (encoding, _) => encoding.decode(&self.data),
+        }
     }
 
     /// The value as its Rust type.
@@ -126,10 +138,42 @@ struct ChannelInfo {
     encoding: Option<Encoding>,
     /// The channel's `message_encoding`, for the error.
     encoding_name: Arc<str>,
+    /// The values' format (CDR channels written by Strata).
+    format: Option<Arc<Format>>,
+    /// The channel holds shared values' records, which readers register as they pass.
+    shared: bool,
 }
 
-fn is_wrapped(metadata: &BTreeMap<String, String>) -> bool {
-    metadata.get(WRAPPED_KEY).is_some_and(|field| field == WRAP_FIELD)
+impl ChannelInfo {
+    fn new(
+        topic: &str,
+        type_name: &str,
+        encoding: &str,
+        metadata: &BTreeMap<String, String>,
+    ) -> Self {
+        ChannelInfo {
+            topic: topic.into(),
+            type_name: type_name.into(),
+            wrapped: metadata.get(WRAPPED_KEY).is_some_and(|field| field == WRAP_FIELD),
+            encoding: Encoding::from_mcap_name(encoding),
+            encoding_name: encoding.into(),
+            // A format that does not parse leaves the channel readable as its Rust type only.
+            format: metadata
+                .get(FORMAT_KEY)
+                .and_then(|json| serde_json::from_str(json).ok())
+                .map(Arc::new),
+            shared: metadata.get(SHARED_KEY).is_some_and(|v| v == "true"),
+        }
+    }
+}
+
+/// The id of a shared value's record (its first field, `id`).
+fn record_id(encoding: Encoding, data: &[u8]) -> Option<u64> {
+    match encoding {
+        // Header, then the id at the start of the payload (aligned already).
+        Encoding::Cdr => data.get(4..12).and_then(|b| b.try_into().ok()).map(u64::from_le_bytes),
+        _ => encoding.decode::<serde_json::Value>(data).ok()?.get("id")?.as_u64(),
+    }
 }
 
 /// The value inside a wrapped message, exactly as the writer framed it.
@@ -250,13 +294,12 @@ fn decode_chunk(path: &Path, offset: u64, body: &[u8]) -> Result<ChunkContents, 
                             .unwrap_or_default();
                         contents.channels.push((
                             channel.id,
-                            ChannelInfo {
-                                wrapped: is_wrapped(&channel.metadata),
-                                topic: channel.topic.into(),
-                                type_name: type_name.into(),
-                                encoding: Encoding::from_mcap_name(&channel.message_encoding),
-                                encoding_name: channel.message_encoding.as_str().into(),
-                            },
+                            ChannelInfo::new(
+                                &channel.topic,
+                                &type_name,
+                                &channel.message_encoding,
+                                &channel.metadata,
+                            ),
                             channel.message_encoding,
                             schema.map(|s| s.1.clone()),
                         ));
@@ -430,13 +473,12 @@ impl LogReader {
                 .unwrap_or_default();
             channels.insert(
                 *id,
-                ChannelInfo {
-                    topic: channel.topic.as_str().into(),
-                    type_name: type_name.as_str().into(),
-                    wrapped: is_wrapped(&channel.metadata),
-                    encoding: Encoding::from_mcap_name(&channel.message_encoding),
-                    encoding_name: channel.message_encoding.as_str().into(),
-                },
+                ChannelInfo::new(
+                    &channel.topic,
+                    &type_name,
+                    &channel.message_encoding,
+                    &channel.metadata,
+                ),
             );
             let entry = topics.entry(channel.topic.clone()).or_insert_with(|| TopicInfo {
                 name: channel.topic.clone(),
@@ -822,28 +864,37 @@ impl<'a> Messages<'a> {
             self.chunk_channels.insert(id, info);
         }
         for (header, data) in contents.messages {
-            if self.channels.as_ref().is_some_and(|c| !c.contains(&header.channel_id)) {
-                continue;
-            }
+            let wanted = self.channels.as_ref().is_none_or(|c| c.contains(&header.channel_id));
             let info = self
                 .reader
                 .channels
                 .get(&header.channel_id)
-                .or_else(|| self.chunk_channels.get(&header.channel_id))
-                .cloned()
-                .ok_or_else(|| LogError::Invalid {
-                    path: path.clone(),
-                    what: format!(
-                        "chunk at byte {} has a message on unknown channel {}",
-                        location.offset, header.channel_id
-                    ),
-                })?;
+                .or_else(|| self.chunk_channels.get(&header.channel_id));
+            // Records of shared values are registered as they pass, wanted or not: the
+            // packages after them refer to them.
+            if let Some(info) = info
+                && info.shared
+                && let Some(encoding) = info.encoding
+                && let Some(id) = record_id(encoding, &data)
+            {
+                shared::register(id, encoding, &data);
+            }
+            if !wanted {
+                continue;
+            }
+            let info = info.cloned().ok_or_else(|| LogError::Invalid {
+                path: path.clone(),
+                what: format!(
+                    "chunk at byte {} has a message on unknown channel {}",
+                    location.offset, header.channel_id
+                ),
+            })?;
             let seq = self.unwrap_seq(header.channel_id, header.sequence);
             let Some(encoding) = info.encoding else {
                 return Err(LogError::Invalid {
                     path: path.clone(),
                     what: format!(
-                        "topic `{}` is encoded as `{}`: Strata reads json and msgpack",
+                        "topic `{}` is encoded as `{}`: Strata reads cdr, json and msgpack",
                         info.topic, info.encoding_name
                     ),
                 });
@@ -872,6 +923,7 @@ impl<'a> Messages<'a> {
                 seq,
                 encoding,
                 data,
+                format: info.format,
             });
         }
         Ok(true)

@@ -22,6 +22,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
+use strata_runtime::cdr::{self, Format};
+use strata_runtime::shared::{self, Recorder};
 use strata_runtime::{
     Encoding, ErasedPackage, GraphBuilder, GraphDescription, GraphErrors, HostConfig, HostError,
     InputRef, LockstepHost, ModuleDescription, PortDescription, Tap, TapRecord, Time, Trigger,
@@ -593,7 +595,9 @@ pub fn replay(
     host.run_until(end)?;
     host.stop();
 
-    // Compare.
+    // Compare. Shared values the log holds are written as its references, so that equal
+    // packages have equal bytes.
+    let recorder = Recorder::knowing(shared::registered_ids()).install();
     let replayed =
         std::mem::take(&mut *capture.outputs.lock().unwrap_or_else(PoisonError::into_inner));
     let mut outputs = Vec::new();
@@ -628,7 +632,13 @@ pub fn replay(
                         // A value that cannot be encoded stays empty: it differs from the log.
                         let _ = b.package.encode(a.encoding, &mut ours);
                         if a.data != ours {
-                            details.extend(value_differences(a.encoding, &a.data, &ours, 8));
+                            details.extend(value_differences(
+                                a.encoding,
+                                a.format.as_deref(),
+                                &a.data,
+                                &ours,
+                                8,
+                            ));
                         }
                         details
                     }
@@ -660,6 +670,10 @@ pub fn replay(
             });
         }
     }
+    Recorder::uninstall();
+    if let Some(previous) = recorder {
+        previous.install();
+    }
     let mut inputs: Vec<InputFeed> = feeds
         .iter()
         .map(|f| InputFeed {
@@ -682,14 +696,22 @@ pub fn replay(
     })
 }
 
-/// Where two encoded values differ, as `path: old -> new` lines (at most `limit`).
+/// Where two encoded values differ, as `path: old -> new` lines (at most `limit`); `format`
+/// reads CDR values.
 pub fn value_differences(
     encoding: Encoding,
+    format: Option<&Format>,
     logged: &[u8],
     replayed: &[u8],
     limit: usize,
 ) -> Vec<String> {
-    match (encoding.decode::<Value>(logged), encoding.decode::<Value>(replayed)) {
+    let json = |bytes: &[u8]| -> Result<Value, String> {
+        match (encoding, format) {
+            (Encoding::Cdr, Some(format)) => cdr::to_json(format, bytes).map_err(|e| e.to_string()),
+            _ => encoding.decode::<Value>(bytes).map_err(|e| e.to_string()),
+        }
+    };
+    match (json(logged), json(replayed)) {
         (Ok(a), Ok(b)) => {
             let mut out = Vec::new();
             let mut count = 0usize;
@@ -774,7 +796,7 @@ mod tests {
     fn value_differences_name_paths() {
         let a = br#"{"x":1.0,"y":[1,2],"z":"a","gone":1}"#;
         let b = br#"{"x":1.5,"y":[1,3],"z":"a","new":2}"#;
-        let diff = value_differences(Encoding::Json, a, b, 8);
+        let diff = value_differences(Encoding::Json, None, a, b, 8);
         assert_eq!(
             diff,
             vec![

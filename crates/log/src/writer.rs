@@ -5,29 +5,35 @@ use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, PoisonError, RwLock};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError, RwLock};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TrySendError};
 use serde::{Deserialize, Serialize};
+use strata_runtime::cdr::{Format, Schema, idl_schema};
+use strata_runtime::shared::{self, NewRecord, Recorder};
 use strata_runtime::{Encoding, ErasedPackage, GraphDescription, Tap, TapRecord, Time};
 
 use crate::error::LogError;
+use crate::mcap_file::{ChunkCompression, McapFile};
 use crate::schema::infer_json_schema;
 use crate::{
-    CONFIG_ATTACHMENT_PREFIX, GRAPH_METADATA, PUBLISH_TIME_KEY, RUN_METADATA, STATS_METADATA,
-    WRAP_FIELD, WRAPPED_KEY,
+    CONFIG_ATTACHMENT_PREFIX, FORMAT_KEY, GRAPH_METADATA, PUBLISH_TIME_KEY, RUN_METADATA,
+    SHARED_KEY, STATS_METADATA, WRAP_FIELD, WRAPPED_KEY,
 };
 
 /// How a wrapped message is framed in each encoding (see `WriterThread::channel`): the bytes
 /// of a one-entry map with the key [`WRAP_FIELD`] in front of the value, and what closes it.
+/// CDR values are never wrapped: their schema declares the wrapping struct, whose bytes are
+/// the value's own.
 pub(crate) fn wrap_frame(encoding: Encoding) -> (&'static [u8], &'static [u8]) {
     match encoding {
         Encoding::Json => (b"{\"value\":", b"}"),
         // fixmap of one entry, then fixstr "value".
         Encoding::MessagePack => (b"\x81\xa5value", b""),
+        Encoding::Cdr => (b"", b""),
     }
 }
 
@@ -37,12 +43,13 @@ fn is_map(encoding: Encoding, bytes: &[u8]) -> bool {
         (Encoding::Json, Some(first)) => *first == b'{',
         // fixmap, map 16, map 32.
         (Encoding::MessagePack, Some(first)) => matches!(first, 0x80..=0x8f | 0xde | 0xdf),
+        (Encoding::Cdr, _) => true,
         (_, None) => false,
     }
 }
 
-/// How chunks are compressed: zstd at its fastest level by default, on the writer thread only
-/// (no compression worker threads competing with the real-time layers for the robot's cores).
+/// How chunks are compressed: zstd at a fast level by default, on the writer thread only (no
+/// compression worker threads competing with the real-time layers for the robot's cores).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LogCompression {
@@ -77,10 +84,24 @@ pub enum WhenFull {
     Wait,
 }
 
+/// The zstd level of compressed logs: one of zstd's fast negative levels, whose ratio on
+/// logged packages is close to level 1's at about 1.5 times its speed (`docs/logging.md`).
+const ZSTD_LEVEL: i32 = -1;
+
+/// Messages handed to the writer thread at once by a sender that waits for it.
+const BATCH: usize = 512;
+
+/// At most this many messages wait in the queue of a sender that waits for the writer.
+const WAIT_QUEUE: usize = 4 * BATCH;
+
+/// Batches kept for reuse.
+const SPARE_BATCHES: usize = 12;
+
 /// How a [`McapTap`] buffers and writes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct McapTapOptions {
-    /// Records the queue between the tap and the writer thread holds.
+    /// Records the queue between the tap and the writer thread holds (with
+    /// [`WhenFull::Wait`], at most 2048, in batches of 512).
     pub capacity: usize,
     /// What happens to a record that finds the queue full.
     pub when_full: WhenFull,
@@ -96,7 +117,9 @@ pub struct McapTapOptions {
     /// ... or once it has been open this long in real time (a quiet real-time robot).
     pub max_chunk_age: Duration,
     pub compression: LogCompression,
-    /// How package values are encoded (MCAP's `message_encoding`).
+    /// How package values are encoded (MCAP's `message_encoding`). With CDR (the default), a
+    /// package type that CDR cannot describe (see [`strata_runtime::cdr`]) is logged as
+    /// MessagePack, and so are application records.
     pub encoding: Encoding,
 }
 
@@ -110,7 +133,7 @@ impl Default for McapTapOptions {
             max_chunk_span: Duration::from_millis(200),
             max_chunk_age: Duration::from_millis(500),
             compression: LogCompression::Zstd,
-            encoding: Encoding::MessagePack,
+            encoding: Encoding::Cdr,
         }
     }
 }
@@ -197,25 +220,121 @@ struct Topic {
     id: u32,
     name: String,
     type_name: String,
-    /// Records handed to the queue (or refused by it) on this topic.
-    offered: AtomicU64,
     dropped: AtomicU64,
     /// Sequence numbers of application records (packages carry their own).
     next_seq: AtomicU64,
+    /// How a sender that waits hands this topic's packages over ([`HANDOVER_CLONE`] or
+    /// [`HANDOVER_ENCODE`]), decided by its first package; 0 until then.
+    handover: AtomicU8,
+    /// The type's CDR schema, for packages the sender encoded.
+    cdr: OnceLock<Arc<CdrSchema>>,
 }
+
+/// The sender clones the package; the writer thread encodes it. For large packages (a world
+/// state: cloning one copies a few pointers to its shared parts, encoding it writes them
+/// all) and those holding [`strata_runtime::Shared`] values (a reactive report: measured, the
+/// sender's match ran 7 % slower encoding them with a recorder of its own than cloning them).
+const HANDOVER_CLONE: u8 = 1;
+/// The sender encodes the package (CDR) into the batch. For small packages without shared
+/// values: encoding one costs its sender about what cloning it would, and spares the
+/// allocation of the clone, freeing it on the other thread (which shows in both threads'
+/// profiles) and encoding it there.
+const HANDOVER_ENCODE: u8 = 2;
+
+/// Packages whose first one encodes to at most this many bytes may be encoded by a sender
+/// that waits; larger ones are cloned.
+const SENDER_ENCODES_UP_TO: usize = 1024;
 
 /// A message's value on its way to the writer thread.
 enum Payload {
     /// A package, encoded by the writer thread: the sending module only pays for a clone.
     Package(Box<dyn ErasedPackage>),
-    /// An application record, already encoded.
+    /// An application record, already encoded (in [`Shared::record_encoding`]).
     Encoded(Vec<u8>),
+    /// A package the sender encoded in CDR: these bytes of its batch.
+    Bytes { start: usize, len: usize },
+}
+
+/// What a sender works with under one lock: the batch being gathered, and the topics of the
+/// outputs it has seen, by host, module id and port (found without comparing or hashing names;
+/// a host number is unique in the process, so scoped taps share this).
+#[derive(Default)]
+struct Gathering {
+    batch: Batch,
+    /// By module id: the host the entry is for, and by port the topic id and its handover
+    /// (`None`: not looked up yet; `Some(None)`: not logged).
+    modules: Vec<(u64, Vec<Option<KnownOutput>>)>,
+}
+
+/// An output as the sender knows it: its topic id and handover, `None` when it is not logged.
+type KnownOutput = Option<(u32, u8)>;
+
+impl Gathering {
+    fn topic(&self, record: &TapRecord<'_>) -> Option<Option<(u32, u8)>> {
+        let (host, outputs) = self.modules.get(record.module.index())?;
+        if *host != record.host {
+            return None;
+        }
+        *outputs.get(usize::from(record.port))?
+    }
+
+    fn remember(&mut self, record: &TapRecord<'_>, topic: Option<(u32, u8)>) {
+        let index = record.module.index();
+        if self.modules.len() <= index {
+            self.modules.resize_with(index + 1, || (u64::MAX, Vec::new()));
+        }
+        let (host, outputs) = &mut self.modules[index];
+        if *host != record.host {
+            // Another host's module with the same id: the entry follows the latest one.
+            *host = record.host;
+            outputs.clear();
+        }
+        let port = usize::from(record.port);
+        if outputs.len() <= port {
+            outputs.resize(port + 1, None);
+        }
+        outputs[port] = Some(topic);
+    }
+}
+
+/// Messages handed over together, with the bytes of those the sender encoded.
+#[derive(Default)]
+struct Batch {
+    messages: Vec<Queued>,
+    bytes: Vec<u8>,
+}
+
+impl Batch {
+    fn one(message: Queued) -> Batch {
+        Batch { messages: vec![message], bytes: Vec::new() }
+    }
+}
+
+/// A message on its way to the writer thread. Its topic goes by id, not by a shared handle:
+/// counting references to it from two threads would move its cache line between the cores
+/// for every package.
+struct Queued {
+    topic: u32,
+    log_time: u64,
+    stamp: u64,
+    seq: u64,
+    payload: Payload,
 }
 
 enum Command {
-    Message { topic: Arc<Topic>, log_time: u64, stamp: u64, seq: u64, payload: Payload },
-    Metadata { name: String, entries: BTreeMap<String, String> },
-    Attachment { name: String, media_type: String, time: u64, data: Vec<u8> },
+    /// Messages in the order they were sent: one at a time from a real-time sender, in
+    /// batches from one that waits (see [`Shared::submit`]).
+    Messages(Batch),
+    Metadata {
+        name: String,
+        entries: BTreeMap<String, String>,
+    },
+    Attachment {
+        name: String,
+        media_type: String,
+        time: u64,
+        data: Vec<u8>,
+    },
     Finish(Sender<Result<LogSummary, LogError>>),
 }
 
@@ -227,19 +346,21 @@ struct Shared {
     accepting: AtomicBool,
     when_full: WhenFull,
     encoding: Encoding,
-    /// Records the queue holds.
-    capacity: usize,
     /// Module-name prefixes to log (empty: all).
     modules: Vec<String>,
-    /// Records offered to the queue: what was not written of them was dropped. Counting
-    /// offers, not failures, keeps the finished summary exact even for a record that raced
-    /// with `finish`.
-    offered: AtomicU64,
-    /// Records refused so far (live figure; the summary's is exact).
+    /// Records refused: by a full queue (in [`WhenFull::Drop`] mode), after `finish`, or by a
+    /// writer that failed.
     dropped: AtomicU64,
+    /// Messages of a sender that waits for the writer (simulated time), gathered into
+    /// batches of [`BATCH`]: one hand-off to the writer thread per batch instead of one per
+    /// package, which would cost the sender a queue operation, and often a wake-up of the
+    /// writer, for each of ten thousand packages per simulated second.
+    pending: Mutex<Gathering>,
+    /// Batches the writer thread is done with, for the sender to fill again (their buffers
+    /// keep their size).
+    spare: Mutex<Vec<Batch>>,
     serialize_errors: AtomicU64,
-    next_topic_id: AtomicU32,
-    /// Every topic ever created, for the per-topic drop report.
+    /// Every topic ever created, by id.
     topics: Mutex<Vec<Arc<Topic>>>,
     /// Application record topics, by name.
     record_topics: RwLock<HashMap<String, Arc<Topic>>>,
@@ -249,16 +370,23 @@ struct Shared {
 
 impl Shared {
     fn new_topic(&self, name: String, type_name: &str) -> Arc<Topic> {
+        let mut topics = self.topics.lock().unwrap_or_else(PoisonError::into_inner);
         let topic = Arc::new(Topic {
-            id: self.next_topic_id.fetch_add(1, Ordering::Relaxed),
+            id: u32::try_from(topics.len()).unwrap_or(u32::MAX),
             name,
             type_name: type_name.to_owned(),
-            offered: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
             next_seq: AtomicU64::new(0),
+            handover: AtomicU8::new(0),
+            cdr: OnceLock::new(),
         });
-        self.topics.lock().unwrap_or_else(PoisonError::into_inner).push(Arc::clone(&topic));
+        topics.push(Arc::clone(&topic));
         topic
+    }
+
+    /// The topic with this id.
+    fn topic(&self, id: u32) -> Option<Arc<Topic>> {
+        self.topics.lock().unwrap_or_else(PoisonError::into_inner).get(id as usize).cloned()
     }
 
     fn drop_record(&self, topic: &Topic) {
@@ -268,59 +396,238 @@ impl Shared {
 
     /// Queues a message; a full queue costs the record (counted) or, in [`WhenFull::Wait`]
     /// mode, the sender's time.
-    fn submit(&self, topic: &Arc<Topic>, log_time: Time, stamp: Time, seq: u64, payload: Payload) {
-        self.offered.fetch_add(1, Ordering::Relaxed);
-        topic.offered.fetch_add(1, Ordering::Relaxed);
-        if !self.accepting.load(Ordering::Acquire) {
-            self.drop_record(topic);
-            return;
-        }
-        let command = Command::Message {
-            topic: Arc::clone(topic),
-            log_time: log_time.as_nanos(),
-            stamp: stamp.as_nanos(),
-            seq,
-            payload,
-        };
-        let refused = match self.when_full {
-            WhenFull::Drop => match self.sender.try_send(command) {
-                Ok(()) => None,
-                Err(TrySendError::Full(command) | TrySendError::Disconnected(command)) => {
-                    Some(command)
+    fn submit(&self, topic: u32, log_time: Time, stamp: Time, seq: u64, payload: Payload) {
+        let queued =
+            Queued { topic, log_time: log_time.as_nanos(), stamp: stamp.as_nanos(), seq, payload };
+        match self.when_full {
+            WhenFull::Drop => {
+                if !self.accepting.load(Ordering::Acquire) {
+                    self.drop_id(topic);
+                    return;
                 }
-            },
-            WhenFull::Wait => self.sender.send(command).err().map(|e| e.into_inner()),
+                if let Err(TrySendError::Full(refused) | TrySendError::Disconnected(refused)) =
+                    self.sender.try_send(Command::Messages(Batch::one(queued)))
+                {
+                    self.refused(refused);
+                }
+            }
+            WhenFull::Wait => self.gather(topic, |gathering| {
+                gathering.batch.messages.push(queued);
+                true
+            }),
+        }
+    }
+
+    /// Adds to the batch being gathered (a sender that waits): `add` puts a message in it, or
+    /// declines (returns `false`, and adds nothing). A full batch goes to the writer thread.
+    fn gather(&self, topic: u32, add: impl FnOnce(&mut Gathering) -> bool) {
+        let full = {
+            let mut pending = self.pending.lock().unwrap_or_else(PoisonError::into_inner);
+            // Checked under the lock `finish` takes to clear it: a record is either in the
+            // last batch or counted as dropped.
+            if !self.accepting.load(Ordering::Acquire) {
+                drop(pending);
+                self.drop_id(topic);
+                return;
+            }
+            if !add(&mut pending) {
+                return;
+            }
+            let full = pending.batch.messages.len() >= BATCH;
+            full.then(|| std::mem::replace(&mut pending.batch, self.spare()))
         };
-        if refused.is_some() {
-            self.drop_record(topic);
+        if let Some(batch) = full
+            && let Err(refused) = self.sender.send(Command::Messages(batch))
+        {
+            self.refused(refused.into_inner());
+        }
+    }
+
+    /// An empty batch to gather into, with the buffers of one the writer is done with.
+    fn spare(&self) -> Batch {
+        let spare = self.spare.lock().unwrap_or_else(PoisonError::into_inner).pop();
+        spare.unwrap_or_else(|| Batch {
+            messages: Vec::with_capacity(BATCH),
+            bytes: Vec::with_capacity(BATCH * 256),
+        })
+    }
+
+    /// Takes back a batch the writer is done with.
+    fn recycle(&self, mut batch: Batch) {
+        batch.messages.clear();
+        batch.bytes.clear();
+        let mut spare = self.spare.lock().unwrap_or_else(PoisonError::into_inner);
+        if spare.len() < SPARE_BATCHES {
+            spare.push(batch);
+        }
+    }
+
+    /// Counts the messages of a command the queue refused as dropped.
+    fn refused(&self, command: Command) {
+        if let Command::Messages(batch) = command {
+            for message in &batch.messages {
+                self.drop_id(message.topic);
+            }
+        }
+    }
+
+    fn drop_id(&self, topic: u32) {
+        match self.topic(topic) {
+            Some(topic) => self.drop_record(&topic),
+            None => {
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// Hands the messages gathered so far to the writer thread, ahead of what follows.
+    fn flush(&self) {
+        let batch =
+            std::mem::take(&mut self.pending.lock().unwrap_or_else(PoisonError::into_inner).batch);
+        if !batch.messages.is_empty()
+            && let Err(refused) = self.sender.send(Command::Messages(batch))
+        {
+            self.refused(refused.into_inner());
         }
     }
 
     fn tap_package(&self, topics: &TopicCache, record: &TapRecord<'_>) {
-        let Some(topic) = topics.get(self, record) else { return };
-        let (stamp, seq) = (record.package.stamp(), record.package.seq());
-        // A sender that may wait for the writer anyway (simulated time) shares its work once
-        // the writer falls behind: it encodes, the writer only compresses and writes. The
-        // bytes are the same either way. A real-time sender never does: it only clones.
-        let payload = if self.when_full == WhenFull::Wait && self.sender.len() >= self.capacity / 2
-        {
-            let mut bytes = Vec::with_capacity(1024);
-            if record.package.encode(self.encoding, &mut bytes).is_err() {
-                self.serialize_errors.fetch_add(1, Ordering::Relaxed);
-                return;
+        if self.when_full == WhenFull::Wait && self.gather_package(record) {
+            return;
+        }
+        // The first package of an output, one the fast path declined, or a real-time sender.
+        let known = self.pending.lock().unwrap_or_else(PoisonError::into_inner).topic(record);
+        let (topic, handover) = match known {
+            Some(Some(known)) => known,
+            Some(None) => return,
+            None => {
+                let Some(topic) = topics.topic(self, record) else {
+                    self.pending
+                        .lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .remember(record, None);
+                    return;
+                };
+                let handover = self.decide_handover(&topic, record.package);
+                self.pending
+                    .lock()
+                    .unwrap_or_else(PoisonError::into_inner)
+                    .remember(record, Some((topic.id, handover)));
+                if handover == HANDOVER_ENCODE && self.gather_package(record) {
+                    return;
+                }
+                (topic.id, handover)
             }
-            Payload::Encoded(bytes)
-        } else {
-            Payload::Package(record.package.clone_boxed())
         };
-        self.submit(&topic, record.time, stamp, seq, payload);
+        if handover == HANDOVER_ENCODE && !self.accepting.load(Ordering::Acquire) {
+            self.drop_id(topic);
+            return;
+        }
+        let (stamp, seq) = (record.package.stamp(), record.package.seq());
+        // The sending module clones (shared parts such as a world state's objects are
+        // reference counted): the writer thread encodes.
+        let payload = Payload::Package(record.package.clone_boxed());
+        self.submit(topic, record.time, stamp, seq, payload);
+    }
+
+    /// The usual way of a package from a sender that waits: under one lock, its topic is
+    /// found and the package goes into the batch, encoded or cloned as its topic says. `false`
+    /// when it did not (the output is new, or a value CDR cannot write, which sends its topic
+    /// to the writer from then on).
+    fn gather_package(&self, record: &TapRecord<'_>) -> bool {
+        let (full, declined) = {
+            let mut pending = self.pending.lock().unwrap_or_else(PoisonError::into_inner);
+            let topic = match pending.topic(record) {
+                Some(Some(topic)) => topic,
+                // Not logged.
+                Some(None) => return true,
+                None => return false,
+            };
+            if !self.accepting.load(Ordering::Acquire) {
+                drop(pending);
+                self.drop_id(topic.0);
+                return true;
+            }
+            let (id, handover) = topic;
+            let (stamp, seq) = (record.package.stamp(), record.package.seq());
+            let (log_time, stamp) = (record.time.as_nanos(), stamp.as_nanos());
+            let batch = &mut pending.batch;
+            let payload = if handover == HANDOVER_ENCODE {
+                let start = batch.bytes.len();
+                if record.package.encode(Encoding::Cdr, &mut batch.bytes).is_err() {
+                    batch.bytes.truncate(start);
+                    None
+                } else {
+                    Some(Payload::Bytes { start, len: batch.bytes.len() - start })
+                }
+            } else {
+                Some(Payload::Package(record.package.clone_boxed()))
+            };
+            match payload {
+                Some(payload) => {
+                    batch.messages.push(Queued { topic: id, log_time, stamp, seq, payload });
+                    let full = batch.messages.len() >= BATCH;
+                    (full.then(|| std::mem::replace(&mut pending.batch, self.spare())), None)
+                }
+                None => {
+                    // From now on the writer encodes this topic's packages.
+                    pending.remember(record, Some((id, HANDOVER_CLONE)));
+                    (None, Some(id))
+                }
+            }
+        };
+        if let Some(id) = declined {
+            if let Some(topic) = self.topic(id) {
+                topic.handover.store(HANDOVER_CLONE, Ordering::Relaxed);
+            }
+            return false;
+        }
+        if let Some(batch) = full
+            && let Err(refused) = self.sender.send(Command::Messages(batch))
+        {
+            self.refused(refused.into_inner());
+        }
+        true
+    }
+
+    /// How a topic's packages are handed over, from its first package: encoded by a sender
+    /// that waits when CDR describes the type, it holds no shared value and its first package
+    /// is small; cloned otherwise.
+    fn decide_handover(&self, topic: &Topic, package: &dyn ErasedPackage) -> u8 {
+        let decided = topic.handover.load(Ordering::Relaxed);
+        if decided != 0 {
+            return decided;
+        }
+        let format = (self.when_full == WhenFull::Wait && self.encoding == Encoding::Cdr)
+            .then(|| package.format().ok())
+            .flatten();
+        let schema = format.as_ref().and_then(|f| CdrSchema::of(f, &topic.type_name));
+        let handover = match (format, schema) {
+            (Some(format), Some(schema)) if !shared::appears_in(&format) => {
+                let mut trial = Vec::new();
+                let encoded = package.encode(Encoding::Cdr, &mut trial);
+                if encoded.is_ok() && trial.len() <= SENDER_ENCODES_UP_TO {
+                    let _ = topic.cdr.set(schema);
+                    HANDOVER_ENCODE
+                } else {
+                    HANDOVER_CLONE
+                }
+            }
+            _ => HANDOVER_CLONE,
+        };
+        topic.handover.store(handover, Ordering::Relaxed);
+        handover
+    }
+
+    /// The encoding of application records: self-describing, since they come without a
+    /// type to trace (a `serde_json::Value`, or any `Serialize`).
+    fn record_encoding(&self) -> Encoding {
+        if self.encoding.is_self_describing() { self.encoding } else { Encoding::MessagePack }
     }
 
     /// A value that could not be encoded: an error, not a drop.
-    fn unencodable(&self, topic: &Topic) {
+    fn unencodable(&self) {
         self.serialize_errors.fetch_add(1, Ordering::Relaxed);
-        self.offered.fetch_sub(1, Ordering::Relaxed);
-        topic.offered.fetch_sub(1, Ordering::Relaxed);
     }
 
     /// Queues a command that must not be lost (metadata): waits for room in the queue.
@@ -331,6 +638,7 @@ impl Shared {
                 what: "the log is already finished".to_owned(),
             });
         }
+        self.flush();
         self.sender.send(command).map_err(|_| LogError::WriterGone { path: self.path.clone() })
     }
 }
@@ -338,73 +646,32 @@ impl Shared {
 /// Per output name, its topic (`None`: the module is not logged).
 type OutputTopics = HashMap<String, Option<Arc<Topic>>>;
 
-/// One module's topics, as the fast path finds them.
-#[derive(Default)]
-struct ModuleTopics {
-    name: String,
-    outputs: Vec<(String, Option<Arc<Topic>>)>,
-}
-
-impl ModuleTopics {
-    fn get(&self, module_name: &str, output: &str) -> Option<&Option<Arc<Topic>>> {
-        if self.name != module_name {
-            return None;
-        }
-        self.outputs.iter().find(|(name, _)| name == output).map(|(_, topic)| topic)
-    }
-}
-
-/// Topics of packages by module and output name. Every package of a match passes here on the
-/// sending module's thread, so the usual lookup goes by module id and a short list of outputs,
-/// without hashing; the map by name is where topics are created, once each.
+/// Topics of packages by module and output name, where they are created (once each); the
+/// usual lookup goes through [`Gathering`].
 #[derive(Default)]
 struct TopicCache {
     prefix: String,
-    /// By module id; the name is checked too, in case one tap serves several graphs.
-    by_id: RwLock<Vec<ModuleTopics>>,
     by_name: Mutex<HashMap<String, OutputTopics>>,
 }
 
 impl TopicCache {
     /// The topic of a record's output; `None` for modules the options leave out.
-    fn get(&self, shared: &Shared, record: &TapRecord<'_>) -> Option<Arc<Topic>> {
-        let index = record.module.index();
-        {
-            let modules = self.by_id.read().unwrap_or_else(PoisonError::into_inner);
-            if let Some(topic) =
-                modules.get(index).and_then(|m| m.get(record.module_name, record.output))
-            {
-                return topic.clone();
-            }
-        }
-        let topic = {
-            let mut by_name = self.by_name.lock().unwrap_or_else(PoisonError::into_inner);
-            let outputs = by_name.entry(record.module_name.to_owned()).or_default();
-            outputs
-                .entry(record.output.to_owned())
-                .or_insert_with(|| {
-                    let name = format!(
-                        "{}{}",
-                        self.prefix,
-                        crate::package_topic(record.module_name, record.output)
-                    );
-                    let wanted = shared.modules.is_empty()
-                        || shared.modules.iter().any(|prefix| name.starts_with(prefix.as_str()));
-                    wanted.then(|| shared.new_topic(name, record.type_name))
-                })
-                .clone()
-        };
-        let mut modules = self.by_id.write().unwrap_or_else(PoisonError::into_inner);
-        if modules.len() <= index {
-            modules.resize_with(index + 1, ModuleTopics::default);
-        }
-        let module = &mut modules[index];
-        if module.name != record.module_name {
-            // Another graph's module with the same id: the slot follows the latest one.
-            *module = ModuleTopics { name: record.module_name.to_owned(), outputs: Vec::new() };
-        }
-        module.outputs.push((record.output.to_owned(), topic.clone()));
-        topic
+    fn topic(&self, shared: &Shared, record: &TapRecord<'_>) -> Option<Arc<Topic>> {
+        let mut by_name = self.by_name.lock().unwrap_or_else(PoisonError::into_inner);
+        let outputs = by_name.entry(record.module_name.to_owned()).or_default();
+        outputs
+            .entry(record.output.to_owned())
+            .or_insert_with(|| {
+                let name = format!(
+                    "{}{}",
+                    self.prefix,
+                    crate::package_topic(record.module_name, record.output)
+                );
+                let wanted = shared.modules.is_empty()
+                    || shared.modules.iter().any(|prefix| name.starts_with(prefix.as_str()));
+                wanted.then(|| shared.new_topic(name, record.type_name))
+            })
+            .clone()
     }
 }
 
@@ -447,21 +714,27 @@ impl McapTap {
         let path = path.as_ref().to_path_buf();
         let file = File::create(&path)
             .map_err(|source| LogError::Create { path: path.clone(), source })?;
-        let write_options = mcap::WriteOptions::new()
-            .profile("strata")
-            .library(format!("strata-log {}", env!("CARGO_PKG_VERSION")))
-            .chunk_size(Some(options.chunk_size.max(1024)))
-            .compression(match options.compression {
-                LogCompression::Zstd => Some(mcap::Compression::Zstd),
-                LogCompression::Lz4 => Some(mcap::Compression::Lz4),
-                LogCompression::None => None,
-            })
-            .compression_level(1)
-            .compression_threads(0);
-        let writer = write_options
-            .create(BufWriter::with_capacity(1 << 16, file))
-            .map_err(|source| LogError::Write { path: path.clone(), source })?;
-        let (sender, receiver) = crossbeam_channel::bounded(options.capacity.max(1));
+        let compression = match options.compression {
+            LogCompression::Zstd => ChunkCompression::Zstd(ZSTD_LEVEL),
+            LogCompression::Lz4 => ChunkCompression::Lz4,
+            LogCompression::None => ChunkCompression::None,
+        };
+        let writer = McapFile::new(
+            BufWriter::with_capacity(1 << 20, file),
+            "strata",
+            &format!("strata-log {}", env!("CARGO_PKG_VERSION")),
+            compression,
+            usize::try_from(options.chunk_size.max(1024)).unwrap_or(usize::MAX),
+        )
+        .map_err(|source| LogError::Write { path: path.clone(), source })?;
+        // A sender that waits gets a short queue: it waits anyway when the writer falls
+        // behind, and the fewer packages the queue holds, the fewer buffers (world states'
+        // object lists, for one) stay out of their modules' reuse.
+        let batches = match options.when_full {
+            WhenFull::Wait => (options.capacity.min(WAIT_QUEUE) / BATCH).max(1),
+            WhenFull::Drop => options.capacity.max(1),
+        };
+        let (sender, receiver) = crossbeam_channel::bounded(batches);
         let when_full = options.when_full;
         let shared = Arc::new(Shared {
             path: path.clone(),
@@ -469,12 +742,11 @@ impl McapTap {
             accepting: AtomicBool::new(true),
             when_full,
             encoding: options.encoding,
-            capacity: options.capacity.max(1),
             modules: options.modules.clone(),
-            offered: AtomicU64::new(0),
             dropped: AtomicU64::new(0),
+            pending: Mutex::new(Gathering::default()),
+            spare: Mutex::new(Vec::new()),
             serialize_errors: AtomicU64::new(0),
-            next_topic_id: AtomicU32::new(0),
             topics: Mutex::new(Vec::new()),
             record_topics: RwLock::new(HashMap::new()),
             #[cfg(test)]
@@ -484,13 +756,15 @@ impl McapTap {
             shared: Arc::clone(&shared),
             writer: Some(writer),
             options,
-            channels: HashMap::new(),
+            topics: Vec::new(),
             schemas: HashMap::new(),
+            cdr_schemas: HashMap::new(),
+            shared_channels: HashMap::new(),
+            shared_topics: Vec::new(),
             scratch: Vec::new(),
             encoded: Vec::new(),
             chunk: None,
             messages: 0,
-            written_by_topic: HashMap::new(),
             error: None,
         };
         let handle = std::thread::Builder::new()
@@ -540,7 +814,7 @@ impl McapTap {
         value: &T,
     ) {
         let mut bytes = Vec::with_capacity(256);
-        if self.shared.encoding.encode(value, &mut bytes).is_err() {
+        if self.shared.record_encoding().encode(value, &mut bytes).is_err() {
             self.shared.serialize_errors.fetch_add(1, Ordering::Relaxed);
             return;
         }
@@ -559,7 +833,7 @@ impl McapTap {
             )
         });
         let seq = topic.next_seq.fetch_add(1, Ordering::Relaxed);
-        self.shared.submit(&topic, time, time, seq, Payload::Encoded(bytes));
+        self.shared.submit(topic.id, time, time, seq, Payload::Encoded(bytes));
     }
 
     /// Writes a metadata record. Waits for room in the queue (metadata is never dropped): call
@@ -642,9 +916,19 @@ impl McapTap {
         }
         let path = self.shared.path.clone();
         let (reply, answer) = crossbeam_channel::bounded(1);
-        // Queued before `accepting` is cleared, so everything accepted so far precedes it.
+        // Cleared under the lock of the gathered messages (see `Shared::submit`); what was
+        // accepted so far goes ahead of the finish request.
+        let last = {
+            let mut pending = self.shared.pending.lock().unwrap_or_else(PoisonError::into_inner);
+            self.shared.accepting.store(false, Ordering::Release);
+            std::mem::take(&mut pending.batch)
+        };
+        if !last.messages.is_empty()
+            && let Err(refused) = self.shared.sender.send(Command::Messages(last))
+        {
+            self.shared.refused(refused.into_inner());
+        }
         let sent = self.shared.sender.send(Command::Finish(reply));
-        self.shared.accepting.store(false, Ordering::Release);
         let result = match sent {
             Ok(()) => answer.recv().unwrap_or(Err(LogError::WriterGone { path: path.clone() })),
             Err(_) => Err(LogError::WriterGone { path: path.clone() }),
@@ -708,33 +992,148 @@ impl Tap for ScopedTap {
     }
 }
 
+/// Creates the channel of a shared value type: `shared/{type}` (the type's last path segment;
+/// `_2`, `_3`… when another type has that name), its record's schema, metadata
+/// `strata.shared`.
+fn shared_channel(
+    writer: &mut McapFile<BufWriter<File>>,
+    record: &NewRecord,
+    taken: &[String],
+) -> (u16, String) {
+    let short = record.type_name.split('<').next().unwrap_or(record.type_name);
+    let short = short.rsplit("::").next().unwrap_or(short);
+    let mut topic = format!("shared/{short}");
+    let mut k = 2;
+    while taken.contains(&topic) {
+        topic = format!("shared/{short}_{k}");
+        k += 1;
+    }
+    let mut metadata = BTreeMap::from([
+        ("type_name".to_owned(), format!("strata_runtime::shared::Record<{}>", record.type_name)),
+        (SHARED_KEY.to_owned(), "true".to_owned()),
+    ]);
+    let idl = record.format.as_ref().and_then(|format| {
+        let json = serde_json::to_string(format).ok()?;
+        Some((idl_schema(format, "SharedRecord").ok()?, json))
+    });
+    let schema_id = match (idl, record.encoding) {
+        (Some((idl, json)), Encoding::Cdr) => {
+            metadata.insert(FORMAT_KEY.to_owned(), json);
+            writer.add_schema(&idl.name, "omgidl", idl.text.as_bytes())
+        }
+        _ => {
+            let sample = record.encoding.decode(&record.bytes).unwrap_or(serde_json::Value::Null);
+            let schema = infer_json_schema(record.type_name, &sample);
+            let data = serde_json::to_vec(&schema).unwrap_or_default();
+            writer.add_schema(record.type_name, "jsonschema", &data)
+        }
+    };
+    let id = writer.add_channel(schema_id, &topic, record.encoding.mcap_name(), &metadata);
+    (id, topic)
+}
+
 struct OpenChunk {
     first_log_time: u64,
     opened: Instant,
+    messages: u32,
+}
+
+/// A topic's channel in one encoding, and whether its messages are wrapped.
+#[derive(Clone, Copy, Debug)]
+struct ChannelState {
+    id: u16,
+    wrapped: bool,
+}
+
+/// How a package type is logged in CDR: its schema, and its format for the channel metadata.
+#[derive(Debug)]
+struct CdrSchema {
+    idl: Schema,
+    format_json: String,
+}
+
+impl CdrSchema {
+    fn of(format: &Format, type_name: &str) -> Option<Arc<CdrSchema>> {
+        let idl = idl_schema(format, type_name).ok()?;
+        let format_json = serde_json::to_string(format).ok()?;
+        Some(Arc::new(CdrSchema { idl, format_json }))
+    }
 }
 
 struct WriterThread {
     shared: Arc<Shared>,
-    writer: Option<mcap::Writer<BufWriter<File>>>,
+    writer: Option<McapFile<BufWriter<File>>>,
     options: McapTapOptions,
-    /// MCAP channel id per topic id, and whether its messages are wrapped.
-    channels: HashMap<u32, (u16, bool)>,
-    /// MCAP schema id per type name (and wrapping): the first sample of a type defines its
-    /// schema.
-    schemas: HashMap<(String, bool), u16>,
+    /// What the writer knows of each topic, by topic id (ids are dense).
+    topics: Vec<TopicState>,
+    /// MCAP schema id per type name, encoding and wrapping.
+    schemas: HashMap<(String, Encoding, bool), u16>,
+    /// The CDR schema of each package type, `None` for types CDR cannot describe.
+    cdr_schemas: HashMap<String, Option<Arc<CdrSchema>>>,
+    /// The channel of each shared value type, and the sequence number of its next record.
+    shared_channels: HashMap<&'static str, (u16, u64)>,
+    /// Their topics.
+    shared_topics: Vec<String>,
     /// Where wrapped messages are assembled.
     scratch: Vec<u8>,
     /// Where packages are encoded (one buffer, reused).
     encoded: Vec<u8>,
     chunk: Option<OpenChunk>,
     messages: u64,
-    written_by_topic: HashMap<u32, u64>,
     /// The first write error; afterwards records are only counted as dropped.
-    error: Option<mcap::McapError>,
+    error: Option<std::io::Error>,
 }
 
+/// A topic as the writer thread knows it.
+#[derive(Default)]
+struct TopicState {
+    handle: Option<Arc<Topic>>,
+    /// The encoding its packages are written in, decided by its first package.
+    encoding: Option<Encoding>,
+    /// Its type's CDR schema, when it is written in CDR.
+    cdr: Option<Arc<CdrSchema>>,
+    /// Its channel per encoding (JSON, MessagePack, CDR): a topic whose values CDR cannot
+    /// write has a second, MessagePack channel.
+    channels: [Option<ChannelState>; 3],
+}
+
+impl TopicState {
+    fn channel(&mut self, encoding: Encoding) -> &mut Option<ChannelState> {
+        &mut self.channels[match encoding {
+            Encoding::Json => 0,
+            Encoding::MessagePack => 1,
+            Encoding::Cdr => 2,
+        }]
+    }
+}
+
+/// Messages between two looks at the clock for the age of the open chunk: reading the clock
+/// for each of thousands of messages per second showed in profiles.
+const AGE_CHECK_EVERY: u32 = 64;
+
 impl WriterThread {
+    /// The topic with this id (the shared list is looked at once per topic).
+    fn topic_handle(&mut self, id: u32) -> Option<Arc<Topic>> {
+        if let Some(handle) = &self.topic(id).handle {
+            return Some(Arc::clone(handle));
+        }
+        let handle = self.shared.topic(id)?;
+        self.topic(id).handle = Some(Arc::clone(&handle));
+        Some(handle)
+    }
+
+    fn topic(&mut self, id: u32) -> &mut TopicState {
+        let index = id as usize;
+        if self.topics.len() <= index {
+            self.topics.resize_with(index + 1, TopicState::default);
+        }
+        &mut self.topics[index]
+    }
+
     fn run(mut self, receiver: Receiver<Command>) {
+        // Shared values in the packages this thread encodes become references to records the
+        // log holds once each (see `strata_runtime::shared`).
+        Recorder::default().install();
         loop {
             let command = match &self.chunk {
                 Some(chunk) => {
@@ -756,40 +1155,47 @@ impl WriterThread {
             #[cfg(test)]
             self.shared.gate.wait_open();
             match command {
-                Command::Message { topic, log_time, stamp, seq, payload } => match payload {
-                    Payload::Package(package) => {
-                        let mut encoded = std::mem::take(&mut self.encoded);
-                        encoded.clear();
-                        match package.encode(self.shared.encoding, &mut encoded) {
-                            Ok(()) => self.write_message(&topic, log_time, stamp, seq, &encoded),
-                            Err(_) => self.shared.unencodable(&topic),
+                Command::Messages(mut batch) => {
+                    for Queued { topic, log_time, stamp, seq, payload } in batch.messages.drain(..)
+                    {
+                        let Some(topic) = self.topic_handle(topic) else { continue };
+                        match payload {
+                            Payload::Package(package) => {
+                                self.write_package(&topic, log_time, stamp, seq, package.as_ref());
+                            }
+                            Payload::Encoded(bytes) => {
+                                let encoding = self.shared.record_encoding();
+                                self.write_message(
+                                    &topic, encoding, None, log_time, stamp, seq, &bytes,
+                                );
+                            }
+                            Payload::Bytes { start, len } => {
+                                let schema = topic.cdr.get().cloned();
+                                let bytes = batch.bytes.get(start..start + len).unwrap_or_default();
+                                self.write_message(
+                                    &topic,
+                                    Encoding::Cdr,
+                                    schema,
+                                    log_time,
+                                    stamp,
+                                    seq,
+                                    bytes,
+                                );
+                            }
                         }
-                        self.encoded = encoded;
                     }
-                    Payload::Encoded(bytes) => {
-                        self.write_message(&topic, log_time, stamp, seq, &bytes);
-                    }
-                },
+                    self.shared.recycle(batch);
+                }
                 Command::Metadata { name, entries } => {
-                    let metadata = mcap::records::Metadata { name, metadata: entries };
-                    self.apply(|w| w.write_metadata(&metadata));
+                    self.apply(|w| w.write_metadata(&name, &entries));
                 }
                 Command::Attachment { name, media_type, time, data } => {
-                    let attachment = mcap::Attachment {
-                        log_time: time,
-                        create_time: time,
-                        name,
-                        media_type,
-                        data: data.into(),
-                    };
-                    self.apply(|w| w.attach(&attachment));
+                    self.apply(|w| w.write_attachment(time, time, &name, &media_type, &data));
                 }
                 Command::Finish(reply) => {
                     // Whatever was queued after the finish request is late: count it.
                     while let Ok(late) = receiver.try_recv() {
-                        if let Command::Message { topic, .. } = late {
-                            self.shared.drop_record(&topic);
-                        }
+                        self.shared.refused(late);
                     }
                     let _ = reply.send(self.finish());
                     return;
@@ -802,10 +1208,7 @@ impl WriterThread {
     }
 
     /// Runs a write, remembering the first failure; a failed writer only counts drops.
-    fn apply(
-        &mut self,
-        write: impl FnOnce(&mut mcap::Writer<BufWriter<File>>) -> mcap::McapResult<()>,
-    ) {
+    fn apply(&mut self, write: impl FnOnce(&mut McapFile<BufWriter<File>>) -> std::io::Result<()>) {
         if self.error.is_some() {
             return;
         }
@@ -818,21 +1221,109 @@ impl WriterThread {
         self.chunk = None;
     }
 
-    fn write_message(&mut self, topic: &Topic, log_time: u64, stamp: u64, seq: u64, value: &[u8]) {
+    /// The CDR schema of a package's type, worked out on its first package.
+    fn cdr_schema(&mut self, topic: &Topic, package: &dyn ErasedPackage) -> Option<Arc<CdrSchema>> {
+        if let Some(known) = self.cdr_schemas.get(&topic.type_name) {
+            return known.clone();
+        }
+        let schema =
+            package.format().ok().and_then(|format| CdrSchema::of(&format, &topic.type_name));
+        self.cdr_schemas.insert(topic.type_name.clone(), schema.clone());
+        schema
+    }
+
+    fn write_package(
+        &mut self,
+        topic: &Topic,
+        log_time: u64,
+        stamp: u64,
+        seq: u64,
+        package: &dyn ErasedPackage,
+    ) {
+        let wanted = self.options.encoding;
+        let (mut encoding, mut schema) = match self.topic(topic.id).encoding {
+            Some(encoding) => (encoding, self.topic(topic.id).cdr.clone()),
+            None => {
+                let schema =
+                    if wanted == Encoding::Cdr { self.cdr_schema(topic, package) } else { None };
+                let encoding = match (wanted, &schema) {
+                    (Encoding::Cdr, None) => Encoding::MessagePack,
+                    _ => wanted,
+                };
+                let state = self.topic(topic.id);
+                (state.encoding, state.cdr) = (Some(encoding), schema.clone());
+                (encoding, schema)
+            }
+        };
+        let mut encoded = std::mem::take(&mut self.encoded);
+        encoded.clear();
+        let mut result = package.encode(encoding, &mut encoded);
+        if result.is_err() && encoding == Encoding::Cdr {
+            // A value CDR cannot write (a field left out when serializing): this topic goes on
+            // in MessagePack, on a channel of its own.
+            encoding = Encoding::MessagePack;
+            schema = None;
+            let state = self.topic(topic.id);
+            (state.encoding, state.cdr) = (Some(encoding), None);
+            encoded.clear();
+            result = package.encode(encoding, &mut encoded);
+        }
+        // Records of shared values seen for the first time go before the package.
+        self.write_shared_records(log_time);
+        match result {
+            Ok(()) => self.write_message(topic, encoding, schema, log_time, stamp, seq, &encoded),
+            Err(_) => self.shared.unencodable(),
+        }
+        self.encoded = encoded;
+    }
+
+    /// Writes the records of shared values the last encoding saw for the first time, each on
+    /// the channel of its type (`shared/{type}`, metadata `strata.shared`).
+    fn write_shared_records(&mut self, log_time: u64) {
+        for record in Recorder::take_new() {
+            if self.error.is_some() {
+                return;
+            }
+            self.write_shared_record(&record, log_time);
+        }
+    }
+
+    fn write_shared_record(&mut self, record: &NewRecord, log_time: u64) {
+        let Some(writer) = self.writer.as_mut() else { return };
+        let (channel, seq) = match self.shared_channels.get(record.type_name) {
+            Some(&known) => known,
+            None => {
+                let (id, topic) = shared_channel(writer, record, &self.shared_topics);
+                self.shared_topics.push(topic);
+                (id, 0)
+            }
+        };
+        self.shared_channels.insert(record.type_name, (channel, seq + 1));
+        match writer.write_message(channel, seq as u32, log_time, log_time, &record.bytes) {
+            Ok(()) => self.messages += 1,
+            Err(error) => self.error = Some(error),
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn write_message(
+        &mut self,
+        topic: &Topic,
+        encoding: Encoding,
+        schema: Option<Arc<CdrSchema>>,
+        log_time: u64,
+        stamp: u64,
+        seq: u64,
+        value: &[u8],
+    ) {
         if self.error.is_some() {
             self.shared.drop_record(topic);
             return;
         }
-        let result = self.channel(topic, value).and_then(|(channel_id, wrapped)| {
-            let header = mcap::records::MessageHeader {
-                channel_id,
-                // MCAP sequences are 32 bits; readers unwrap them per channel.
-                sequence: seq as u32,
-                log_time,
-                publish_time: stamp,
-            };
-            let payload = if wrapped {
-                let (prefix, suffix) = wrap_frame(self.shared.encoding);
+        let channel = self.channel(topic, encoding, schema.as_deref(), value);
+        let result = {
+            let payload = if channel.wrapped {
+                let (prefix, suffix) = wrap_frame(encoding);
                 self.scratch.clear();
                 self.scratch.extend_from_slice(prefix);
                 self.scratch.extend_from_slice(value);
@@ -842,66 +1333,102 @@ impl WriterThread {
                 value
             };
             match self.writer.as_mut() {
-                Some(writer) => writer.write_to_known_channel(&header, payload),
+                // MCAP sequences are 32 bits; readers unwrap them per channel.
+                Some(writer) => {
+                    writer.write_message(channel.id, seq as u32, log_time, stamp, payload)
+                }
                 None => Ok(()),
             }
-        });
+        };
         match result {
-            Ok(()) => {
-                self.messages += 1;
-                *self.written_by_topic.entry(topic.id).or_default() += 1;
-            }
+            Ok(()) => self.messages += 1,
             Err(error) => {
                 self.error = Some(error);
                 self.shared.drop_record(topic);
                 return;
             }
         }
-        let chunk = self
-            .chunk
-            .get_or_insert(OpenChunk { first_log_time: log_time, opened: Instant::now() });
+        let chunk = self.chunk.get_or_insert_with(|| OpenChunk {
+            first_log_time: log_time,
+            opened: Instant::now(),
+            messages: 0,
+        });
+        chunk.messages += 1;
         let span = Duration::from_nanos(log_time.saturating_sub(chunk.first_log_time));
         if span >= self.options.max_chunk_span
-            || chunk.opened.elapsed() >= self.options.max_chunk_age
+            || (chunk.messages.is_multiple_of(AGE_CHECK_EVERY)
+                && chunk.opened.elapsed() >= self.options.max_chunk_age)
         {
             self.close_chunk();
         }
     }
 
-    /// The channel of a topic and whether its messages are wrapped, created on its first
-    /// message. Generic tools (Foxglove) take messages that are objects (maps): a topic whose
-    /// first value is not one (a number, a tuple, a unit enum variant) has every value
+    /// The channel of a topic in an encoding, created on its first message. A CDR channel
+    /// has the type's IDL schema and its format (metadata `strata.format`, for Strata's own
+    /// readers). Generic tools take self-describing messages that are objects (maps): a topic
+    /// whose first value is not one (a number, a tuple, a unit enum variant) has every value
     /// wrapped as `{"value": ...}`, which the channel's metadata records and readers undo.
-    fn channel(&mut self, topic: &Topic, sample: &[u8]) -> mcap::McapResult<(u16, bool)> {
-        if let Some(&channel) = self.channels.get(&topic.id) {
-            return Ok(channel);
+    fn channel(
+        &mut self,
+        topic: &Topic,
+        encoding: Encoding,
+        cdr: Option<&CdrSchema>,
+        sample: &[u8],
+    ) -> ChannelState {
+        if let Some(channel) = *self.topic(topic.id).channel(encoding) {
+            return channel;
         }
-        let Some(writer) = self.writer.as_mut() else { return Ok((0, false)) };
-        let encoding = self.shared.encoding;
-        let wrapped = !is_map(encoding, sample);
-        let schema_id = match self.schemas.get(&(topic.type_name.clone(), wrapped)) {
-            Some(&id) => id,
-            None => {
-                let sample = encoding.decode(sample).unwrap_or(serde_json::Value::Null);
-                let sample =
-                    if wrapped { serde_json::json!({ WRAP_FIELD: sample }) } else { sample };
-                let schema = infer_json_schema(&topic.type_name, &sample);
-                let data = serde_json::to_vec(&schema).unwrap_or_default();
-                let id = writer.add_schema(&topic.type_name, "jsonschema", &data)?;
-                self.schemas.insert((topic.type_name.clone(), wrapped), id);
-                id
-            }
+        let Some(writer) = self.writer.as_mut() else {
+            return ChannelState { id: 0, wrapped: false };
         };
         let mut metadata = BTreeMap::from([
             ("type_name".to_owned(), topic.type_name.clone()),
             (PUBLISH_TIME_KEY.to_owned(), "stamp".to_owned()),
         ]);
-        if wrapped {
-            metadata.insert(WRAPPED_KEY.to_owned(), WRAP_FIELD.to_owned());
-        }
-        let id = writer.add_channel(schema_id, &topic.name, encoding.mcap_name(), &metadata)?;
-        self.channels.insert(topic.id, (id, wrapped));
-        Ok((id, wrapped))
+        let (schema_id, wrapped) = match (encoding, cdr) {
+            (Encoding::Cdr, Some(cdr)) => {
+                metadata.insert(FORMAT_KEY.to_owned(), cdr.format_json.clone());
+                let key = (topic.type_name.clone(), encoding, false);
+                let id = match self.schemas.get(&key) {
+                    Some(&id) => id,
+                    None => {
+                        let id =
+                            writer.add_schema(&cdr.idl.name, "omgidl", cdr.idl.text.as_bytes());
+                        self.schemas.insert(key, id);
+                        id
+                    }
+                };
+                (id, false)
+            }
+            _ => {
+                let wrapped = !is_map(encoding, sample);
+                let key = (topic.type_name.clone(), encoding, wrapped);
+                let id = match self.schemas.get(&key) {
+                    Some(&id) => id,
+                    None => {
+                        let sample = encoding.decode(sample).unwrap_or(serde_json::Value::Null);
+                        let sample = if wrapped {
+                            serde_json::json!({ WRAP_FIELD: sample })
+                        } else {
+                            sample
+                        };
+                        let schema = infer_json_schema(&topic.type_name, &sample);
+                        let data = serde_json::to_vec(&schema).unwrap_or_default();
+                        let id = writer.add_schema(&topic.type_name, "jsonschema", &data);
+                        self.schemas.insert(key, id);
+                        id
+                    }
+                };
+                if wrapped {
+                    metadata.insert(WRAPPED_KEY.to_owned(), WRAP_FIELD.to_owned());
+                }
+                (id, wrapped)
+            }
+        };
+        let id = writer.add_channel(schema_id, &topic.name, encoding.mcap_name(), &metadata);
+        let channel = ChannelState { id, wrapped };
+        *self.topic(topic.id).channel(encoding) = Some(channel);
+        channel
     }
 
     fn close_chunk(&mut self) {
@@ -910,7 +1437,7 @@ impl WriterThread {
             return;
         }
         if let Some(writer) = self.writer.as_mut()
-            && let Err(error) = writer.flush()
+            && let Err(error) = writer.close_chunk().and_then(|()| writer.flush())
         {
             self.error = Some(error);
         }
@@ -925,17 +1452,16 @@ impl WriterThread {
             .unwrap_or_else(PoisonError::into_inner)
             .iter()
             .filter_map(|t| {
-                let written = self.written_by_topic.get(&t.id).copied().unwrap_or(0);
-                let n = t.offered.load(Ordering::Relaxed).saturating_sub(written);
+                let n = t.dropped.load(Ordering::Relaxed);
                 (n > 0).then(|| (t.name.clone(), n))
             })
             .collect();
         let mut summary = LogSummary {
             messages: self.messages,
-            dropped: self.shared.offered.load(Ordering::Relaxed).saturating_sub(self.messages),
+            dropped: self.shared.dropped.load(Ordering::Relaxed),
             serialize_errors: self.shared.serialize_errors.load(Ordering::Relaxed),
             bytes: 0,
-            topics: self.channels.len(),
+            topics: self.topics.iter().filter(|t| t.channels.iter().any(Option::is_some)).count(),
             dropped_by_topic,
         };
         let stats = BTreeMap::from([
@@ -947,27 +1473,22 @@ impl WriterThread {
                 serde_json::to_string(&summary.dropped_by_topic).unwrap_or_default(),
             ),
         ]);
-        self.apply(|w| {
-            w.write_metadata(&mcap::records::Metadata {
-                name: STATS_METADATA.to_owned(),
-                metadata: stats,
-            })
-        });
-        let Some(mut writer) = self.writer.take() else {
+        self.apply(|w| w.write_metadata(STATS_METADATA, &stats));
+        let Some(writer) = self.writer.take() else {
             return Err(LogError::WriterGone { path });
         };
         if let Some(source) = self.error.take() {
             return Err(LogError::Write { path, source });
         }
-        writer.finish().map_err(|source| LogError::Write { path: path.clone(), source })?;
-        let file = writer.into_inner().into_inner().map_err(|e| LogError::Write {
-            path: path.clone(),
-            source: mcap::McapError::Io(e.into_error()),
-        })?;
+        let buffered =
+            writer.finish().map_err(|source| LogError::Write { path: path.clone(), source })?;
+        let file = buffered
+            .into_inner()
+            .map_err(|e| LogError::Write { path: path.clone(), source: e.into_error() })?;
         summary.bytes = file
             .metadata()
             .map(|m| m.len())
-            .map_err(|e| LogError::Write { path: path.clone(), source: mcap::McapError::Io(e) })?;
+            .map_err(|source| LogError::Write { path: path.clone(), source })?;
         Ok(summary)
     }
 }
@@ -1030,38 +1551,72 @@ mod tests {
     }
 
     #[test]
-    fn a_waiting_sender_encodes_once_the_writer_falls_behind() {
+    fn a_waiting_sender_batches_and_waits_for_a_held_writer() {
         use strata_runtime::{ModuleId, Package};
-        let dir = std::env::temp_dir().join(format!("strata-log-share-{}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("strata-log-hold-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap_or_default();
-        let path = dir.join("share.mcap");
+        let path = dir.join("hold.mcap");
+        // Room for one batch in the queue.
         let options =
             McapTapOptions { capacity: 8, when_full: WhenFull::Wait, ..McapTapOptions::default() };
-        let tap = McapTap::create(&path, options).expect("create");
-        // The writer takes the first record and stops: the queue fills past half, and the
-        // later packages are encoded here.
+        let tap = Arc::new(McapTap::create(&path, options).expect("create"));
+        let values: Vec<(u32, String)> =
+            (0..3 * BATCH as u32).map(|i| (i, format!("v{i}"))).collect();
+        let send = |tap: &McapTap, from: usize, to: usize| {
+            for (i, value) in values.iter().enumerate().take(to).skip(from) {
+                let package =
+                    Package::new(value.clone(), Time::from_nanos(i as u64), i as u64, ModuleId(0));
+                tap.package(&TapRecord {
+                    time: Time::from_nanos(i as u64),
+                    host: 0,
+                    module: ModuleId(0),
+                    module_name: "m",
+                    port: 0,
+                    output: "out",
+                    type_name: "(u32, String)",
+                    package: &package,
+                });
+            }
+        };
+        // Less than a batch stays with the sender.
+        send(&tap, 0, BATCH - 1);
+        assert!(tap.shared.sender.is_empty(), "a partial batch is not handed over");
+        // The writer takes the first batch and is held there; the next fills the queue and
+        // the third makes the sender wait.
         tap.gate().set_closed(true);
-        let values: Vec<(u32, String)> = (0..7).map(|i| (i, format!("v{i}"))).collect();
-        for (i, value) in values.iter().enumerate() {
-            let package = Package::new(
-                value.clone(),
-                Time::from_nanos(i as u64 * 1_000_000),
-                i as u64,
-                ModuleId(0),
-            );
-            tap.package(&TapRecord {
-                time: Time::from_nanos(i as u64 * 1_000_000),
-                module: ModuleId(0),
-                module_name: "m",
-                output: "out",
-                type_name: "(u32, String)",
-                package: &package,
-            });
+        let sender = {
+            let (tap, values) = (Arc::clone(&tap), values.clone());
+            std::thread::spawn(move || {
+                for (i, value) in values.iter().enumerate().skip(BATCH - 1) {
+                    let package = Package::new(
+                        value.clone(),
+                        Time::from_nanos(i as u64),
+                        i as u64,
+                        ModuleId(0),
+                    );
+                    tap.package(&TapRecord {
+                        time: Time::from_nanos(i as u64),
+                        host: 0,
+                        module: ModuleId(0),
+                        module_name: "m",
+                        port: 0,
+                        output: "out",
+                        type_name: "(u32, String)",
+                        package: &package,
+                    });
+                }
+            })
+        };
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !tap.shared.sender.is_full() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(1));
         }
-        assert!(tap.shared.sender.len() >= 4, "the queue is past half full");
+        assert!(tap.shared.sender.is_full(), "the queue filled while the writer was held");
+        assert!(!sender.is_finished(), "the sender waits for room");
         tap.gate().set_closed(false);
+        sender.join().expect("the sender ends once the writer goes on");
         let summary = tap.finish().expect("finish");
-        assert_eq!((summary.messages, summary.dropped), (7, 0));
+        assert_eq!((summary.messages, summary.dropped), (values.len() as u64, 0));
         let reader = crate::LogReader::open(&path).expect("open");
         let read: Vec<(u32, String)> =
             reader.messages().map(|m| m.expect("ok").decode().expect("decodes")).collect();

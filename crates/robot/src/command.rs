@@ -78,7 +78,7 @@ pub struct HeadMotion {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "policy", content = "motion", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum HeadCommand {
     Queue(HeadMotion),
     NonQueue(HeadMotion),
@@ -101,7 +101,7 @@ impl HeadCommand {
 
 /// A parametric body movement.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "motion", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum BodyMotion {
     Stand,
     /// Walk at `velocity` for `duration` seconds of the execution stage; a queued walk that
@@ -113,7 +113,7 @@ pub enum BodyMotion {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "policy", content = "command", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum BodyCommand {
     Queue(BodyMotion),
     NonQueue(BodyMotion),
@@ -133,7 +133,7 @@ impl BodyCommand {
 
 /// A command of the head+body multiplexer: both resources serve one goal.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum WholeBodyCommand {
     /// A sequence that needs head and body together (stand-up, fall, dive).
     Special { motion: SpecialMotion },
@@ -144,7 +144,7 @@ pub enum WholeBodyCommand {
 
 /// One reactive cycle's commands: at most one per resource, by construction.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum MotionCommands {
     PerResource {
         head: Option<HeadCommand>,
@@ -170,7 +170,7 @@ impl MotionCommands {
 
 /// Actuation's messages to the reactive layer (paper 3.5.1).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "message", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum ActuationMessage {
     /// Odometry of the command being executed.
     CommandOdometry { odometry: Odometry },

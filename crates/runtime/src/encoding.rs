@@ -3,10 +3,12 @@
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-/// The byte encodings of package values. Both are self-describing (field names included), so
-/// generic tools read them without Strata's types; they differ in cost. Writing a world state
-/// as JSON spends most of its time escaping keys and printing floats in decimal, MessagePack
-/// copies both as they are, which is what lets a match log everything at the perception rate
+/// The byte encodings of package values. JSON and MessagePack are self-describing (field names
+/// included): a reader needs nothing but the bytes. CDR is positional: the values alone, in
+/// declaration order, described once per channel by a schema ([`crate::cdr`]). They differ in
+/// cost: writing a world state as JSON spends most of its time escaping keys and printing
+/// floats in decimal, MessagePack copies both but writes every field name with every value,
+/// CDR copies the values alone — what lets a match log every package of every robot
 /// (`docs/logging.md`, "Overhead").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -14,9 +16,12 @@ pub enum Encoding {
     /// Text; what Foxglove and `jq` read directly.
     Json,
     /// MessagePack with structs as maps keyed by field name; floats keep their bits.
-    #[default]
     #[serde(rename = "msgpack")]
     MessagePack,
+    /// Plain CDR, little endian, as ROS 2 writes it; needs the value's format to be read
+    /// without its Rust type. Floats keep their bits.
+    #[default]
+    Cdr,
 }
 
 impl std::str::FromStr for Encoding {
@@ -24,7 +29,7 @@ impl std::str::FromStr for Encoding {
 
     fn from_str(text: &str) -> Result<Encoding, String> {
         Encoding::from_mcap_name(text)
-            .ok_or_else(|| format!("unknown encoding `{text}` (msgpack or json)"))
+            .ok_or_else(|| format!("unknown encoding `{text}` (cdr, msgpack or json)"))
     }
 }
 
@@ -37,6 +42,8 @@ pub enum EncodingError {
     MessagePackEncode(#[from] rmp_serde::encode::Error),
     #[error("MessagePack: {0}")]
     MessagePackDecode(#[from] rmp_serde::decode::Error),
+    #[error("CDR: {0}")]
+    Cdr(#[from] crate::cdr::CdrError),
 }
 
 impl Encoding {
@@ -45,6 +52,7 @@ impl Encoding {
         match self {
             Encoding::Json => "json",
             Encoding::MessagePack => "msgpack",
+            Encoding::Cdr => "cdr",
         }
     }
 
@@ -53,6 +61,7 @@ impl Encoding {
         match name {
             "json" => Some(Encoding::Json),
             "msgpack" => Some(Encoding::MessagePack),
+            "cdr" => Some(Encoding::Cdr),
             _ => None,
         }
     }
@@ -66,14 +75,23 @@ impl Encoding {
         match self {
             Encoding::Json => serde_json::to_writer(out, value)?,
             Encoding::MessagePack => rmp_serde::encode::write_named(out, value)?,
+            Encoding::Cdr => crate::cdr::encode(value, out)?,
         }
         Ok(())
     }
 
+    /// Whether a value reads without its type or schema (JSON, MessagePack).
+    pub fn is_self_describing(self) -> bool {
+        !matches!(self, Encoding::Cdr)
+    }
+
+    /// Reads a value of type `T`. CDR values read only as their own type (or one of the same
+    /// layout); see [`crate::cdr::to_json`] for reading them as JSON.
     pub fn decode<T: DeserializeOwned>(self, bytes: &[u8]) -> Result<T, EncodingError> {
         Ok(match self {
             Encoding::Json => serde_json::from_slice(bytes)?,
             Encoding::MessagePack => rmp_serde::from_slice(bytes)?,
+            Encoding::Cdr => crate::cdr::decode(bytes)?,
         })
     }
 }
@@ -112,8 +130,8 @@ mod tests {
     }
 
     #[test]
-    fn both_encodings_round_trip_every_bit() {
-        for encoding in [Encoding::Json, Encoding::MessagePack] {
+    fn every_encoding_round_trips_every_bit() {
+        for encoding in [Encoding::Json, Encoding::MessagePack, Encoding::Cdr] {
             let mut bytes = Vec::new();
             encoding.encode(&sample(), &mut bytes).expect("encode");
             let back: Sample = encoding.decode(&bytes).expect("decode");
@@ -137,12 +155,13 @@ mod tests {
 
     #[test]
     fn garbage_is_an_error_not_a_panic() {
-        for encoding in [Encoding::Json, Encoding::MessagePack] {
+        for encoding in [Encoding::Json, Encoding::MessagePack, Encoding::Cdr] {
             for bytes in [&b""[..], b"\xc1", b"{\"name\":", b"\x92\xa4ba"] {
                 assert!(encoding.decode::<Sample>(bytes).is_err(), "{encoding:?} {bytes:?}");
             }
         }
         assert_eq!(Encoding::from_mcap_name("cbor"), None);
+        assert_eq!(Encoding::from_mcap_name("cdr"), Some(Encoding::Cdr));
         assert_eq!(Encoding::from_mcap_name("msgpack"), Some(Encoding::MessagePack));
     }
 }

@@ -13,6 +13,7 @@
 //! - Both hosts report [`HostStats`]: per module, cycles, rates, compute time, latency, and
 //!   what each connection overwrote, dropped or merged.
 
+pub mod cdr;
 mod connection;
 mod encoding;
 mod graph;
@@ -23,6 +24,7 @@ mod module;
 mod package;
 mod rng;
 pub mod serde_duration;
+pub mod shared;
 pub mod signal;
 mod stats;
 mod tap;
@@ -43,6 +45,7 @@ pub use message::{ErasedPackage, Message};
 pub use module::{Context, Module, ModuleError, Wake};
 pub use package::{ModuleId, Package};
 pub use rng::{module_rng, stable_hash};
+pub use shared::Shared;
 pub use stats::{
     HostKind, HostStats, InputStats, ModuleStats, RateStats, Scheduling, StatsCollector, Summary,
 };

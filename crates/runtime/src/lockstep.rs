@@ -597,8 +597,10 @@ impl LockstepHost {
         {
             tap.package(&TapRecord {
                 time: self.now,
+                host: self.wiring.host,
                 module: ModuleId(module),
                 module_name: &self.wiring.names[module as usize],
+                port,
                 output: &output.name,
                 type_name: output.type_name,
                 package: package.as_ref(),

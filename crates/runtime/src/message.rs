@@ -26,6 +26,8 @@ pub trait ErasedPackage: Send {
     fn encode(&self, encoding: Encoding, out: &mut Vec<u8>) -> Result<(), EncodingError>;
     /// The value as JSON.
     fn write_json(&self, out: &mut Vec<u8>) -> Result<(), serde_json::Error>;
+    /// The format of the value's type, for a positional encoding's schema ([`crate::cdr`]).
+    fn format(&self) -> Result<crate::cdr::Format, crate::cdr::TraceError>;
     /// A copy of the package, for a tap that encodes it on another thread: cloning costs the
     /// sending module far less than encoding.
     fn clone_boxed(&self) -> Box<dyn ErasedPackage>;
@@ -48,6 +50,10 @@ impl<T: Message> ErasedPackage for Package<T> {
 
     fn write_json(&self, out: &mut Vec<u8>) -> Result<(), serde_json::Error> {
         serde_json::to_writer(out, &self.value)
+    }
+
+    fn format(&self) -> Result<crate::cdr::Format, crate::cdr::TraceError> {
+        crate::cdr::format_of::<T>()
     }
 
     fn clone_boxed(&self) -> Box<dyn ErasedPackage> {

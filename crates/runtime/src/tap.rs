@@ -9,8 +9,13 @@ use crate::time::Time;
 pub struct TapRecord<'a> {
     /// When the package became visible (host time).
     pub time: Time,
+    /// A number unique to the host in this process: with `module` and `port` it names the
+    /// output without comparing names, for a tap that sees several hosts.
+    pub host: u64,
     pub module: ModuleId,
     pub module_name: &'a str,
+    /// The output's place among its module's outputs.
+    pub port: u16,
     pub output: &'a str,
     pub type_name: &'static str,
     pub package: &'a dyn ErasedPackage,

@@ -331,8 +331,10 @@ impl Backend for ThreadedBackend<'_> {
         {
             tap.package(&TapRecord {
                 time: self.shared.clock.now(),
+                host: self.shared.wiring.host,
                 module: self.module,
                 module_name: &self.shared.wiring.names[self.module.index()],
+                port,
                 output: &output.name,
                 type_name: output.type_name,
                 package: package.as_ref(),

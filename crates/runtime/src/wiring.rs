@@ -27,6 +27,8 @@ pub(crate) struct OutputWiring {
 
 /// Per module: its outputs' readers and its inputs' writers.
 pub(crate) struct Wiring {
+    /// Unique to this host in the process (see [`crate::TapRecord::host`]).
+    pub(crate) host: u64,
     pub(crate) names: Vec<String>,
     pub(crate) outputs: Vec<Vec<OutputWiring>>,
     /// Per module, per input: the writing output and whether the writer wants to be woken when
@@ -174,5 +176,7 @@ pub(crate) fn split(graph: Graph) -> (Wiring, Vec<ModuleParts>) {
             })
         })
         .collect();
-    (Wiring { names, outputs, writers }, parts)
+    static HOSTS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let host = HOSTS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    (Wiring { host, names, outputs, writers }, parts)
 }

@@ -15,7 +15,7 @@ pub enum GoalSide {
 
 /// Goals of the head (Table 3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "goal", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum HeadGoal {
     ObserveBall,
     ObserveGoal {
@@ -96,7 +96,7 @@ impl Kick {
 
 /// Goals of the body (Table 3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "goal", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum BodyGoal {
     /// Turn to face a target while standing.
     ObserveTarget {
@@ -129,7 +129,7 @@ impl Goal for BodyGoal {
 
 /// Goals that need head and body together (Table 3).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "goal", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum WholeBodyGoal {
     GoToBallAndDribble { target: Point<Field> },
     StandUp { sequence: u8 },

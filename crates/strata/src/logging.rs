@@ -236,13 +236,14 @@ impl MatchLog {
                 .map(|hz| Duration::from_secs_f64(1.0 / hz)),
             last_world: Mutex::new(HashMap::new()),
             last_game: Mutex::new(None),
-            paths: Mutex::new(
-                robots
+            paths: Mutex::new(Paths {
+                records: robots
                     .iter()
                     .filter(|r| chosen(r))
                     .map(|r| (r.clone(), PathRecord::new(r)))
                     .collect(),
-            ),
+                by_module: Vec::new(),
+            }),
         };
         game.add_tap(Arc::new(filter));
         Ok(MatchLog { tap, path: settings.path.clone() })
@@ -292,20 +293,38 @@ fn path_key(report: &ReactiveReport) -> PathKey {
 }
 
 fn same_path(key: &PathKey, report: &ReactiveReport) -> bool {
+    // The labels are shared with the multiplexers: the same text is usually the same pointer.
+    fn same_text(a: Option<&str>, b: Option<&str>) -> bool {
+        match (a, b) {
+            (Some(a), Some(b)) => std::ptr::eq(a, b) || a == b,
+            (a, b) => a.is_none() && b.is_none(),
+        }
+    }
     let same = |k: &MuxPathKey, r: &MuxReport| {
-        k.0 == r.selected_goal && k.1 == r.primitive && k.2 == r.inhibited_by
+        same_text(k.0.as_deref(), r.selected_goal.as_deref())
+            && same_text(k.1.as_deref(), r.primitive.as_deref())
+            && k.2 == r.inhibited_by
     };
     same(&key[0], &report.whole_body) && same(&key[1], &report.head) && same(&key[2], &report.body)
+}
+
+/// The layer a behavior path comes from.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Layer {
+    Deliberative,
+    Planning,
+    Reactive,
 }
 
 struct PathRecord {
     topic: String,
     deliberative_module: String,
     planning_module: String,
-    reactive_module: String,
     /// The newest path of each layer, and the last one written.
     path: BehaviorPath,
     written: BehaviorPath,
+    /// `path` may differ from `written`.
+    changed: bool,
     /// What the reactive path was made of when it was last formatted.
     reactive_key: Option<PathKey>,
 }
@@ -316,9 +335,9 @@ impl PathRecord {
             topic: format!("{robot}/{BEHAVIOR_PATH_TOPIC}"),
             deliberative_module: format!("{robot}/deliberative"),
             planning_module: format!("{robot}/planning"),
-            reactive_module: format!("{robot}/reactive"),
             path: BehaviorPath::default(),
             written: BehaviorPath::default(),
+            changed: false,
             reactive_key: None,
         }
     }
@@ -332,8 +351,15 @@ struct LogFilter {
     world_period: Option<Duration>,
     last_world: Mutex<HashMap<ModuleId, Time>>,
     last_game: Mutex<Option<GameTruth>>,
-    /// By robot name.
-    paths: Mutex<Vec<(String, PathRecord)>>,
+    /// By robot name, and which of them each module id belongs to (found by name once per
+    /// module: a report passes here every reactive cycle of every robot).
+    paths: Mutex<Paths>,
+}
+
+struct Paths {
+    records: Vec<(String, PathRecord)>,
+    /// By module id: the index of its robot's record, `None` if it has none.
+    by_module: Vec<Option<Option<usize>>>,
 }
 
 impl LogFilter {
@@ -369,38 +395,55 @@ impl LogFilter {
         }
     }
 
-    fn behavior_path(&self, record: &TapRecord<'_>) {
+    /// `layer`: the layer of the record's output (deliberative scores, planning decisions or
+    /// reactive reports).
+    fn behavior_path(&self, record: &TapRecord<'_>, layer: Layer) {
         let mut paths = self.paths.lock().unwrap_or_else(PoisonError::into_inner);
-        let Some((_, entry)) = paths.iter_mut().find(|(robot, _)| {
-            record.module_name.len() > robot.len() && record.module_name.starts_with(robot.as_str())
-        }) else {
-            return;
-        };
+        let Paths { records, by_module } = &mut *paths;
+        let module = record.module.index();
+        if by_module.len() <= module {
+            by_module.resize(module + 1, None);
+        }
+        let index = *by_module[module].get_or_insert_with(|| {
+            records.iter().position(|(robot, _)| {
+                record.module_name.len() > robot.len()
+                    && record.module_name.starts_with(robot.as_str())
+            })
+        });
+        let Some((_, entry)) = index.and_then(|i| records.get_mut(i)) else { return };
         let any = record.package.as_any();
-        if record.module_name == entry.deliberative_module {
-            if let Some(p) = any.downcast_ref::<Package<DeliberativeOutput>>() {
-                entry.path.deliberative.clone_from(&p.value.behavior_path);
+        match layer {
+            Layer::Deliberative if record.module_name == entry.deliberative_module => {
+                if let Some(p) = any.downcast_ref::<Package<DeliberativeOutput>>() {
+                    entry.path.deliberative.clone_from(&p.value.behavior_path);
+                    entry.changed = true;
+                }
             }
-        } else if record.module_name == entry.planning_module {
-            if let Some(p) = any.downcast_ref::<Package<Decision>>() {
-                let a = &p.value.assignment;
-                entry.path.planning = format!("{}/{}", a.mission.name(), a.role.name());
+            Layer::Planning if record.module_name == entry.planning_module => {
+                if let Some(p) = any.downcast_ref::<Package<Decision>>() {
+                    let a = &p.value.assignment;
+                    entry.path.planning = format!("{}/{}", a.mission.name(), a.role.name());
+                    entry.changed = true;
+                }
             }
-        } else if record.module_name == entry.reactive_module
-            && let Some(p) = any.downcast_ref::<Package<ReactiveReport>>()
-        {
-            // Checked every reactive cycle, written when any layer's path changed: a path
-            // holds until the next record (the reactive report of every cycle has it too).
-            let reactive_changed =
-                entry.reactive_key.as_ref().is_none_or(|key| !same_path(key, &p.value));
-            if reactive_changed {
-                entry.reactive_key = Some(path_key(&p.value));
-                entry.path.reactive = p.value.active_path();
+            Layer::Reactive => {
+                let Some(p) = any.downcast_ref::<Package<ReactiveReport>>() else { return };
+                // Checked every reactive cycle, written when any layer's path changed: a path
+                // holds until the next record (the reactive report of every cycle has it too).
+                let reactive_changed =
+                    entry.reactive_key.as_ref().is_none_or(|key| !same_path(key, &p.value));
+                if reactive_changed {
+                    entry.reactive_key = Some(path_key(&p.value));
+                    entry.path.reactive = p.value.active_path();
+                    entry.changed = true;
+                }
+                if entry.changed && entry.written != entry.path {
+                    self.tap.record_value(&entry.topic, record.time, &entry.path);
+                    entry.written.clone_from(&entry.path);
+                }
+                entry.changed = false;
             }
-            if entry.written != entry.path {
-                self.tap.record_value(&entry.topic, record.time, &entry.path);
-                entry.written.clone_from(&entry.path);
-            }
+            _ => {}
         }
     }
 }
@@ -410,7 +453,9 @@ impl Tap for LogFilter {
         match record.output {
             WORLD_STATE_OUTPUT if !self.keep_world_state(record) => return,
             "ground_truth" => self.game_state(record),
-            "scores" | "decision" | "report" => self.behavior_path(record),
+            "scores" => self.behavior_path(record, Layer::Deliberative),
+            "decision" => self.behavior_path(record, Layer::Planning),
+            "report" => self.behavior_path(record, Layer::Reactive),
             _ => {}
         }
         self.tap.package(record);

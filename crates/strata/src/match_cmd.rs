@@ -65,8 +65,9 @@ pub struct MatchArgs {
     /// recording; docs/logging.md, "Overhead").
     #[arg(long, value_name = "zstd|lz4|none", default_value = "zstd", requires = "log")]
     pub log_compression: LogCompression,
-    /// How package values are encoded: msgpack (fast) or json (text, what Foxglove reads).
-    #[arg(long, value_name = "msgpack|json", default_value = "msgpack", requires = "log")]
+    /// How package values are encoded: cdr (compact, with OMG IDL schemas Foxglove reads),
+    /// msgpack or json (self-describing, larger and slower to write).
+    #[arg(long, value_name = "cdr|msgpack|json", default_value = "cdr", requires = "log")]
     pub log_encoding: Encoding,
     /// Show the match live in the web viewer (prints its address; docs/viewer.md).
     #[arg(long)]

@@ -156,8 +156,8 @@ pub struct RobotArgs {
     /// How the log's chunks are compressed: zstd, lz4 or none.
     #[arg(long, value_name = "zstd|lz4|none", default_value = "zstd", requires = "log")]
     pub log_compression: LogCompression,
-    /// How package values are encoded: msgpack or json.
-    #[arg(long, value_name = "msgpack|json", default_value = "msgpack", requires = "log")]
+    /// How package values are encoded: cdr (compact), msgpack or json.
+    #[arg(long, value_name = "cdr|msgpack|json", default_value = "cdr", requires = "log")]
     pub log_encoding: Encoding,
 }
 

@@ -16,11 +16,12 @@ use strata::replay_registry;
 use strata_log::LogReader;
 use strata_log::overrides::Override;
 use strata_log::replay::{ReplayOptions, replay};
-use strata_runtime::{Tap, TapRecord};
+use strata_runtime::shared::Recorder;
+use strata_runtime::{ErasedPackage, Tap, TapRecord};
 use view_support::{get, get_json, record_match, scratch};
 
-/// A delivered package: (topic, sequence, delivery time ns, stamp ns, value as logged).
-type Delivered = (String, u64, u64, u64, Vec<u8>);
+/// A delivered package: (topic, sequence, delivery time ns, stamp ns, the package).
+type Delivered = (String, u64, u64, u64, Box<dyn ErasedPackage>);
 
 /// Every package the host delivered, as the log should hold it.
 #[derive(Default)]
@@ -30,14 +31,12 @@ struct Collect {
 
 impl Tap for Collect {
     fn package(&self, record: &TapRecord<'_>) {
-        let mut value = Vec::new();
-        record.package.encode(LogSettings::full("").encoding, &mut value).expect("serializable");
         self.packages.lock().unwrap_or_else(PoisonError::into_inner).push((
             format!("{}/{}", record.module_name, record.output),
             record.package.seq(),
             record.time.as_nanos(),
             record.package.stamp().as_nanos(),
-            value,
+            record.package.clone_boxed(),
         ));
     }
 }
@@ -58,27 +57,48 @@ fn a_match_log_holds_every_package_and_survives_truncation() {
     assert_eq!(reader.stats().map(|s| s.dropped), Some(0));
     let mut logged = Vec::new();
     let mut records: BTreeMap<String, usize> = BTreeMap::new();
+    let mut shared = 0;
     for message in reader.messages() {
         let m = message.expect("message");
         if is_record_topic(&m.topic) {
             *records.entry(m.topic.to_string()).or_default() += 1;
             continue;
         }
-        logged.push((
-            m.topic.to_string(),
-            m.seq,
-            m.log_time.as_nanos(),
-            m.stamp.as_nanos(),
-            m.data,
-        ));
+        if m.topic.starts_with("shared/") {
+            shared += 1;
+            continue;
+        }
+        logged.push(m);
     }
+    // The world model's layout (one per team) and the multiplexers' goal lists.
+    assert!(shared >= 2, "{shared} shared values");
     let mut sent =
         std::mem::take(&mut *collect.packages.lock().unwrap_or_else(PoisonError::into_inner));
     // The file is in the order the writer received the packages; compare per topic.
     sent.sort_by(|a, b| (&a.0, a.1).cmp(&(&b.0, b.1)));
-    logged.sort_by(|a, b| (&a.0, a.1).cmp(&(&b.0, b.1)));
+    logged.sort_by(|a, b| (&*a.topic, a.seq).cmp(&(&*b.topic, b.seq)));
     assert_eq!(sent.len(), logged.len());
-    assert!(sent == logged, "the log differs from what the host delivered");
+    // Each package encoded as the log did (in its channel's encoding, the shared values the
+    // log holds as references) is the logged message, byte for byte.
+    let previous = Recorder::knowing(strata_runtime::shared::registered_ids()).install();
+    for (sent, logged) in sent.iter().zip(&logged) {
+        let mut ours = Vec::new();
+        sent.4.encode(logged.encoding, &mut ours).expect("serializable");
+        let header = (sent.0.as_str(), sent.1, sent.2, sent.3);
+        let theirs =
+            (&*logged.topic, logged.seq, logged.log_time.as_nanos(), logged.stamp.as_nanos());
+        assert_eq!(header, theirs);
+        assert!(
+            ours == logged.data,
+            "{} #{}: the log differs from what the host delivered",
+            sent.0,
+            sent.1
+        );
+    }
+    Recorder::uninstall();
+    if let Some(previous) = previous {
+        previous.install();
+    }
     for topic in [
         "simulator/ground_truth",
         "home/1/world/world_state",
@@ -86,7 +106,7 @@ fn a_match_log_holds_every_package_and_survives_truncation() {
         "home/2/deliberative/scores",
         "away/1/planning/decision",
     ] {
-        assert!(logged.iter().any(|m| m.0 == topic), "nothing on {topic}");
+        assert!(logged.iter().any(|m| &*m.topic == topic), "nothing on {topic}");
     }
     // The game state and the behavior paths of every robot.
     assert!(records.get(GAME_STATE_TOPIC).is_some_and(|n| *n >= 2), "{records:?}");
@@ -130,6 +150,7 @@ fn logged_robots_can_be_chosen_and_the_world_state_decimated() {
     let topics: Vec<&str> = reader.topics().iter().map(|t| t.name.as_str()).collect();
     assert!(
         topics.iter().all(|t| t.starts_with("home/2/")
+            || t.starts_with("shared/")
             || *t == "simulator/ground_truth"
             || *t == GAME_STATE_TOPIC),
         "{topics:?}"

@@ -168,7 +168,7 @@ fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
     for topic in ["t10/3/perception/percepts", "t10/3/world/world_state", "t10/3/reactive/report"] {
         let info = reader.topic(topic).unwrap_or_else(|| panic!("no topic {topic}"));
         assert!(info.messages > 0, "{topic}");
-        assert_eq!(info.message_encoding, "msgpack");
+        assert_eq!(info.message_encoding, "cdr");
     }
     let world = reader
         .messages_on(["t10/3/world/world_state"])

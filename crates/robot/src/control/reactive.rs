@@ -25,7 +25,7 @@ use std::collections::BTreeSet;
 use std::fmt::Debug;
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::Time;
+use strata_runtime::{Shared, Time};
 
 use crate::command::{
     ActuationMessage, BodyCommand, HeadCommand, MotionCommands, Resource, ResourceGroup,
@@ -38,7 +38,7 @@ use crate::platform::FallDirection;
 /// How stable the robot is, from its inertial sensors (the paper's standing status: stable,
 /// unstable or fallen).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(tag = "status", content = "direction", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum Stability {
     #[default]
     Stable,
@@ -325,15 +325,56 @@ pub struct GoalReport {
 
 /// The goals a multiplexer scored in one cycle, in the order it scored them: a list shared
 /// with the multiplexer, since consecutive cycles on one world state score the same goals the
-/// same way and must not copy their reports. Reads as a slice; serialized as a list.
+/// same way and must not copy their reports. Reads as a slice.
+///
+/// Serialized as the goals' labels — what they are, which changes with the score vector or
+/// the split of its goals, seldom at the reactive layer's rate: a [`Shared`] value a log stores
+/// once — and each goal's scores of this cycle.
 #[derive(Clone, Default)]
-pub struct GoalReports(Option<std::sync::Arc<[GoalReport]>>);
+pub struct GoalReports {
+    list: Option<std::sync::Arc<[GoalReport]>>,
+    /// The labels of `list`'s goals; `None` when there are none.
+    labels: Option<Shared<GoalLabels>>,
+}
+
+/// The labels of a multiplexer's scored goals, in order.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct GoalLabels(pub Vec<GoalLabel>);
+
+impl std::ops::Deref for GoalLabels {
+    type Target = [GoalLabel];
+
+    fn deref(&self) -> &[GoalLabel] {
+        &self.0
+    }
+}
+
+/// What a scored goal is: its label, the objects it concerns and its deliberative score.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GoalLabel {
+    pub goal: std::sync::Arc<str>,
+    pub objects: std::sync::Arc<[String]>,
+    /// S_d
+    pub deliberative: f64,
+}
+
+impl GoalLabel {
+    /// Whether `report` has this label: the same texts (usually the very same shared ones) and
+    /// the same deliberative score, bit for bit.
+    fn labels(&self, report: &GoalReport) -> bool {
+        let same_goal =
+            std::sync::Arc::ptr_eq(&self.goal, &report.goal) || self.goal == report.goal;
+        let same_objects = std::sync::Arc::ptr_eq(&self.objects, &report.objects)
+            || self.objects == report.objects;
+        same_goal && same_objects && self.deliberative.to_bits() == report.deliberative.to_bits()
+    }
+}
 
 impl std::ops::Deref for GoalReports {
     type Target = [GoalReport];
 
     fn deref(&self) -> &[GoalReport] {
-        self.0.as_deref().unwrap_or_default()
+        self.list.as_deref().unwrap_or_default()
     }
 }
 
@@ -350,9 +391,16 @@ impl GoalReports {
     /// Replaces the list with `reports`' (leaving `reports` empty, its capacity kept): in
     /// place when nobody else holds the list any longer and it is as long, as it is when a
     /// multiplexer assesses the same goals on a new world state after the previous cycle's
-    /// report was dropped.
+    /// report was dropped. The labels are kept when the goals are the same.
     fn replace(&mut self, reports: &mut Vec<GoalReport>) {
-        if let Some(list) = self.0.as_mut().and_then(std::sync::Arc::get_mut)
+        let same_labels = self.labels.as_ref().is_some_and(|labels| {
+            labels.len() == reports.len()
+                && labels.iter().zip(reports.iter()).all(|(l, r)| l.labels(r))
+        });
+        if !same_labels {
+            self.labels = GoalReports::labels_of(reports);
+        }
+        if let Some(list) = self.list.as_mut().and_then(std::sync::Arc::get_mut)
             && list.len() == reports.len()
         {
             for (slot, report) in list.iter_mut().zip(reports.drain(..)) {
@@ -360,13 +408,29 @@ impl GoalReports {
             }
             return;
         }
-        self.0 = (!reports.is_empty()).then(|| reports.drain(..).collect());
+        self.list = (!reports.is_empty()).then(|| reports.drain(..).collect());
+    }
+
+    fn labels_of(reports: &[GoalReport]) -> Option<Shared<GoalLabels>> {
+        (!reports.is_empty()).then(|| {
+            Shared::new(GoalLabels(
+                reports
+                    .iter()
+                    .map(|r| GoalLabel {
+                        goal: r.goal.clone(),
+                        objects: r.objects.clone(),
+                        deliberative: r.deliberative,
+                    })
+                    .collect(),
+            ))
+        })
     }
 }
 
 impl From<Vec<GoalReport>> for GoalReports {
     fn from(reports: Vec<GoalReport>) -> GoalReports {
-        GoalReports((!reports.is_empty()).then(|| reports.into()))
+        let labels = GoalReports::labels_of(&reports);
+        GoalReports { list: (!reports.is_empty()).then(|| reports.into()), labels }
     }
 }
 
@@ -382,20 +446,85 @@ impl Debug for GoalReports {
     }
 }
 
+/// One goal's scores of a cycle, as written.
+#[derive(Serialize, Deserialize)]
+#[serde(rename = "GoalScores")]
+struct GoalScoresRecord {
+    reactive: f64,
+    final_score: f64,
+    applicable: bool,
+}
+
+/// The scores of every goal, written one record each without collecting them first.
+struct ScoreRecords<'a>(&'a [GoalReport]);
+
+impl Serialize for ScoreRecords<'_> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let mut seq = serializer.serialize_seq(Some(self.0.len()))?;
+        for r in self.0 {
+            seq.serialize_element(&GoalScoresRecord {
+                reactive: r.reactive,
+                final_score: r.final_score,
+                applicable: r.applicable,
+            })?;
+        }
+        seq.end()
+    }
+}
+
+#[derive(Serialize)]
+#[serde(rename = "GoalReports")]
+struct GoalReportsOut<'a> {
+    labels: &'a Option<Shared<GoalLabels>>,
+    scores: ScoreRecords<'a>,
+}
+
+#[derive(Deserialize)]
+#[serde(rename = "GoalReports")]
+struct GoalReportsIn {
+    labels: Option<Shared<GoalLabels>>,
+    scores: Vec<GoalScoresRecord>,
+}
+
 impl Serialize for GoalReports {
     fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        (**self).serialize(serializer)
+        GoalReportsOut { labels: &self.labels, scores: ScoreRecords(self) }.serialize(serializer)
     }
 }
 
 impl<'de> Deserialize<'de> for GoalReports {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        Vec::<GoalReport>::deserialize(deserializer).map(GoalReports::from)
+        let read = GoalReportsIn::deserialize(deserializer)?;
+        let labels = read.labels.as_deref().map_or(&[][..], |labels| &labels.0[..]);
+        if labels.len() != read.scores.len() {
+            return Err(serde::de::Error::custom(format!(
+                "{} goal scores for {} goal labels",
+                read.scores.len(),
+                labels.len()
+            )));
+        }
+        let list: Vec<GoalReport> = labels
+            .iter()
+            .zip(read.scores)
+            .map(|(label, scores)| GoalReport {
+                goal: label.goal.clone(),
+                objects: label.objects.clone(),
+                deliberative: label.deliberative,
+                reactive: scores.reactive,
+                final_score: scores.final_score,
+                applicable: scores.applicable,
+            })
+            .collect();
+        Ok(GoalReports { list: (!list.is_empty()).then(|| list.into()), labels: read.labels })
     }
 }
 
 /// One multiplexer's decision in one cycle: the debugging view of the reactive layer.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+///
+/// Serialized with the selected goal as its place among `goals` (their labels are written once
+/// per goal list, see [`GoalReports`]), or as its label when it is not one of them.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct MuxReport {
     pub group: Option<ResourceGroup>,
     pub goals: GoalReports,
@@ -405,6 +534,75 @@ pub struct MuxReport {
     pub inhibited_by: Option<ResourceGroup>,
     /// When the score vector in use was received.
     pub scores_received: Option<Time>,
+}
+
+/// The selected goal, as written.
+#[derive(Serialize, Deserialize)]
+#[serde(rename = "SelectedGoal", rename_all = "snake_case")]
+enum SelectedGoal<S> {
+    /// Its place among the goals.
+    Goal(u32),
+    Label(S),
+}
+
+/// A multiplexer's report as written.
+#[derive(Serialize, Deserialize)]
+#[serde(rename = "MuxReport")]
+struct MuxReportWire<G, S, P> {
+    group: Option<ResourceGroup>,
+    goals: G,
+    selected_goal: Option<SelectedGoal<S>>,
+    primitive: Option<P>,
+    inhibited_by: Option<ResourceGroup>,
+    scores_received: Option<Time>,
+}
+
+impl Serialize for MuxReport {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let selected_goal = self.selected_goal.as_deref().map(|selected| {
+            let place = self.goals.iter().position(|g| &*g.goal == selected);
+            match place.and_then(|i| u32::try_from(i).ok()) {
+                Some(i) => SelectedGoal::Goal(i),
+                None => SelectedGoal::Label(selected),
+            }
+        });
+        MuxReportWire {
+            group: self.group,
+            goals: &self.goals,
+            selected_goal,
+            primitive: self.primitive.as_deref(),
+            inhibited_by: self.inhibited_by,
+            scores_received: self.scores_received,
+        }
+        .serialize(serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for MuxReport {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let wire = MuxReportWire::<GoalReports, String, String>::deserialize(deserializer)?;
+        let selected_goal = match wire.selected_goal {
+            None => None,
+            Some(SelectedGoal::Label(label)) => Some(std::sync::Arc::from(label)),
+            Some(SelectedGoal::Goal(i)) => match wire.goals.get(i as usize) {
+                Some(goal) => Some(goal.goal.clone()),
+                None => {
+                    return Err(serde::de::Error::custom(format!(
+                        "selected goal {i} of {} goals",
+                        wire.goals.len()
+                    )));
+                }
+            },
+        };
+        Ok(MuxReport {
+            group: wire.group,
+            goals: wire.goals,
+            selected_goal,
+            primitive: wire.primitive.map(std::borrow::Cow::Owned),
+            inhibited_by: wire.inhibited_by,
+            scores_received: wire.scores_received,
+        })
+    }
 }
 
 /// Tunables of a multiplexer.

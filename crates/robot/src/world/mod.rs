@@ -27,9 +27,11 @@ mod module;
 mod object;
 mod odometry_error;
 mod pose;
+mod published;
 mod recovery;
 mod state;
 mod team;
+mod wire;
 
 pub use config::{
     AssociationConfig, CameraNoise, ConfidenceConfig, ConfigError, FieldRegion, MAX_INSTANCES,
@@ -48,8 +50,8 @@ pub use object::{
 };
 pub use pose::{PoseFilter, pose_posterior_covariance};
 pub use state::{
-    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectIndex,
-    OdometryErrorEstimate, PoseEstimate, WorldDiagnostics, WorldState,
+    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectIndex, ObjectInfo,
+    OdometryErrorEstimate, PoseEstimate, WorldDiagnostics, WorldLayout, WorldState,
 };
 pub use team::{
     Fused, FusionCandidate, SharedObject, Source, TeamError, TeamFusion, TeamObject,

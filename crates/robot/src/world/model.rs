@@ -4,9 +4,9 @@
 
 use std::ops::Range;
 
-use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2};
+use nalgebra::{Matrix2, Matrix3, Vector2};
 use serde::{Deserialize, Serialize};
-use strata_runtime::Time;
+use strata_runtime::{Shared, Time};
 
 use super::config::{
     ConfigError, ObjectConfidence, ObjectKind, PosePrior, SymmetryHint, WorldModelConfig,
@@ -14,26 +14,30 @@ use super::config::{
 };
 use super::expected::{BeliefView, ExpectedBelief, ObjectPrior, SensingCandidate};
 use super::math::{
-    BearingBound, RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius, symmetrize2,
+    BearingBound, RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius,
 };
 use super::object::{GainedInformation, MotionModel, ObjectFilter, innovation_at};
 use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
 use super::pose::PoseFilter;
+use super::published::{
+    Estimate, PoseFrame, Track as PublishedTrack, UNKNOWN_VARIANCE, derive, field_estimate_with,
+    map_prediction_from,
+};
 use super::recovery::{MapInstance, RecoveryInput, RecoveryOutcome, Sighting, TeamCue, recover};
 use super::state::{
-    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectIndex, ObjectName,
-    PoseEstimate, WorldDiagnostics, WorldState,
+    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectInfo, ObjectName,
+    PoseEstimate, WorldDiagnostics, WorldLayout, WorldState,
 };
 use super::team::{
     FusionCandidate, Source, TeamError, TeamFusion, TeamObject, TeammateEstimate, fuse,
 };
-use crate::geometry::{Field, Odometry, Point, Pose, Robot, Vector};
+use crate::geometry::{Field, Odometry, Point, Pose, Vector};
 use crate::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use crate::platform::{FootContact, ObjectClass};
 
 /// What the application can tell world modeling at run time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "command", rename_all = "snake_case")]
+#[serde(rename_all = "snake_case")]
 pub enum WorldCommand {
     /// The robot is here (placed by the referee, start of a half).
     SetPose { prior: PosePrior },
@@ -45,11 +49,6 @@ pub enum WorldCommand {
     SetHints { hints: Vec<SymmetryHint> },
 }
 
-/// Large but finite: published covariances must survive a JSON log.
-const UNKNOWN_VARIANCE: f64 = 1e4;
-/// Uncertainty added to a landmark predicted from the map and the pose (map and camera-height
-/// errors the pose covariance does not hold), m.
-const MAP_SIGMA: f64 = 0.05;
 /// Innovations of a moving object above this (chi-square, 2 dof, 97.5%) suggest a maneuver.
 const MANEUVER_GATE: f64 = 7.38;
 /// Objects closer than this are not expected to be seen (below the camera), m.
@@ -190,8 +189,8 @@ pub struct WorldModel {
     gate: f64,
     groups: Vec<Group>,
     slots: Vec<Slot>,
-    /// The slots by name, shared with every published state.
-    index: ObjectIndex,
+    /// The objects of interest and parameters every published state shares.
+    layout: Shared<WorldLayout>,
     pose: Option<PoseFilter>,
     lost: Option<LostReason>,
     last_pose_correction: Option<Time>,
@@ -218,38 +217,16 @@ pub struct WorldModel {
 }
 
 /// How many published object lists [`WorldModel::publish`] keeps for reuse: readers hold the
-/// newest (Latest) and sometimes the one before for a while.
-const PUBLISHED_LISTS: usize = 4;
+/// newest (Latest) and sometimes the one before for a while, and a log's writer those it has
+/// not written yet (a match's lockstep log holds up to about half a simulated second).
+const PUBLISHED_LISTS: usize = 32;
 
 /// What every object of one publication shares.
 #[derive(Clone, Copy, Debug)]
-struct PublicationFrame<'a> {
+struct PublicationFrame {
     stamp: Time,
-    pose: Pose,
-    pose_cov: Matrix3<f64>,
-    /// The usable pose filter and `(sin, cos)` of its heading.
-    map_frame: Option<(&'a PoseFilter, (f64, f64))>,
-    usable: bool,
-    /// `(sin, cos)` of `pose.theta`.
-    heading: (f64, f64),
-    threshold: f64,
+    pose: PoseFrame,
     max_age: f64,
-}
-
-/// The fields of a published [`ObjectEstimate`] that change from one publication to the next.
-#[derive(Clone, Copy, Debug)]
-struct Estimate {
-    tracked: bool,
-    known: bool,
-    position: Point<Robot>,
-    covariance: Matrix2<f64>,
-    field_position: Point<Field>,
-    field_covariance: Matrix2<f64>,
-    velocity: Option<Vector<Robot>>,
-    velocity_covariance: Option<Matrix2<f64>>,
-    field_velocity: Option<Vector<Field>>,
-    confidence: f64,
-    last_seen: Option<Time>,
 }
 
 fn bayes_detect(e: f64, pd: f64, pf: f64) -> f64 {
@@ -357,8 +334,27 @@ impl WorldModel {
             hints: config.pose.hints.clone(),
             odometry_error: OdometryErrorEstimator::new(config.pose.correct_odometry),
             team: TeamFusion::new(config.team),
+            layout: Shared::new(WorldLayout::new(
+                slots
+                    .iter()
+                    .map(|slot| {
+                        let group = &groups[slot.group];
+                        ObjectInfo {
+                            name: slot.name.clone(),
+                            group: group.name.clone(),
+                            class: group.class,
+                            variant: group.variant,
+                            category: group.category,
+                            map_position: slot.map_position,
+                        }
+                    })
+                    .collect(),
+                config.camera,
+                config.confidence.detection_probability,
+                config.confidence.view_margin,
+                config.confidence.unknown_threshold,
+            )),
             groups,
-            index: ObjectIndex::new(slots.iter().map(|s| &s.name)),
             slots,
             pose,
             lost,
@@ -1337,7 +1333,7 @@ impl WorldModel {
     }
 
     /// What every object's estimate of a publication shares.
-    fn publication_frame(&self) -> PublicationFrame<'_> {
+    fn publication_frame(&self) -> PublicationFrame {
         let unknown_pose = Matrix3::from_diagonal(&nalgebra::Vector3::new(
             UNKNOWN_VARIANCE,
             UNKNOWN_VARIANCE,
@@ -1347,7 +1343,6 @@ impl WorldModel {
             .pose
             .as_ref()
             .map_or((Pose::default(), unknown_pose), |p| (p.pose(), p.covariance()));
-        let usable_pose = self.pose_usable();
         // The heading's trigonometry once per publication rather than once per object, and
         // once for both frames when the published heading is the filter's (normalized already).
         let heading = pose.theta.sin_cos();
@@ -1360,112 +1355,62 @@ impl WorldModel {
         };
         PublicationFrame {
             stamp: self.time.unwrap_or(Time::ZERO),
-            pose,
-            pose_cov,
-            map_frame: usable_pose.map(|p| (p, filter_heading(p))),
-            usable: usable_pose.is_some(),
-            heading,
-            threshold: self.config.confidence.unknown_threshold,
+            pose: PoseFrame {
+                pose,
+                pose_cov,
+                map_frame: self.pose_usable().map(|p| (p.state(), filter_heading(p))),
+                heading,
+                threshold: self.config.confidence.unknown_threshold,
+            },
             max_age: self.config.pose.map_accuracy_max_age,
         }
     }
 
     /// The parts of slot `i`'s published estimate that change from one publication to the
-    /// next. `unknown`: the field estimate of an object nothing locates (the same for every
-    /// such slot of a publication: it depends on the pose alone), once worked out.
+    /// next (see [`derive`]); adds what the map accuracy needs to `errors`.
     // Inlined into the publication loops: the estimate goes straight into the published
     // object's fields instead of through a returned copy.
     #[inline(always)]
     fn estimate(
         &self,
         i: usize,
-        frame: &PublicationFrame<'_>,
+        frame: &PublicationFrame,
         unknown: &mut Option<(Point<Field>, Matrix2<f64>)>,
         errors: &mut MapErrors,
     ) -> Estimate {
         let slot = &self.slots[i];
-        let group = &self.groups[slot.group];
-        let confidence = self.frame_confidence(i);
-        let moving = group.category != ObjectCategory::Landmark;
-        let (pose, pose_cov, heading) = (&frame.pose, &frame.pose_cov, frame.heading);
-        let field = |position: Vector2<f64>, covariance: &Matrix2<f64>| {
-            let (f, c) = field_estimate_with(pose, heading, pose_cov, position, covariance);
-            (Point::new(f.x, f.y), c)
-        };
-        let (tracked, position, covariance, velocity, velocity_covariance, last_seen, on_field) =
-            match &slot.track {
-                Some(t) => {
-                    let (position, covariance) =
-                        (t.filter.position_vector(), t.filter.position_covariance());
-                    let on_field = field(position, &covariance);
-                    (
-                        true,
-                        position,
-                        covariance,
-                        moving.then(|| t.filter.velocity()),
-                        moving.then(|| t.filter.velocity_covariance()),
-                        Some(t.last_seen),
-                        on_field,
-                    )
-                }
-                None => {
-                    let (position, covariance) = match frame.map_frame.zip(slot.map_position) {
-                        Some(((pose, heading), map)) => map_prediction_at(pose, heading, map),
-                        None => (Vector2::zeros(), Matrix2::identity() * UNKNOWN_VARIANCE),
-                    };
-                    // With a usable pose an untracked object is reported where the map puts
-                    // it; without, the unknown estimate is placed with the pose.
-                    let on_field = if frame.usable {
-                        (
-                            slot.map_position.unwrap_or_default(),
-                            Matrix2::identity() * MAP_SIGMA.powi(2),
-                        )
-                    } else {
-                        *unknown.get_or_insert_with(|| field(position, &covariance))
-                    };
-                    (false, position, covariance, None, None, None, on_field)
-                }
-            };
-        let (field_position, field_covariance) = on_field;
-        let known = tracked && confidence >= frame.threshold;
+        let moving = self.groups[slot.group].category != ObjectCategory::Landmark;
+        let track = slot.track.as_ref().map(|t| PublishedTrack {
+            position: t.filter.position_vector(),
+            covariance: t.filter.position_covariance(),
+            velocity: moving.then(|| (t.filter.velocity(), t.filter.velocity_covariance())),
+            last_seen: t.last_seen,
+        });
+        let e = derive(&frame.pose, slot.map_position, self.frame_confidence(i), track, unknown);
         // The age of the last sighting only for the landmarks that may take part.
-        let recent = || last_seen.is_some_and(|t| (frame.stamp - t).as_secs_f64() <= frame.max_age);
-        if known
-            && frame.usable
+        let recent =
+            || e.last_seen.is_some_and(|t| (frame.stamp - t).as_secs_f64() <= frame.max_age);
+        if e.known
+            && frame.pose.map_frame.is_some()
             && let Some(map) = slot.map_position
             && recent()
         {
-            errors.add(field_position.distance(map));
+            errors.add(e.field_position.distance(map));
         }
-        // `Pose::vector_to_field` with the publication's heading trigonometry.
-        let (s, c) = heading;
-        let field_velocity = velocity.map(|v| Vector::new(c * v.x - s * v.y, s * v.x + c * v.y));
-        Estimate {
-            tracked,
-            known,
-            position: Point::new(position.x, position.y),
-            covariance,
-            field_position,
-            field_covariance,
-            velocity,
-            velocity_covariance,
-            field_velocity,
-            confidence,
-            last_seen,
-        }
+        e
     }
 
     fn world_state(
         &self,
-        frame: &PublicationFrame<'_>,
+        frame: &PublicationFrame,
         objects: std::sync::Arc<[ObjectEstimate]>,
         errors: &MapErrors,
     ) -> WorldState {
         WorldState {
             stamp: frame.stamp,
             pose: PoseEstimate {
-                pose: frame.pose,
-                covariance: frame.pose_cov,
+                pose: frame.pose.pose,
+                covariance: frame.pose.pose_cov,
                 confidence: self.pose_confidence(),
                 lost: self.lost.is_some(),
                 lost_reason: self.lost,
@@ -1478,9 +1423,11 @@ impl WorldModel {
             camera: self.config.camera,
             detection_probability: self.config.confidence.detection_probability,
             view_margin: self.config.confidence.view_margin,
-            unknown_threshold: frame.threshold,
+            unknown_threshold: frame.pose.threshold,
             diagnostics: self.diagnostics,
-            index: self.index.clone(),
+            layout: self.layout.clone(),
+            filter_heading: frame.pose.map_frame.map(|(state, _)| state[2]),
+            index: self.layout.index().clone(),
         }
     }
 
@@ -1547,20 +1494,6 @@ fn field_estimate(
     field_estimate_with(pose, pose.theta.sin_cos(), pose_cov, l, cov)
 }
 
-/// [`field_estimate`] with `(sin, cos)` of the pose's heading given.
-fn field_estimate_with(
-    pose: &Pose,
-    (s, c): (f64, f64),
-    pose_cov: &Matrix3<f64>,
-    l: Vector2<f64>,
-    cov: &Matrix2<f64>,
-) -> (Vector2<f64>, Matrix2<f64>) {
-    let r = Matrix2::new(c, -s, s, c);
-    let f = Vector2::new(pose.x, pose.y) + r * l;
-    let j = SMatrix::<f64, 2, 3>::new(1.0, 0.0, -s * l.x - c * l.y, 0.0, 1.0, c * l.x - s * l.y);
-    (f, symmetrize2(r * cov * r.transpose() + j * pose_cov * j.transpose()))
-}
-
 /// Where the pose and the map put the landmark instance at `map` (robot frame), with
 /// covariance; `heading` is `pose.heading_sin_cos()`.
 fn map_prediction_at(
@@ -1568,10 +1501,7 @@ fn map_prediction_at(
     heading: (f64, f64),
     map: Point<Field>,
 ) -> (Vector2<f64>, Matrix2<f64>) {
-    let (l, jac) = pose.expected_landmark_with(heading, map);
-    let cov =
-        jac * pose.covariance() * jac.transpose() + Matrix2::identity() * MAP_SIGMA * MAP_SIGMA;
-    (l, symmetrize2(cov))
+    map_prediction_from(&pose.state(), &pose.covariance(), heading, map)
 }
 
 /// The map accuracy's statistics, accumulated without storing the errors (same order and

@@ -30,6 +30,11 @@ impl PoseFilter {
         self.p
     }
 
+    /// The state `(x, y, theta)` as filtered (the heading not normalized again).
+    pub(crate) fn state(&self) -> Vector3<f64> {
+        self.x
+    }
+
     pub fn is_finite(&self) -> bool {
         all_finite(&self.x) && all_finite(&self.p)
     }
@@ -63,16 +68,6 @@ impl PoseFilter {
     /// `(sin, cos)` of the heading, for [`PoseFilter::expected_landmark_with`].
     pub(crate) fn heading_sin_cos(&self) -> (f64, f64) {
         self.x[2].sin_cos()
-    }
-
-    /// As [`PoseFilter::expected_landmark`] with the heading's trigonometry given: one
-    /// `sin_cos` serves every landmark instance of a frame.
-    pub(crate) fn expected_landmark_with(
-        &self,
-        heading: (f64, f64),
-        map: Point<Field>,
-    ) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
-        landmark_measurement_with(&self.x, heading, map)
     }
 
     /// The innovation of a landmark estimate `measured` of the landmark at `map`.
@@ -128,7 +123,7 @@ pub(crate) fn landmark_measurement(
 }
 
 /// [`landmark_measurement`] with `(sin, cos)` of the heading given.
-fn landmark_measurement_with(
+pub(crate) fn landmark_measurement_with(
     pose: &Vector3<f64>,
     (s, c): (f64, f64),
     map: Point<Field>,

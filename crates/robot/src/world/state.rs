@@ -4,7 +4,7 @@
 
 use nalgebra::{Matrix2, Matrix3};
 use serde::{Deserialize, Serialize};
-use strata_runtime::Time;
+use strata_runtime::{Shared, Time};
 
 use super::config::CameraNoise;
 use super::team::{SharedObject, TeamObject, TeammateEstimate};
@@ -374,8 +374,71 @@ pub struct WorldDiagnostics {
     pub team_rejected: u64,
 }
 
-/// The world state, published by the world-modeling module (Latest).
+/// An object of interest as the world model's configuration lays it out: what every
+/// publication says of it the same way.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectInfo {
+    /// `name#k` for landmark instances and obstacle tracks.
+    pub name: ObjectName,
+    /// The object of interest's name without the instance suffix.
+    pub group: ObjectName,
+    pub class: ObjectClass,
+    pub variant: Option<u16>,
+    pub category: ObjectCategory,
+    /// Landmarks: the known position of this instance.
+    pub map_position: Option<Point<Field>>,
+}
+
+/// What every world state of one world model shares: its objects of interest, in the order of
+/// [`WorldState::objects`], and the parameters its readers use. Fixed when the model is built,
+/// so a log stores it once ([`Shared`]) and every world state refers to it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WorldLayout {
+    pub objects: Vec<ObjectInfo>,
+    /// The camera model, for predicted observations (active vision).
+    pub camera: CameraNoise,
+    /// Detection probability of an object inside the view, for predicted observations.
+    pub detection_probability: f64,
+    /// Angular margin inside the view cone edges, rad.
+    pub view_margin: f64,
+    /// Confidence from which a tracked object is known.
+    pub unknown_threshold: f64,
+    /// The objects by name, made once per layout.
+    #[serde(skip)]
+    index: std::sync::OnceLock<ObjectIndex>,
+}
+
+impl WorldLayout {
+    pub fn new(
+        objects: Vec<ObjectInfo>,
+        camera: CameraNoise,
+        detection_probability: f64,
+        view_margin: f64,
+        unknown_threshold: f64,
+    ) -> WorldLayout {
+        WorldLayout {
+            objects,
+            camera,
+            detection_probability,
+            view_margin,
+            unknown_threshold,
+            index: std::sync::OnceLock::new(),
+        }
+    }
+
+    /// The objects by name.
+    pub fn index(&self) -> &ObjectIndex {
+        self.index.get_or_init(|| ObjectIndex::new(self.objects.iter().map(|o| &o.name)))
+    }
+}
+
+/// The world state, published by the world-modeling module (Latest).
+///
+/// Serialized as what the world model decided — the pose, each object's confidence and filter
+/// estimate — with a reference to its [`WorldLayout`]; what follows from those (field-frame
+/// estimates, where untracked landmarks should be) is worked out again when a state is read
+/// (`wire.rs`).
+#[derive(Clone, Debug, PartialEq)]
 pub struct WorldState {
     /// The measurement time of the newest percepts included.
     pub stamp: Time,
@@ -395,9 +458,13 @@ pub struct WorldState {
     pub view_margin: f64,
     pub unknown_threshold: f64,
     pub diagnostics: WorldDiagnostics,
-    /// Name lookups without scanning `objects`; not part of the state (empty when read back
-    /// from a log: lookups then scan).
-    #[serde(skip)]
+    /// The layout of `objects` (names, classes, map positions) and the parameters above.
+    pub layout: Shared<WorldLayout>,
+    /// The pose filter's heading as filtered, where the pose is usable: untracked landmarks
+    /// are predicted from it (it can differ from `pose.pose.theta`, normalized again, in the
+    /// last bit).
+    pub(crate) filter_heading: Option<f64>,
+    /// Name lookups without scanning `objects` (the layout's).
     pub index: ObjectIndex,
 }
 

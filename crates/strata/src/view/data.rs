@@ -1,18 +1,72 @@
 //! What the viewer shows, as compact time series built from logged (or live) packages: ground
 //! truth, each robot's estimates, behavior paths and scores.
 //!
-//! Packages come in as JSON, from a log or from a live match's tap alike, so both take one code
-//! path. Only the fields the viewer draws are kept; the large streams (world state, reactive
-//! report) are sampled at [`SAMPLE_PERIOD`] per robot before they are parsed, which bounds both
-//! the memory and the parsing cost of a whole match.
+//! Packages come from a log (encoded) or from a live match's tap (the packages themselves):
+//! world states and reactive reports are read as their Rust types (a log holds them compactly,
+//! what they derive is worked out when they are read), the rest as JSON. Only the fields the
+//! viewer draws are kept; the large streams (world state, reactive report) are sampled at
+//! [`SAMPLE_PERIOD`] per robot before they are read, which bounds both the memory and the cost
+//! of a whole match.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
-use strata_runtime::{Encoding, Time};
+use strata_robot::control::reactive::{MuxReport, ReactiveReport};
+use strata_robot::world::WorldState;
+use strata_runtime::cdr::{self, Format};
+use strata_runtime::{Encoding, ErasedPackage, Package, Time};
 use strata_spl::field::{Field, Side};
+
+/// A package as the viewer gets it.
+#[derive(Clone, Copy)]
+pub enum Incoming<'a> {
+    /// From a log: its bytes, their encoding and, for CDR, the channel's format.
+    Logged { encoding: Encoding, format: Option<&'a Format>, bytes: &'a [u8] },
+    /// From a live match.
+    Live(&'a dyn ErasedPackage),
+}
+
+impl std::fmt::Debug for Incoming<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Incoming::Logged { encoding, bytes, .. } => {
+                write!(f, "Logged({}, {} bytes)", encoding.mcap_name(), bytes.len())
+            }
+            Incoming::Live(p) => write!(f, "Live(seq {})", p.seq()),
+        }
+    }
+}
+
+impl Incoming<'_> {
+    /// The value as `T` read from its JSON form (the viewer's own views of the values, which
+    /// name the fields they read).
+    fn json<T: DeserializeOwned>(self) -> Option<T> {
+        match self {
+            Incoming::Logged { encoding: Encoding::Cdr, format, bytes } => {
+                serde_json::from_value(cdr::to_json(format?, bytes).ok()?).ok()
+            }
+            Incoming::Logged { encoding, bytes, .. } => encoding.decode(bytes).ok(),
+            Incoming::Live(package) => {
+                let mut json = Vec::new();
+                package.write_json(&mut json).ok()?;
+                serde_json::from_slice(&json).ok()
+            }
+        }
+    }
+
+    /// The value as its Rust type `T`.
+    fn typed<T: strata_runtime::Message>(self) -> Option<T> {
+        match self {
+            Incoming::Logged { encoding, bytes, .. } => encoding.decode(bytes).ok(),
+            Incoming::Live(package) => {
+                package.as_any().downcast_ref::<Package<T>>().map(|p| p.value.clone())
+            }
+        }
+    }
+}
 
 /// The spacing of the samples kept of the per-cycle streams of each robot.
 pub const SAMPLE_PERIOD: f64 = 0.05;
@@ -566,31 +620,31 @@ impl ViewData {
         }
     }
 
-    /// Takes one package (its topic, log time and encoded value). Unreadable packages are
-    /// counted, never fatal: a viewer shows what it can.
-    pub fn ingest(&mut self, topic: &str, time: Time, encoding: Encoding, value: &[u8]) {
+    /// Takes one package (its topic, log time and value). Unreadable packages are counted,
+    /// never fatal: a viewer shows what it can.
+    pub fn ingest(&mut self, topic: &str, time: Time, value: Incoming<'_>) {
         if !self.wants(topic, time) {
             return;
         }
         let Some((robot, kind)) = classify(topic) else { return };
         let t = time.as_secs_f64();
         let ok = match (robot, kind) {
-            (None, _) => self.ingest_truth(t, encoding, value),
+            (None, _) => self.ingest_truth(t, value),
             (Some(robot), kind) => {
                 let index = self.robot_index(robot);
                 let series = &mut self.robots[index];
                 match kind {
-                    Kind::World => ingest_world(series, t, encoding, value),
-                    Kind::Report => ingest_report(series, t, encoding, value),
-                    Kind::Deliberative => match encoding.decode::<DeliberativeIn>(value) {
-                        Ok(d) => {
+                    Kind::World => ingest_world(series, t, value),
+                    Kind::Report => ingest_report(series, t, value),
+                    Kind::Deliberative => match value.json::<DeliberativeIn>() {
+                        Some(d) => {
                             series.deliberative.push(LayerSample { t, text: d.behavior_path });
                             true
                         }
-                        Err(_) => false,
+                        None => false,
                     },
-                    Kind::Planning => match encoding.decode::<DecisionIn>(value) {
-                        Ok(d) => {
+                    Kind::Planning => match value.json::<DecisionIn>() {
+                        Some(d) => {
                             series.planning.push(PlanningSample {
                                 t,
                                 mission: label(&d.assignment.mission),
@@ -598,7 +652,7 @@ impl ViewData {
                             });
                             true
                         }
-                        Err(_) => false,
+                        None => false,
                     },
                     Kind::Truth => false,
                 }
@@ -615,8 +669,8 @@ impl ViewData {
         }
     }
 
-    fn ingest_truth(&mut self, t: f64, encoding: Encoding, value: &[u8]) -> bool {
-        let Ok(truth) = encoding.decode::<TruthIn>(value) else { return false };
+    fn ingest_truth(&mut self, t: f64, value: Incoming<'_>) -> bool {
+        let Some(truth) = value.json::<TruthIn>() else { return false };
         let mut robots = Vec::with_capacity(truth.robots.len());
         for r in truth.robots {
             let name = format!("{}/{}", if r.id.team == 0 { "home" } else { "away" }, r.id.player);
@@ -777,8 +831,81 @@ fn pose_to_field(p: Pose, attack_sign: f64) -> Pose {
     }
 }
 
-fn ingest_world(series: &mut RobotSeries, t: f64, encoding: Encoding, value: &[u8]) -> bool {
-    let Ok(world) = encoding.decode::<WorldIn>(value) else { return false };
+impl WorldIn {
+    fn of(state: &WorldState) -> WorldIn {
+        let p = state.pose.pose;
+        WorldIn {
+            pose: PoseEstimateIn {
+                pose: Pose { x: p.x, y: p.y, theta: p.theta },
+                confidence: state.pose.confidence,
+                lost: state.pose.lost,
+            },
+            objects: state
+                .objects
+                .iter()
+                .map(|o| ObjectIn {
+                    name: o.name.to_string(),
+                    group: o.group.to_string(),
+                    known: o.known,
+                    confidence: o.confidence,
+                    field_position: Xy { x: o.field_position.x, y: o.field_position.y },
+                })
+                .collect(),
+            team: state
+                .team
+                .iter()
+                .map(|o| TeamObjectIn {
+                    name: o.name.to_string(),
+                    position: Xy { x: o.position.x, y: o.position.y },
+                })
+                .collect(),
+        }
+    }
+}
+
+impl ReportIn {
+    fn of(report: &ReactiveReport) -> ReportIn {
+        let mux = |m: &MuxReport| MuxIn {
+            goals: m
+                .goals
+                .iter()
+                .map(|g| GoalIn {
+                    goal: g.goal.to_string(),
+                    objects: g.objects.to_vec(),
+                    deliberative: g.deliberative,
+                    reactive: g.reactive,
+                    final_score: g.final_score,
+                })
+                .collect(),
+            selected_goal: m.selected_goal.as_deref().map(str::to_owned),
+            primitive: m.primitive.as_deref().map(str::to_owned),
+            inhibited_by: m.inhibited_by.and_then(|g| serde_json::to_value(g).ok()),
+        };
+        ReportIn {
+            head: mux(&report.head),
+            body: mux(&report.body),
+            whole_body: mux(&report.whole_body),
+        }
+    }
+}
+
+/// A world state: as its Rust type, or (a log of another writer, a test) by its fields.
+fn world_of(value: Incoming<'_>) -> Option<WorldIn> {
+    match value.typed::<WorldState>() {
+        Some(state) => Some(WorldIn::of(&state)),
+        None => value.json(),
+    }
+}
+
+fn report_of(value: Incoming<'_>) -> Option<ReportIn> {
+    match value.typed::<ReactiveReport>() {
+        Some(report) => Some(ReportIn::of(&report)),
+        None => value.json(),
+    }
+}
+
+fn ingest_world(series: &mut RobotSeries, t: f64, value: Incoming<'_>) -> bool {
+    let Some(world) = world_of(value) else { return false };
     let ball = world
         .objects
         .iter()
@@ -798,8 +925,8 @@ fn ingest_world(series: &mut RobotSeries, t: f64, encoding: Encoding, value: &[u
     true
 }
 
-fn ingest_report(series: &mut RobotSeries, t: f64, encoding: Encoding, value: &[u8]) -> bool {
-    let Ok(report) = encoding.decode::<ReportIn>(value) else { return false };
+fn ingest_report(series: &mut RobotSeries, t: f64, value: Incoming<'_>) -> bool {
+    let Some(report) = report_of(value) else { return false };
     let head = &report.head;
     let gaze = head
         .selected_goal
@@ -883,7 +1010,8 @@ mod tests {
                 "team": [],
             });
             let bytes = serde_json::to_vec(&world).unwrap_or_else(|e| panic!("{e}"));
-            data.ingest("t10/3/world/world_state", Time::from_secs_f64(t), Encoding::Json, &bytes);
+            let value = Incoming::Logged { encoding: Encoding::Json, format: None, bytes: &bytes };
+            data.ingest("t10/3/world/world_state", Time::from_secs_f64(t), value);
         }
         let info = data.info();
         assert!(info.warnings.is_empty(), "{:?}", info.warnings);
@@ -910,11 +1038,13 @@ mod tests {
     fn bad_packages_are_counted_not_fatal() {
         let field = Field::preset("spl").unwrap_or_else(|e| panic!("{e}"));
         let mut data = ViewData::new("log", None, &field);
-        data.ingest("simulator/ground_truth", Time::ZERO, Encoding::Json, b"{not json");
-        data.ingest("home/1/world/world_state", Time::ZERO, Encoding::Json, b"[]");
-        data.ingest("home/1/reactive/report", Time::ZERO, Encoding::MessagePack, b"\xc1");
+        let logged = |encoding, bytes| Incoming::Logged { encoding, format: None, bytes };
+        data.ingest("simulator/ground_truth", Time::ZERO, logged(Encoding::Json, b"{not json"));
+        data.ingest("home/1/world/world_state", Time::ZERO, logged(Encoding::Json, b"[]"));
+        data.ingest("home/1/reactive/report", Time::ZERO, logged(Encoding::MessagePack, b"\xc1"));
+        data.ingest("home/1/planning/decision", Time::ZERO, logged(Encoding::Cdr, b"\0\x01\0\0"));
         let info = data.info();
-        assert_eq!(info.warnings.len(), 3, "{:?}", info.warnings);
+        assert_eq!(info.warnings.len(), 4, "{:?}", info.warnings);
         let frame = data.frame(Some(1.0));
         assert!(frame.ball.is_none());
     }

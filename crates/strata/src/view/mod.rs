@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result};
 use strata_log::LogReader;
-use strata_runtime::{Encoding, Tap, TapRecord, Time};
+use strata_runtime::{Tap, TapRecord, Time};
 use strata_spl::field::Field;
 
 use crate::logging::{RobotRunConfig, RunConfig};
@@ -99,7 +99,12 @@ pub fn load_log(path: &Path) -> Result<Arc<RwLock<ViewData>>> {
                 }
                 let mut data = shared.write().unwrap_or_else(PoisonError::into_inner);
                 for m in &batch {
-                    data.ingest(&m.topic, m.log_time, m.encoding, &m.data);
+                    let value = data::Incoming::Logged {
+                        encoding: m.encoding,
+                        format: m.format.as_deref(),
+                        bytes: &m.data,
+                    };
+                    data.ingest(&m.topic, m.log_time, value);
                 }
                 if let Some(e) = failure {
                     data.warn(format!("reading stopped early: {e}"));
@@ -197,16 +202,11 @@ impl Tap for LiveTap {
         let wanted =
             self.data.read().unwrap_or_else(PoisonError::into_inner).wants(&topic, record.time);
         if wanted {
-            // Encoded outside the lock: the server keeps answering meanwhile.
-            let mut bytes = Vec::with_capacity(1024);
-            if record.package.encode(Encoding::MessagePack, &mut bytes).is_ok() {
-                self.data.write().unwrap_or_else(PoisonError::into_inner).ingest(
-                    &topic,
-                    record.time,
-                    Encoding::MessagePack,
-                    &bytes,
-                );
-            }
+            self.data.write().unwrap_or_else(PoisonError::into_inner).ingest(
+                &topic,
+                record.time,
+                data::Incoming::Live(record.package),
+            );
         }
         if record.output == "ground_truth" {
             self.pace(record.time);
