@@ -1032,6 +1032,25 @@ fn shared_channel(
     (id, topic)
 }
 
+/// How long the writer of a sender that waits looks for the next command before sleeping.
+const SPIN: Duration = Duration::from_micros(300);
+
+/// The next command if one comes within [`SPIN`].
+fn spin_recv(receiver: &Receiver<Command>) -> Option<Command> {
+    let start = Instant::now();
+    loop {
+        for _ in 0..64 {
+            if let Ok(command) = receiver.try_recv() {
+                return Some(command);
+            }
+            std::hint::spin_loop();
+        }
+        if start.elapsed() >= SPIN {
+            return None;
+        }
+    }
+}
+
 struct OpenChunk {
     first_log_time: u64,
     opened: Instant,
@@ -1135,8 +1154,14 @@ impl WriterThread {
         // log holds once each (see `strata_runtime::shared`).
         Recorder::default().install();
         loop {
-            let command = match &self.chunk {
-                Some(chunk) => {
+            // A sender that waits hands a batch over every fraction of a millisecond: looking
+            // for it for a while before sleeping spares it waking this thread (a system call
+            // and an interrupt of the other core, measured at about 2.5 % of a match's time).
+            let spun =
+                if self.shared.when_full == WhenFull::Wait { spin_recv(&receiver) } else { None };
+            let command = match (spun, &self.chunk) {
+                (Some(command), _) => command,
+                (None, Some(chunk)) => {
                     let left = self.options.max_chunk_age.saturating_sub(chunk.opened.elapsed());
                     match receiver.recv_timeout(left) {
                         Ok(command) => command,
@@ -1147,7 +1172,7 @@ impl WriterThread {
                         Err(RecvTimeoutError::Disconnected) => break,
                     }
                 }
-                None => match receiver.recv() {
+                (None, None) => match receiver.recv() {
                     Ok(command) => command,
                     Err(_) => break,
                 },

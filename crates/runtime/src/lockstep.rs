@@ -32,7 +32,7 @@ use crate::module::{Backend, Context, Wake};
 use crate::package::{ModuleId, Package};
 use crate::rng::{module_rng, timing_rng};
 use crate::stats::{HostKind, HostStats, StatsCollector};
-use crate::tap::{Tap, TapRecord};
+use crate::tap::{HostTaps, Tap, TapRecord};
 use crate::time::Time;
 use crate::wiring::{ModuleParts, Wiring, split};
 
@@ -256,7 +256,7 @@ pub struct LockstepHost {
     seq_limit: u64,
     inject_order_base: u64,
     externals: Vec<InputRef>,
-    tap: Option<Arc<dyn Tap>>,
+    taps: HostTaps,
     trace: Option<Vec<TraceEntry>>,
     pacing: Option<Pacing>,
     interrupt: Option<Arc<AtomicBool>>,
@@ -343,7 +343,7 @@ impl LockstepHost {
             seq_limit: order.seq_limit(),
             inject_order_base: order.base(INJECT_PRIORITY),
             externals,
-            tap: None,
+            taps: HostTaps::default(),
             trace: None,
             pacing: None,
             interrupt: None,
@@ -362,10 +362,18 @@ impl LockstepHost {
         host
     }
 
-    /// Shows `tap` the packages of the outputs it wants ([`Tap::wants`], asked now).
+    /// Shows `tap` the packages of the outputs it wants ([`Tap::wants`], asked now), instead
+    /// of the taps set so far.
     pub fn set_tap(&mut self, tap: Arc<dyn Tap>) {
-        self.wiring.select_tapped(tap.as_ref());
-        self.tap = Some(tap);
+        self.taps = HostTaps::default();
+        self.add_tap(tap);
+    }
+
+    /// Shows `tap` too the packages of the outputs it wants ([`Tap::wants`], asked now); each
+    /// tap is shown only its outputs.
+    pub fn add_tap(&mut self, tap: Arc<dyn Tap>) {
+        self.taps.push(tap);
+        self.wiring.select_tapped(&self.taps);
     }
 
     /// Records every cycle and delivery (for determinism checks and debugging).
@@ -592,19 +600,20 @@ impl LockstepHost {
                 event: TraceEvent::Deliver { port, seq: package.seq(), stamp: package.stamp() },
             });
         }
-        if output.tapped
-            && let Some(tap) = &self.tap
-        {
-            tap.package(&TapRecord {
-                time: self.now,
-                host: self.wiring.host,
-                module: ModuleId(module),
-                module_name: &self.wiring.names[module as usize],
-                port,
-                output: &output.name,
-                type_name: output.type_name,
-                package: package.as_ref(),
-            });
+        if output.tapped != 0 {
+            self.taps.package(
+                output.tapped,
+                &TapRecord {
+                    time: self.now,
+                    host: self.wiring.host,
+                    module: ModuleId(module),
+                    module_name: &self.wiring.names[module as usize],
+                    port,
+                    output: &output.name,
+                    type_name: output.type_name,
+                    package: package.as_ref(),
+                },
+            );
         }
         let mut arrivals = std::mem::take(&mut self.arrivals);
         if let Some((last, others)) = output.readers.split_last() {

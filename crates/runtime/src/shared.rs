@@ -170,15 +170,42 @@ pub struct NewRecord {
     pub bytes: Vec<u8>,
 }
 
+/// Hashes a number with one multiplication: the recorder's keys are addresses and content
+/// hashes, already spread, and it is asked for every shared value a log writes.
+#[derive(Clone, Copy, Default)]
+struct NumberHasher(u64);
+
+impl std::hash::Hasher for NumberHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for byte in bytes {
+            self.0 = (self.0.rotate_left(8) ^ u64::from(*byte)).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        }
+    }
+
+    fn write_u64(&mut self, n: u64) {
+        self.0 = (self.0 ^ n).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+
+    fn write_usize(&mut self, n: usize) {
+        self.write_u64(n as u64);
+    }
+}
+
+type NumberMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<NumberHasher>>;
+
 /// Turns shared values into references on the thread it is installed on (a log's writer),
 /// remembering which records the log already holds.
 #[derive(Default)]
 pub struct Recorder {
     /// Ids the log already holds (or a replay's log holds).
-    known: HashSet<u64>,
+    known: HashSet<u64, std::hash::BuildHasherDefault<NumberHasher>>,
     /// Values seen lately, by address, with their id: a value kept alive here keeps its
     /// address, so an address names one value for as long as it is remembered.
-    seen: HashMap<usize, (Arc<dyn Any + Send + Sync>, u64)>,
+    seen: NumberMap<usize, (Arc<dyn Any + Send + Sync>, u64)>,
     /// Records to store before the package being written.
     new: Vec<NewRecord>,
     /// Formats of the types seen, traced once each.

@@ -35,8 +35,11 @@ impl std::fmt::Debug for TapRecord<'_> {
 /// An output as a tap is asked about it, before any package: see [`Tap::wants`].
 #[derive(Clone, Copy, Debug)]
 pub struct TapOutput<'a> {
+    /// As [`TapRecord::host`].
+    pub host: u64,
     pub module: ModuleId,
     pub module_name: &'a str,
+    pub port: u16,
     pub output: &'a str,
     pub type_name: &'static str,
 }
@@ -54,16 +57,18 @@ pub trait Tap: Send + Sync {
     /// not change afterwards.
     ///
     /// This tells the host what a tap can do without; it does not promise that the tap sees
-    /// only what it asked for: [`Taps`] passes every record it gets to all its taps, so a tap
-    /// that shares one with a tap wanting everything (a logger) gets everything. `package`
-    /// must still ignore what it has no use for.
+    /// only what it asked for (a host that was not asked, a `Taps` shared by several hosts
+    /// passes what it does not know about to all): `package` must still ignore what it has no
+    /// use for.
     fn wants(&self, output: &TapOutput<'_>) -> bool {
         let _ = output;
         true
     }
 }
 
-/// Several taps on one host (a host holds one): each sees every record, in order.
+/// Several taps as one: each sees every record, in order. A host shows each of its own taps
+/// ([`crate::LockstepHost::add_tap`]) only the outputs that tap wants; `Taps` is for a place
+/// that takes a single tap.
 #[derive(Clone, Default)]
 pub struct Taps(pub Vec<std::sync::Arc<dyn Tap>>);
 
@@ -83,5 +88,45 @@ impl Tap for Taps {
     /// Every output one of the taps wants.
     fn wants(&self, output: &TapOutput<'_>) -> bool {
         self.0.iter().any(|tap| tap.wants(output))
+    }
+}
+
+/// A host's taps, and the dispatch of a record to those that want its output.
+#[derive(Clone, Default)]
+pub(crate) struct HostTaps(Vec<std::sync::Arc<dyn Tap>>);
+
+impl HostTaps {
+    pub(crate) fn push(&mut self, tap: std::sync::Arc<dyn Tap>) {
+        self.0.push(tap);
+    }
+
+    pub(crate) fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// The taps that want `output`, one bit each (the 64th and later share the last bit).
+    pub(crate) fn wanting(&self, output: &TapOutput<'_>) -> u64 {
+        self.0
+            .iter()
+            .enumerate()
+            .filter(|(_, tap)| tap.wants(output))
+            .fold(0, |mask, (i, _)| mask | 1 << i.min(63))
+    }
+
+    /// Shows `record` to the taps of `mask` (see [`HostTaps::wanting`]).
+    pub(crate) fn package(&self, mask: u64, record: &TapRecord<'_>) {
+        let mut bits = mask;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            if i < 63 {
+                self.0[i].package(record);
+            } else {
+                // Beyond 63 taps: each of the rest decides for itself.
+                for tap in &self.0[63..] {
+                    tap.package(record);
+                }
+            }
+        }
     }
 }

@@ -22,7 +22,7 @@ use crate::module::{Backend, Context, Wake};
 use crate::package::ModuleId;
 use crate::rng::module_rng;
 use crate::stats::{HostKind, HostStats, InputStats, Scheduling, StatsCollector};
-use crate::tap::{Tap, TapRecord};
+use crate::tap::{HostTaps, Tap, TapRecord};
 use crate::time::{Clock, MonotonicClock};
 use crate::wiring::{ModuleParts, Wiring, split};
 
@@ -36,7 +36,7 @@ struct Shared {
     wiring: Wiring,
     senders: Vec<Sender<Event>>,
     clock: MonotonicClock,
-    tap: Option<Arc<dyn Tap>>,
+    taps: HostTaps,
 }
 
 enum Failure {
@@ -48,7 +48,7 @@ enum Failure {
 pub struct ThreadedHost {
     graph: Graph,
     config: HostConfig,
-    tap: Option<Arc<dyn Tap>>,
+    taps: HostTaps,
 }
 
 impl std::fmt::Debug for ThreadedHost {
@@ -59,25 +59,32 @@ impl std::fmt::Debug for ThreadedHost {
 
 impl ThreadedHost {
     pub fn new(graph: Graph, config: HostConfig) -> ThreadedHost {
-        ThreadedHost { graph, config, tap: None }
+        ThreadedHost { graph, config, taps: HostTaps::default() }
     }
 
     /// Shows `tap` the packages of the outputs it wants ([`Tap::wants`], asked at
-    /// [`ThreadedHost::start`]).
+    /// [`ThreadedHost::start`]), instead of the taps set so far.
     pub fn set_tap(&mut self, tap: Arc<dyn Tap>) {
-        self.tap = Some(tap);
+        self.taps = HostTaps::default();
+        self.taps.push(tap);
+    }
+
+    /// Shows `tap` too the packages of the outputs it wants; each tap is shown only its
+    /// outputs.
+    pub fn add_tap(&mut self, tap: Arc<dyn Tap>) {
+        self.taps.push(tap);
     }
 
     /// Starts every module's thread.
     pub fn start(self) -> Result<RunningHost, HostError> {
-        let ThreadedHost { graph, config, tap } = self;
+        let ThreadedHost { graph, config, taps } = self;
         let (mut wiring, parts) = split(graph);
-        if let Some(tap) = &tap {
-            wiring.select_tapped(tap.as_ref());
+        if !taps.is_empty() {
+            wiring.select_tapped(&taps);
         }
         let (senders, receivers): (Vec<_>, Vec<_>) =
             (0..wiring.names.len()).map(|_| crossbeam_channel::unbounded()).unzip();
-        let shared = Arc::new(Shared { wiring, senders, clock: MonotonicClock::start(), tap });
+        let shared = Arc::new(Shared { wiring, senders, clock: MonotonicClock::start(), taps });
         let (failure_tx, failure_rx) = crossbeam_channel::unbounded();
         let (stop_tx, stop_rx) = crossbeam_channel::bounded(1);
         let mut threads = Vec::new();
@@ -326,19 +333,20 @@ struct ThreadedBackend<'a> {
 impl Backend for ThreadedBackend<'_> {
     fn publish(&mut self, port: u16, package: Box<dyn ErasedPackage>) {
         let output = &self.shared.wiring.outputs[self.module.index()][usize::from(port)];
-        if output.tapped
-            && let Some(tap) = &self.shared.tap
-        {
-            tap.package(&TapRecord {
-                time: self.shared.clock.now(),
-                host: self.shared.wiring.host,
-                module: self.module,
-                module_name: &self.shared.wiring.names[self.module.index()],
-                port,
-                output: &output.name,
-                type_name: output.type_name,
-                package: package.as_ref(),
-            });
+        if output.tapped != 0 {
+            self.shared.taps.package(
+                output.tapped,
+                &TapRecord {
+                    time: self.shared.clock.now(),
+                    host: self.shared.wiring.host,
+                    module: self.module,
+                    module_name: &self.shared.wiring.names[self.module.index()],
+                    port,
+                    output: &output.name,
+                    type_name: output.type_name,
+                    package: package.as_ref(),
+                },
+            );
         }
         let at = Instant::now();
         let notify = |reader: &crate::wiring::Reader, arrival: Option<Arrival>| {

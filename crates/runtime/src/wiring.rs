@@ -7,7 +7,7 @@ use crate::message::ErasedInput;
 use crate::module::Module;
 use crate::package::ModuleId;
 use crate::stats::InputStats;
-use crate::tap::{Tap, TapOutput};
+use crate::tap::TapOutput;
 
 pub(crate) struct Reader {
     pub(crate) input: InputRef,
@@ -21,8 +21,9 @@ pub(crate) struct OutputWiring {
     pub(crate) type_name: &'static str,
     pub(crate) wake_on_ready: bool,
     pub(crate) readers: Vec<Reader>,
-    /// Whether the host's tap wants this output's packages ([`Wiring::select_tapped`]).
-    pub(crate) tapped: bool,
+    /// Which of the host's taps want this output's packages, a bit each
+    /// ([`Wiring::select_tapped`]).
+    pub(crate) tapped: u64,
 }
 
 /// Per module: its outputs' readers and its inputs' writers.
@@ -48,13 +49,16 @@ pub(crate) struct ModuleParts {
 }
 
 impl Wiring {
-    /// Asks `tap` once which outputs it wants ([`Tap::wants`]); the host shows it only those.
-    pub(crate) fn select_tapped(&mut self, tap: &dyn Tap) {
+    /// Asks the taps once which outputs they want ([`Tap::wants`]); the host shows each only
+    /// those.
+    pub(crate) fn select_tapped(&mut self, taps: &crate::tap::HostTaps) {
         for ((m, outputs), module_name) in self.outputs.iter_mut().enumerate().zip(&self.names) {
-            for output in outputs {
-                output.tapped = tap.wants(&TapOutput {
+            for (port, output) in outputs.iter_mut().enumerate() {
+                output.tapped = taps.wanting(&TapOutput {
+                    host: self.host,
                     module: ModuleId(m as u32),
                     module_name,
+                    port: port as u16,
                     output: &output.name,
                     type_name: output.type_name,
                 });
@@ -130,7 +134,7 @@ pub(crate) fn split(graph: Graph) -> (Wiring, Vec<ModuleParts>) {
                             }
                         })
                         .collect(),
-                    tapped: false,
+                    tapped: 0,
                 })
                 .collect()
         })

@@ -393,7 +393,8 @@ fn simultaneous_events_follow_module_priority() {
 }
 
 /// A tap that wants one output is shown only that output's packages, and the same ones a tap
-/// wanting everything sees of it; sharing a `Taps` with such a tap shows it everything again.
+/// wanting everything sees of it, also when the host has such a tap too; a `Taps` (several
+/// taps as one) shows each of its taps everything any of them wants.
 #[test]
 fn a_tap_sees_only_the_outputs_it_wants() {
     struct Only {
@@ -408,27 +409,34 @@ fn a_tap_sees_only_the_outputs_it_wants() {
             output.output == self.output
         }
     }
-    let run = |shared_with_everything: bool| {
+    let run = |how: u8| {
         let (mut host, everything, _) = pipeline(3);
         let only = Arc::new(Only { output: "estimate", inner: Collect::default() });
-        if shared_with_everything {
-            let taps = strata_runtime::Taps(vec![everything.clone(), only.clone()]);
-            host.set_tap(Arc::new(taps));
-        } else {
-            host.set_tap(only.clone());
+        match how {
+            0 => host.set_tap(only.clone()),
+            1 => {
+                host.set_tap(everything.clone());
+                host.add_tap(only.clone());
+            }
+            _ => {
+                let taps = strata_runtime::Taps(vec![everything.clone(), only.clone()]);
+                host.set_tap(Arc::new(taps));
+            }
         }
         host.run_for(Duration::from_secs(1)).expect("runs");
         let only = only.inner.0.lock().expect("lock").clone();
         let everything = everything.0.lock().expect("lock").clone();
         (only, everything)
     };
-    let (only, _) = run(false);
-    let (shared, everything) = run(true);
+    let (only, _) = run(0);
+    let (beside, everything) = run(1);
+    let (inside_taps, _) = run(2);
     assert!(!only.is_empty());
     assert!(only.iter().all(|(_, _, output, ..)| output == "estimate"), "{only:?}");
     let estimates: Vec<_> =
         everything.iter().filter(|(_, _, output, ..)| output == "estimate").cloned().collect();
     assert_eq!(only, estimates);
     assert!(everything.iter().any(|(_, _, output, ..)| output == "raw"));
-    assert_eq!(shared, everything, "a tap sharing `Taps` with a logger sees every record");
+    assert_eq!(beside, only, "a tap beside a logger still sees only its output");
+    assert_eq!(inside_taps, everything, "a tap inside `Taps` with a logger sees everything");
 }

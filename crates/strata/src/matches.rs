@@ -9,8 +9,7 @@ use anyhow::{Context as _, Result, bail};
 use serde::{Deserialize, Serialize};
 use strata_robot::assembly::RobotModules;
 use strata_runtime::{
-    HostConfig, HostStats, LockstepHost, Package, Tap, TapOutput, TapRecord, Taps, ThreadedHost,
-    Time,
+    HostConfig, HostStats, LockstepHost, Package, Tap, TapOutput, TapRecord, ThreadedHost, Time,
 };
 use strata_sim::{EventKind, RobotId};
 use strata_sim::{GameState, NoiseLevel, SimConfig, SimHandle, Simulation, add_simulator};
@@ -258,17 +257,21 @@ impl Match {
         self.extra_taps.push(tap);
     }
 
-    fn tap(&self) -> Arc<dyn Tap> {
+    /// The match's taps: the role tap and the added ones (each host shows each tap only the
+    /// outputs it wants).
+    fn taps(&self) -> Vec<Arc<dyn Tap>> {
         let mut taps: Vec<Arc<dyn Tap>> = vec![self.role_tap.clone()];
         taps.extend(self.extra_taps.iter().cloned());
-        Arc::new(Taps(taps))
+        taps
     }
 
     /// A lockstep host over this match's graph (experiments drive it themselves).
     pub fn lockstep(&mut self) -> Result<LockstepHost> {
         let graph = self.graph.take().context("the match's graph was already taken")?;
         let mut host = LockstepHost::new(graph, HostConfig::with_seed(self.config.seed));
-        host.set_tap(self.tap());
+        for tap in self.taps() {
+            host.add_tap(tap);
+        }
         Ok(host)
     }
 
@@ -283,7 +286,9 @@ impl Match {
         let stats = if self.config.realtime {
             let graph = self.graph.take().context("the match's graph was already taken")?;
             let mut host = ThreadedHost::new(graph, HostConfig::with_seed(self.config.seed));
-            host.set_tap(self.tap());
+            for tap in self.taps() {
+                host.add_tap(tap);
+            }
             let running = host.start()?;
             running.stop_on_interrupt()?;
             let stop = running.stop_handle();

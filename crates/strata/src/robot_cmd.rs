@@ -35,7 +35,7 @@ use strata_robot::platform::{
 };
 use strata_runtime::{
     Clock, Encoding, GraphBuilder, HostConfig, HostError, HostStats, MonotonicClock, Package, Tap,
-    TapRecord, Taps, ThreadedHost, Time,
+    TapRecord, ThreadedHost, Time,
 };
 use strata_soccer::behaviors::Decision;
 use strata_soccer::field::TeamField;
@@ -281,9 +281,10 @@ pub fn run(args: RobotArgs) -> Result<()> {
         None => None,
     };
     let mut host = ThreadedHost::new(graph, host_config);
-    let mut taps: Vec<Arc<dyn Tap>> = vec![Arc::clone(&watch) as Arc<dyn Tap>];
-    taps.extend(log.iter().map(|log| Arc::clone(log) as Arc<dyn Tap>));
-    host.set_tap(Arc::new(Taps(taps)));
+    host.add_tap(Arc::clone(&watch) as Arc<dyn Tap>);
+    if let Some(log) = &log {
+        host.add_tap(Arc::clone(log) as Arc<dyn Tap>);
+    }
 
     out.start(&StartInfo {
         team: args.team,

@@ -21,7 +21,8 @@ impl<'a> Writer<'a> {
     fn pad(&mut self, align: usize) {
         let misalignment = (self.out.len() - self.base) & (align - 1);
         if misalignment != 0 {
-            self.out.resize(self.out.len() + align - misalignment, 0);
+            // A copy of at most seven zeros: `resize` would call `memset` for them.
+            self.out.extend_from_slice(&[0; 8][..align - misalignment]);
         }
     }
 
