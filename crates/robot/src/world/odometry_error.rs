@@ -159,7 +159,11 @@ impl OdometryErrorEstimator {
         if informative {
             self.estimate.samples += 1;
         }
-        if let Some(covariance) = info.try_inverse()
+        // Innovations all at one place (one landmark) leave the rigid motion undetermined:
+        // the information matrix is then singular up to rounding, and its "inverse" holds
+        // variances of 1e15 of either sign. Such frames keep the previous fit.
+        if determined(&info)
+            && let Some(covariance) = info.try_inverse()
             && all_finite(&covariance)
         {
             let delta = covariance * b;
@@ -173,5 +177,72 @@ impl OdometryErrorEstimator {
             self.p[(1, 1)].max(0.0).sqrt(),
             self.p[(2, 2)].max(0.0).sqrt(),
         ];
+    }
+}
+
+/// The smallest eigenvalue an information matrix needs, relative to its largest, for the
+/// motion it describes to count as determined (rank-deficient ones come out near 1e-17).
+const MIN_CONDITION: f64 = 1e-9;
+
+/// Whether the information matrix of a rigid-motion fit determines all three components.
+fn determined(info: &Matrix3<f64>) -> bool {
+    let eigenvalues = info.symmetric_eigenvalues();
+    let largest = eigenvalues.max();
+    let smallest = eigenvalues.min();
+    largest.is_finite() && largest > 0.0 && smallest > largest * MIN_CONDITION
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A shift of the landmark at `prior` as the robot-frame motion `delta` (dx, dy, dtheta)
+    /// missed by odometry would make it, with 1 cm of measurement noise and no lag.
+    fn shift(prior: Vector2<f64>, delta: Vector3<f64>) -> LandmarkShift {
+        let j = SMatrix::<f64, 2, 3>::new(-1.0, 0.0, prior.y, 0.0, -1.0, -prior.x);
+        LandmarkShift {
+            prior,
+            innovation: j * delta,
+            covariance: Matrix2::identity() * 1e-4,
+            lag: Lag::default(),
+        }
+    }
+
+    #[test]
+    fn one_landmark_leaves_the_missed_motion_unknown() {
+        let mut estimator = OdometryErrorEstimator::new(false);
+        estimator.observe(&[shift(Vector2::new(2.0, 0.5), Vector3::new(0.01, -0.02, 0.005))]);
+        let estimate = estimator.estimate();
+        assert_eq!(estimate.last_correction, Odometry::default());
+        assert_eq!(estimate.last_correction_covariance, Matrix3::zeros());
+    }
+
+    #[test]
+    fn one_landmark_seen_twice_leaves_it_unknown_too() {
+        let mut estimator = OdometryErrorEstimator::new(false);
+        let delta = Vector3::new(0.01, -0.02, 0.005);
+        let prior = Vector2::new(2.0, 1.0);
+        estimator.observe(&[shift(prior, delta), shift(prior, delta)]);
+        assert_eq!(estimator.estimate().last_correction_covariance, Matrix3::zeros());
+    }
+
+    #[test]
+    fn two_landmarks_give_the_missed_motion_with_a_proper_covariance() {
+        let mut estimator = OdometryErrorEstimator::new(false);
+        let delta = Vector3::new(0.01, -0.02, 0.005);
+        estimator.observe(&[
+            shift(Vector2::new(2.0, 0.5), delta),
+            shift(Vector2::new(3.0, -1.5), delta),
+        ]);
+        let estimate = estimator.estimate();
+        let found = estimate.last_correction;
+        assert!((found.dx - delta.x).abs() < 1e-9, "{found:?}");
+        assert!((found.dy - delta.y).abs() < 1e-9, "{found:?}");
+        assert!((found.dtheta - delta.z).abs() < 1e-9, "{found:?}");
+        let covariance = estimate.last_correction_covariance;
+        let eigenvalues = covariance.symmetric_eigenvalues();
+        assert!(eigenvalues.min() > 0.0, "{covariance}");
+        // Centimetre observations a few metres away pin the motion to centimetres.
+        assert!(eigenvalues.max().sqrt() < 0.1, "{covariance}");
     }
 }

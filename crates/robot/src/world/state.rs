@@ -336,8 +336,9 @@ pub struct MapAccuracy {
 /// it only needs the landmarks' positions relative to the robot).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct OdometryErrorEstimate {
-    /// The motion the odometry missed in the last frame with landmark observations, in the
-    /// robot frame (true motion = reported motion followed by this).
+    /// The motion the odometry missed in the last frame whose landmark observations determine
+    /// it (landmarks at two places at least), in the robot frame (true motion = reported
+    /// motion followed by this); zero, with a zero covariance, until such a frame.
     pub last_correction: Odometry,
     pub last_correction_covariance: Matrix3<f64>,
     /// Estimated relative error of the odometry's (dx, dy, dtheta): true = (1 + e) * reported.
