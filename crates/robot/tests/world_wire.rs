@@ -6,55 +6,16 @@
 
 mod world_support;
 
-use strata_robot::geometry::{Odometry, Pose};
-use strata_robot::platform::ObjectClass;
-use strata_robot::world::{
-    ObjectKind, ObjectOfInterest, PosePrior, WorldCommand, WorldModel, WorldModelConfig, WorldState,
-};
+use strata_robot::geometry::Pose;
+use strata_robot::world::{PosePrior, WorldState};
 use strata_runtime::Encoding;
 use strata_runtime::shared::{self, Recorder};
-use world_support::{Sim, config, patrol_step};
+use world_support::{kidnapped_patrol, state_text};
 
-fn layout(initial: Option<PosePrior>) -> WorldModelConfig {
-    let mut config = config(initial);
-    config.objects.push(ObjectOfInterest {
-        name: "obstacle".to_owned(),
-        class: ObjectClass(30),
-        variant: None,
-        kind: ObjectKind::Obstacle {
-            max_tracks: 3,
-            acceleration_noise: 0.5,
-            velocity_decay: 1.0,
-            max_speed: 0.6,
-        },
-        confidence: None,
-    });
-    config
-}
-
-/// Debug prints every float with its sign and shortest round-trip digits: equal texts are
-/// equal states, bit for bit (NaNs aside).
-fn text(state: &WorldState) -> String {
-    format!("{state:?}")
-}
-
-/// Every state of a patrol (with a kidnap half way), each encoded with `encode` and read back.
+/// Every state published during a [`kidnapped_patrol`].
 fn states(initial: Option<PosePrior>, seed: u64, frames: usize) -> Vec<WorldState> {
-    let mut world = WorldModel::new(layout(initial)).expect("valid config");
-    let mut sim = Sim::new(seed, Pose::new(-1.0, 0.5, 0.3));
-    sim.ball_velocity = nalgebra::Vector2::new(0.4, -0.2);
     let mut states = Vec::new();
-    for frame in 0..frames {
-        let (odometry, percepts) = sim.frame(patrol_step(&sim));
-        world.process(odometry, &percepts);
-        if frame == frames / 2 {
-            world.command(WorldCommand::Kidnapped).expect("accepted");
-        }
-        if frame % 37 == 5 {
-            world.predict(Odometry { dx: 0.01, dy: 0.0, dtheta: -0.03 });
-        }
-        states.push(world.publish());
-    }
+    kidnapped_patrol(initial, seed, frames, |_, world| states.push(world.publish()));
     states
 }
 
@@ -83,7 +44,7 @@ fn round_trips(states: &[WorldState]) {
     }
     for (state, bytes) in states.iter().zip(&encoded) {
         let back: WorldState = Encoding::Cdr.decode(bytes).expect("decodes");
-        assert_eq!(text(&back), text(state), "CDR");
+        assert_eq!(state_text(&back), state_text(state), "CDR");
         // The objects by name, as the model's own state finds them.
         assert_eq!(back.object("ball").map(|o| o.id), state.object("ball").map(|o| o.id));
     }
@@ -91,7 +52,7 @@ fn round_trips(states: &[WorldState]) {
     for state in states.iter().step_by(17) {
         let json = serde_json::to_vec(state).expect("json");
         let back: WorldState = serde_json::from_slice(&json).expect("from json");
-        assert_eq!(text(&back), text(state), "JSON");
+        assert_eq!(state_text(&back), state_text(state), "JSON");
     }
     // Small: the layout and the derived estimates are not in the package.
     let inline = {

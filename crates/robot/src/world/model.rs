@@ -1261,33 +1261,11 @@ impl WorldModel {
         let mut unknown = None;
         // Collected straight into the shared list (exact size): no intermediate `Vec` to copy.
         let objects: std::sync::Arc<[ObjectEstimate]> = self
-            .slots
+            .layout
+            .objects
             .iter()
             .enumerate()
-            .map(|(i, slot)| {
-                let group = &self.groups[slot.group];
-                let e = self.estimate(i, &frame, &mut unknown, &mut errors);
-                ObjectEstimate {
-                    id: ObjectId(u16::try_from(i).unwrap_or(u16::MAX)),
-                    name: slot.name.clone(),
-                    group: group.name.clone(),
-                    class: group.class,
-                    variant: group.variant,
-                    category: group.category,
-                    tracked: e.tracked,
-                    known: e.known,
-                    position: e.position,
-                    covariance: e.covariance,
-                    field_position: e.field_position,
-                    field_covariance: e.field_covariance,
-                    velocity: e.velocity,
-                    velocity_covariance: e.velocity_covariance,
-                    field_velocity: e.field_velocity,
-                    confidence: e.confidence,
-                    last_seen: e.last_seen,
-                    map_position: slot.map_position,
-                }
-            })
+            .map(|(i, info)| self.estimate(i, &frame, &mut unknown, &mut errors).object(i, info))
             .collect();
         self.world_state(&frame, objects, &errors)
     }
@@ -1313,18 +1291,7 @@ impl WorldModel {
         let mut unknown = None;
         if let Some(objects) = std::sync::Arc::get_mut(&mut list) {
             for (i, o) in objects.iter_mut().enumerate() {
-                let e = self.estimate(i, &frame, &mut unknown, &mut errors);
-                o.tracked = e.tracked;
-                o.known = e.known;
-                o.position = e.position;
-                o.covariance = e.covariance;
-                o.field_position = e.field_position;
-                o.field_covariance = e.field_covariance;
-                o.velocity = e.velocity;
-                o.velocity_covariance = e.velocity_covariance;
-                o.field_velocity = e.field_velocity;
-                o.confidence = e.confidence;
-                o.last_seen = e.last_seen;
+                self.estimate(i, &frame, &mut unknown, &mut errors).write_into(o);
             }
         }
         let state = self.world_state(&frame, list.clone(), &errors);

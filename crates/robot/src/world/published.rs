@@ -12,6 +12,7 @@ use strata_runtime::Time;
 
 use super::math::symmetrize2;
 use super::pose::landmark_measurement_with;
+use super::state::{ObjectEstimate, ObjectId, ObjectInfo};
 use crate::geometry::{Field, Point, Pose, Robot, Vector};
 
 /// Large but finite: published covariances must survive a JSON log.
@@ -59,6 +60,48 @@ pub(crate) struct Estimate {
     pub field_velocity: Option<Vector<Field>>,
     pub confidence: f64,
     pub last_seen: Option<Time>,
+}
+
+impl Estimate {
+    /// The published object `id`: `info`'s identity with this estimate.
+    pub(crate) fn object(self, id: usize, info: &ObjectInfo) -> ObjectEstimate {
+        ObjectEstimate {
+            id: ObjectId(u16::try_from(id).unwrap_or(u16::MAX)),
+            name: info.name.clone(),
+            group: info.group.clone(),
+            class: info.class,
+            variant: info.variant,
+            category: info.category,
+            tracked: self.tracked,
+            known: self.known,
+            position: self.position,
+            covariance: self.covariance,
+            field_position: self.field_position,
+            field_covariance: self.field_covariance,
+            velocity: self.velocity,
+            velocity_covariance: self.velocity_covariance,
+            field_velocity: self.field_velocity,
+            confidence: self.confidence,
+            last_seen: self.last_seen,
+            map_position: info.map_position,
+        }
+    }
+
+    /// Writes this estimate into `object`, whose identity stays ([`Estimate::object`] for a
+    /// new one: the two list the same fields).
+    pub(crate) fn write_into(self, object: &mut ObjectEstimate) {
+        object.tracked = self.tracked;
+        object.known = self.known;
+        object.position = self.position;
+        object.covariance = self.covariance;
+        object.field_position = self.field_position;
+        object.field_covariance = self.field_covariance;
+        object.velocity = self.velocity;
+        object.velocity_covariance = self.velocity_covariance;
+        object.field_velocity = self.field_velocity;
+        object.confidence = self.confidence;
+        object.last_seen = self.last_seen;
+    }
 }
 
 /// The published estimate of an object with `confidence` and, if a filter follows it, `track`;

@@ -16,7 +16,7 @@ use strata_runtime::{Shared, Time};
 
 use super::published::{PoseFrame, Track, derive};
 use super::state::{
-    MapAccuracy, ObjectEstimate, ObjectId, OdometryErrorEstimate, PoseEstimate, WorldDiagnostics,
+    MapAccuracy, ObjectEstimate, OdometryErrorEstimate, PoseEstimate, WorldDiagnostics,
     WorldLayout, WorldState,
 };
 use super::team::TeamObject;
@@ -154,27 +154,8 @@ impl<'de> Deserialize<'de> for WorldState {
                     velocity: t.velocity.as_ref().map(|v| (v.velocity, v.covariance)),
                     last_seen: t.last_seen,
                 });
-                let e = derive(&frame, info.map_position, record.confidence, track, &mut unknown);
-                ObjectEstimate {
-                    id: ObjectId(u16::try_from(i).unwrap_or(u16::MAX)),
-                    name: info.name.clone(),
-                    group: info.group.clone(),
-                    class: info.class,
-                    variant: info.variant,
-                    category: info.category,
-                    tracked: e.tracked,
-                    known: e.known,
-                    position: e.position,
-                    covariance: e.covariance,
-                    field_position: e.field_position,
-                    field_covariance: e.field_covariance,
-                    velocity: e.velocity,
-                    velocity_covariance: e.velocity_covariance,
-                    field_velocity: e.field_velocity,
-                    confidence: e.confidence,
-                    last_seen: e.last_seen,
-                    map_position: info.map_position,
-                }
+                derive(&frame, info.map_position, record.confidence, track, &mut unknown)
+                    .object(i, info)
             })
             .collect();
         Ok(WorldState {

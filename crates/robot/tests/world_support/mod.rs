@@ -333,3 +333,54 @@ pub fn plain_sensing_candidate(
         .collect();
     SensingCandidate { observations }
 }
+
+/// [`config`] with obstacle tracks too (never observed by [`Sim`]: untracked objects without a
+/// map position).
+pub fn config_with_obstacles(initial: Option<PosePrior>) -> WorldModelConfig {
+    let mut config = config(initial);
+    config.objects.push(ObjectOfInterest {
+        name: "obstacle".to_owned(),
+        class: ObjectClass(30),
+        variant: None,
+        kind: ObjectKind::Obstacle {
+            max_tracks: 3,
+            acceleration_noise: 0.5,
+            velocity_decay: 1.0,
+            max_speed: 0.6,
+        },
+        confidence: None,
+    });
+    config
+}
+
+/// Debug prints every float with its sign and shortest round-trip digits: equal texts are
+/// equal states, bit for bit (NaNs aside).
+pub fn state_text(state: &WorldState) -> String {
+    format!("{state:?}")
+}
+
+/// A patrol with a rolling ball, a kidnap half way and an extra odometry prediction now and
+/// then (every path of the publication), on [`config_with_obstacles`]: `visit` sees the model
+/// after each of the `frames` frames.
+pub fn kidnapped_patrol(
+    initial: Option<PosePrior>,
+    seed: u64,
+    frames: usize,
+    mut visit: impl FnMut(usize, &mut strata_robot::world::WorldModel),
+) {
+    let mut world =
+        strata_robot::world::WorldModel::new(config_with_obstacles(initial)).expect("valid config");
+    let mut sim = Sim::new(seed, Pose::new(-1.0, 0.5, 0.3));
+    sim.ball_velocity = Vector2::new(0.4, -0.2);
+    for frame in 0..frames {
+        let (odometry, percepts) = sim.frame(patrol_step(&sim));
+        world.process(odometry, &percepts);
+        if frame == frames / 2 {
+            world.command(strata_robot::world::WorldCommand::Kidnapped).expect("accepted");
+        }
+        if frame % 37 == 5 {
+            world.predict(Odometry { dx: 0.01, dy: 0.0, dtheta: -0.03 });
+        }
+        visit(frame, &mut world);
+    }
+}
