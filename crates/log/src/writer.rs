@@ -1587,7 +1587,7 @@ mod tests {
         let tap = Arc::new(McapTap::create(&path, options).expect("create"));
         let values: Vec<(u32, String)> =
             (0..3 * BATCH as u32).map(|i| (i, format!("v{i}"))).collect();
-        let send = |tap: &McapTap, from: usize, to: usize| {
+        fn send(tap: &McapTap, values: &[(u32, String)], from: usize, to: usize) {
             for (i, value) in values.iter().enumerate().take(to).skip(from) {
                 let package =
                     Package::new(value.clone(), Time::from_nanos(i as u64), i as u64, ModuleId(0));
@@ -1602,35 +1602,16 @@ mod tests {
                     package: &package,
                 });
             }
-        };
+        }
         // Less than a batch stays with the sender.
-        send(&tap, 0, BATCH - 1);
+        send(&tap, &values, 0, BATCH - 1);
         assert!(tap.shared.sender.is_empty(), "a partial batch is not handed over");
         // The writer takes the first batch and is held there; the next fills the queue and
         // the third makes the sender wait.
         tap.gate().set_closed(true);
         let sender = {
             let (tap, values) = (Arc::clone(&tap), values.clone());
-            std::thread::spawn(move || {
-                for (i, value) in values.iter().enumerate().skip(BATCH - 1) {
-                    let package = Package::new(
-                        value.clone(),
-                        Time::from_nanos(i as u64),
-                        i as u64,
-                        ModuleId(0),
-                    );
-                    tap.package(&TapRecord {
-                        time: Time::from_nanos(i as u64),
-                        host: 0,
-                        module: ModuleId(0),
-                        module_name: "m",
-                        port: 0,
-                        output: "out",
-                        type_name: "(u32, String)",
-                        package: &package,
-                    });
-                }
-            })
+            std::thread::spawn(move || send(&tap, &values, BATCH - 1, values.len()))
         };
         let deadline = Instant::now() + Duration::from_secs(10);
         while !tap.shared.sender.is_full() && Instant::now() < deadline {
