@@ -15,7 +15,7 @@ use std::process::Command;
 use serde_json::Value;
 use strata::logging::LogSettings;
 use strata_log::LogReader;
-use view_support::{record_match, scratch};
+use view_support::{record_match, required_tool, scratch};
 
 fn checker() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/foxglove");
@@ -26,14 +26,12 @@ fn checker() -> Option<PathBuf> {
 
 #[test]
 fn foxglove_reads_every_package_of_a_match_log() {
-    let Some(script) = checker() else {
-        assert!(
-            std::env::var_os("STRATA_REQUIRE_FOXGLOVE").is_none(),
-            "STRATA_REQUIRE_FOXGLOVE is set but Node.js or tests/foxglove/node_modules is missing"
-        );
-        eprintln!(
-            "SKIPPED generic_tools: Node.js or the packages of crates/strata/tests/foxglove are missing (./scripts/test installs them)"
-        );
+    let Some(script) = required_tool(
+        checker(),
+        "STRATA_REQUIRE_FOXGLOVE",
+        "generic_tools",
+        "Node.js or the packages of crates/strata/tests/foxglove are missing",
+    ) else {
         return;
     };
     let dir = scratch("generic-tools");

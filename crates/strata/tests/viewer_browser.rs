@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 use strata::logging::LogSettings;
-use view_support::{get_json, record_match, scratch};
+use view_support::{get_json, record_match, required_tool, scratch};
 
 /// How long one Chromium run may take before it is stopped (a hung browser must not hang the
 /// suite); generous, this is no timing check.
@@ -151,14 +151,12 @@ fn check_drawn(drawn: &Value, frame: &Value, t: f64) -> Vec<(String, f64, f64)> 
 
 #[test]
 fn the_viewer_draws_robots_and_ball_where_the_log_says() {
-    let Some(binary) = find_chromium() else {
-        assert!(
-            std::env::var_os("STRATA_REQUIRE_CHROMIUM").is_none(),
-            "STRATA_REQUIRE_CHROMIUM is set but no chromium is on the PATH"
-        );
-        eprintln!(
-            "SKIPPED viewer_browser: `chromium` is not installed (./scripts/test installs it with apt-get install chromium)"
-        );
+    let Some(binary) = required_tool(
+        find_chromium(),
+        "STRATA_REQUIRE_CHROMIUM",
+        "viewer_browser",
+        "`chromium` is not on the PATH (apt-get install chromium)",
+    ) else {
         return;
     };
     let dir = scratch("viewer-browser");

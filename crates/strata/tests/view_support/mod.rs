@@ -22,6 +22,17 @@ pub fn scratch(name: &str) -> PathBuf {
     dir
 }
 
+/// A tool a test needs from outside the repository, when `found`; otherwise the test is
+/// skipped with `why` printed — unless `./scripts/test` set `required` (it installs the
+/// tools, so a missing one there is a failure, not a skip).
+pub fn required_tool<T>(found: Option<T>, required: &str, test: &str, why: &str) -> Option<T> {
+    if found.is_none() {
+        assert!(std::env::var_os(required).is_none(), "{required} is set but {why}");
+        eprintln!("SKIPPED {test}: {why} (./scripts/test installs it)");
+    }
+    found
+}
+
 /// Plays `seconds` of a `players`-a-side match with `seed` on the lockstep host, logged with
 /// `settings` (and seen by `extra`, if given).
 pub fn record_match(
