@@ -14,7 +14,7 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TrySendError};
 use serde::{Deserialize, Serialize};
 use strata_runtime::cdr::{Format, Schema, idl_schema};
 use strata_runtime::shared::{self, NewRecord, Recorder};
-use strata_runtime::{Encoding, ErasedPackage, GraphDescription, Tap, TapRecord, Time};
+use strata_runtime::{Encoding, ErasedPackage, GraphDescription, Tap, TapOutput, TapRecord, Time};
 
 use crate::error::LogError;
 use crate::mcap_file::{ChunkCompression, McapFile};
@@ -245,6 +245,31 @@ const HANDOVER_ENCODE: u8 = 2;
 /// that waits; larger ones are cloned.
 const SENDER_ENCODES_UP_TO: usize = 1024;
 
+/// A package as a tap gets it: shown (the sending module keeps it; the log clones or encodes
+/// it) or given (of an output nobody reads: the log keeps it, the sender is spared a clone and
+/// a drop; the writer thread encodes it).
+enum Offered<'a> {
+    Shown(&'a dyn ErasedPackage),
+    Given(Box<dyn ErasedPackage>),
+}
+
+impl Offered<'_> {
+    fn get(&self) -> &dyn ErasedPackage {
+        match self {
+            Offered::Shown(package) => *package,
+            Offered::Given(package) => package.as_ref(),
+        }
+    }
+
+    /// The package for the writer thread: the given one, or a clone of the shown one.
+    fn keep(self) -> Box<dyn ErasedPackage> {
+        match self {
+            Offered::Shown(package) => package.clone_boxed(),
+            Offered::Given(package) => package,
+        }
+    }
+}
+
 /// A message's value on its way to the writer thread.
 enum Payload {
     /// A package, encoded by the writer thread: the sending module only pays for a clone.
@@ -270,7 +295,7 @@ struct Gathering {
 type KnownOutput = Option<(u32, u8)>;
 
 impl Gathering {
-    fn topic(&self, record: &TapRecord<'_>) -> Option<Option<(u32, u8)>> {
+    fn topic(&self, record: &TapOutput<'_>) -> Option<Option<(u32, u8)>> {
         let (host, outputs) = self.modules.get(record.module.index())?;
         if *host != record.host {
             return None;
@@ -278,7 +303,7 @@ impl Gathering {
         *outputs.get(usize::from(record.port))?
     }
 
-    fn remember(&mut self, record: &TapRecord<'_>, topic: Option<(u32, u8)>) {
+    fn remember(&mut self, record: &TapOutput<'_>, topic: Option<(u32, u8)>) {
         let index = record.module.index();
         if self.modules.len() <= index {
             self.modules.resize_with(index + 1, || (u64::MAX, Vec::new()));
@@ -364,6 +389,9 @@ struct Shared {
     topics: Mutex<Vec<Arc<Topic>>>,
     /// Application record topics, by name.
     record_topics: RwLock<HashMap<String, Arc<Topic>>>,
+    /// The CDR schemas of the types senders encode, by type name: worked out once per type
+    /// (the IDL text of a type takes a few hundred thousand instructions), not per robot.
+    sender_schemas: Mutex<HashMap<String, Option<Arc<CdrSchema>>>>,
     #[cfg(test)]
     gate: Arc<test_gate::Gate>,
 }
@@ -491,30 +519,43 @@ impl Shared {
         }
     }
 
-    fn tap_package(&self, topics: &TopicCache, record: &TapRecord<'_>) {
-        if self.when_full == WhenFull::Wait && self.gather_package(record) {
-            return;
-        }
+    fn tap_package(
+        &self,
+        topics: &TopicCache,
+        output: &TapOutput<'_>,
+        time: Time,
+        package: Offered<'_>,
+    ) {
+        let package = match self.when_full {
+            WhenFull::Wait => match self.gather_package(output, time, package) {
+                Ok(()) => return,
+                Err(declined) => declined,
+            },
+            WhenFull::Drop => package,
+        };
         // The first package of an output, one the fast path declined, or a real-time sender.
-        let known = self.pending.lock().unwrap_or_else(PoisonError::into_inner).topic(record);
+        let known = self.pending.lock().unwrap_or_else(PoisonError::into_inner).topic(output);
         let (topic, handover) = match known {
             Some(Some(known)) => known,
             Some(None) => return,
             None => {
-                let Some(topic) = topics.topic(self, record) else {
+                let Some(topic) = topics.topic(self, output) else {
                     self.pending
                         .lock()
                         .unwrap_or_else(PoisonError::into_inner)
-                        .remember(record, None);
+                        .remember(output, None);
                     return;
                 };
-                let handover = self.decide_handover(&topic, record.package);
+                let handover = self.decide_handover(&topic, package.get());
                 self.pending
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner)
-                    .remember(record, Some((topic.id, handover)));
-                if handover == HANDOVER_ENCODE && self.gather_package(record) {
-                    return;
+                    .remember(output, Some((topic.id, handover)));
+                if self.when_full == WhenFull::Wait {
+                    match self.gather_package(output, time, package) {
+                        Ok(()) => return,
+                        Err(declined) => return self.hand_over(topic.id, time, declined),
+                    }
                 }
                 (topic.id, handover)
             }
@@ -523,71 +564,79 @@ impl Shared {
             self.drop_id(topic);
             return;
         }
-        let (stamp, seq) = (record.package.stamp(), record.package.seq());
-        // The sending module clones (shared parts such as a world state's objects are
-        // reference counted): the writer thread encodes.
-        let payload = Payload::Package(record.package.clone_boxed());
-        self.submit(topic, record.time, stamp, seq, payload);
+        self.hand_over(topic, time, package);
+    }
+
+    /// Queues the package for the writer thread to encode.
+    fn hand_over(&self, topic: u32, time: Time, package: Offered<'_>) {
+        let (stamp, seq) = (package.get().stamp(), package.get().seq());
+        self.submit(topic, time, stamp, seq, Payload::Package(package.keep()));
     }
 
     /// The usual way of a package from a sender that waits: under one lock, its topic is
-    /// found and the package goes into the batch, encoded or cloned as its topic says. `false`
-    /// when it did not (the output is new, or a value CDR cannot write, which sends its topic
-    /// to the writer from then on).
-    fn gather_package(&self, record: &TapRecord<'_>) -> bool {
+    /// found and the package goes into the batch (encoded, kept or cloned: see
+    /// [`Offered`]). The package back when it did not (the output is new, or a value CDR
+    /// cannot write, which sends its topic to the writer from then on).
+    fn gather_package<'a>(
+        &self,
+        output: &TapOutput<'_>,
+        time: Time,
+        package: Offered<'a>,
+    ) -> Result<(), Offered<'a>> {
         let (full, declined) = {
             let mut pending = self.pending.lock().unwrap_or_else(PoisonError::into_inner);
-            let topic = match pending.topic(record) {
+            let topic = match pending.topic(output) {
                 Some(Some(topic)) => topic,
                 // Not logged.
-                Some(None) => return true,
-                None => return false,
+                Some(None) => return Ok(()),
+                None => return Err(package),
             };
             if !self.accepting.load(Ordering::Acquire) {
                 drop(pending);
                 self.drop_id(topic.0);
-                return true;
+                return Ok(());
             }
             let (id, handover) = topic;
-            let (stamp, seq) = (record.package.stamp(), record.package.seq());
-            let (log_time, stamp) = (record.time.as_nanos(), stamp.as_nanos());
+            let (stamp, seq) = (package.get().stamp(), package.get().seq());
+            let (log_time, stamp) = (time.as_nanos(), stamp.as_nanos());
             let batch = &mut pending.batch;
-            let payload = if handover == HANDOVER_ENCODE {
-                let start = batch.bytes.len();
-                if record.package.encode(Encoding::Cdr, &mut batch.bytes).is_err() {
-                    batch.bytes.truncate(start);
-                    None
-                } else {
-                    Some(Payload::Bytes { start, len: batch.bytes.len() - start })
+            let payload = match package {
+                Offered::Shown(shown) if handover == HANDOVER_ENCODE => {
+                    let start = batch.bytes.len();
+                    if shown.encode(Encoding::Cdr, &mut batch.bytes).is_err() {
+                        batch.bytes.truncate(start);
+                        Err(package)
+                    } else {
+                        Ok(Payload::Bytes { start, len: batch.bytes.len() - start })
+                    }
                 }
-            } else {
-                Some(Payload::Package(record.package.clone_boxed()))
+                _ => Ok(Payload::Package(package.keep())),
             };
             match payload {
-                Some(payload) => {
+                Ok(payload) => {
                     batch.messages.push(Queued { topic: id, log_time, stamp, seq, payload });
                     let full = batch.messages.len() >= BATCH;
-                    (full.then(|| std::mem::replace(&mut pending.batch, self.spare())), None)
+                    (full.then(|| std::mem::replace(&mut pending.batch, self.spare())), Ok(()))
                 }
-                None => {
+                Err(package) => {
                     // From now on the writer encodes this topic's packages.
-                    pending.remember(record, Some((id, HANDOVER_CLONE)));
-                    (None, Some(id))
+                    pending.remember(output, Some((id, HANDOVER_CLONE)));
+                    (None, Err((id, package)))
                 }
             }
         };
-        if let Some(id) = declined {
+        if let Err((id, package)) = declined {
             if let Some(topic) = self.topic(id) {
                 topic.handover.store(HANDOVER_CLONE, Ordering::Relaxed);
             }
-            return false;
+            return Err(package);
         }
         if let Some(batch) = full
             && let Err(refused) = self.sender.send(Command::Messages(batch))
         {
             self.refused(refused.into_inner());
         }
-        true
+        Ok(())
     }
 
     /// How a topic's packages are handed over, from its first package: encoded by a sender
@@ -601,22 +650,32 @@ impl Shared {
         let format = (self.when_full == WhenFull::Wait && self.encoding == Encoding::Cdr)
             .then(|| package.format().ok())
             .flatten();
-        let schema = format.as_ref().and_then(|f| CdrSchema::of(f, &topic.type_name));
-        let handover = match (format, schema) {
-            (Some(format), Some(schema)) if !shared::appears_in(&format) => {
+        let handover = match format {
+            Some(format) if !shared::appears_in(&format) => {
                 let mut trial = Vec::new();
-                let encoded = package.encode(Encoding::Cdr, &mut trial);
-                if encoded.is_ok() && trial.len() <= SENDER_ENCODES_UP_TO {
-                    let _ = topic.cdr.set(schema);
-                    HANDOVER_ENCODE
-                } else {
-                    HANDOVER_CLONE
+                let small = package.encode(Encoding::Cdr, &mut trial).is_ok()
+                    && trial.len() <= SENDER_ENCODES_UP_TO;
+                match small.then(|| self.sender_schema(&format, &topic.type_name)).flatten() {
+                    Some(schema) => {
+                        let _ = topic.cdr.set(schema);
+                        HANDOVER_ENCODE
+                    }
+                    None => HANDOVER_CLONE,
                 }
             }
             _ => HANDOVER_CLONE,
         };
         topic.handover.store(handover, Ordering::Relaxed);
         handover
+    }
+
+    /// The CDR schema of a type a sender encodes (`None`: CDR cannot describe it).
+    fn sender_schema(&self, format: &Format, type_name: &str) -> Option<Arc<CdrSchema>> {
+        let mut schemas = self.sender_schemas.lock().unwrap_or_else(PoisonError::into_inner);
+        schemas
+            .entry(type_name.to_owned())
+            .or_insert_with(|| CdrSchema::of(format, type_name))
+            .clone()
     }
 
     /// The encoding of application records: self-describing, since they come without a
@@ -656,7 +715,7 @@ struct TopicCache {
 
 impl TopicCache {
     /// The topic of a record's output; `None` for modules the options leave out.
-    fn topic(&self, shared: &Shared, record: &TapRecord<'_>) -> Option<Arc<Topic>> {
+    fn topic(&self, shared: &Shared, record: &TapOutput<'_>) -> Option<Arc<Topic>> {
         let mut by_name = self.by_name.lock().unwrap_or_else(PoisonError::into_inner);
         let outputs = by_name.entry(record.module_name.to_owned()).or_default();
         outputs
@@ -749,6 +808,7 @@ impl McapTap {
             serialize_errors: AtomicU64::new(0),
             topics: Mutex::new(Vec::new()),
             record_topics: RwLock::new(HashMap::new()),
+            sender_schemas: Mutex::new(HashMap::new()),
             #[cfg(test)]
             gate: Arc::new(test_gate::Gate::default()),
         });
@@ -953,7 +1013,12 @@ impl McapTap {
 
 impl Tap for McapTap {
     fn package(&self, record: &TapRecord<'_>) {
-        self.shared.tap_package(&self.topics, record);
+        let shown = Offered::Shown(record.package);
+        self.shared.tap_package(&self.topics, &record.output(), record.time, shown);
+    }
+
+    fn package_owned(&self, output: &TapOutput<'_>, time: Time, package: Box<dyn ErasedPackage>) {
+        self.shared.tap_package(&self.topics, output, time, Offered::Given(package));
     }
 }
 
@@ -988,7 +1053,12 @@ impl ScopedTap {
 
 impl Tap for ScopedTap {
     fn package(&self, record: &TapRecord<'_>) {
-        self.tap.shared.tap_package(&self.topics, record);
+        let shown = Offered::Shown(record.package);
+        self.tap.shared.tap_package(&self.topics, &record.output(), record.time, shown);
+    }
+
+    fn package_owned(&self, output: &TapOutput<'_>, time: Time, package: Box<dyn ErasedPackage>) {
+        self.tap.shared.tap_package(&self.topics, output, time, Offered::Given(package));
     }
 }
 
@@ -1180,18 +1250,17 @@ impl WriterThread {
             #[cfg(test)]
             self.shared.gate.wait_open();
             match command {
-                Command::Messages(mut batch) => {
-                    for Queued { topic, log_time, stamp, seq, payload } in batch.messages.drain(..)
-                    {
+                Command::Messages(batch) => {
+                    for &Queued { topic, log_time, stamp, seq, ref payload } in &batch.messages {
                         let Some(topic) = self.topic_handle(topic) else { continue };
-                        match payload {
-                            Payload::Package(package) => {
+                        match *payload {
+                            Payload::Package(ref package) => {
                                 self.write_package(&topic, log_time, stamp, seq, package.as_ref());
                             }
-                            Payload::Encoded(bytes) => {
+                            Payload::Encoded(ref bytes) => {
                                 let encoding = self.shared.record_encoding();
                                 self.write_message(
-                                    &topic, encoding, None, log_time, stamp, seq, &bytes,
+                                    &topic, encoding, None, log_time, stamp, seq, bytes,
                                 );
                             }
                             Payload::Bytes { start, len } => {

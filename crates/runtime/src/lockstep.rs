@@ -32,7 +32,7 @@ use crate::module::{Backend, Context, Wake};
 use crate::package::{ModuleId, Package};
 use crate::rng::{module_rng, timing_rng};
 use crate::stats::{HostKind, HostStats, StatsCollector};
-use crate::tap::{HostTaps, Tap, TapRecord};
+use crate::tap::{HostTaps, Tap, TapOutput};
 use crate::time::Time;
 use crate::wiring::{ModuleParts, Wiring, split};
 
@@ -601,19 +601,19 @@ impl LockstepHost {
             });
         }
         if output.tapped != 0 {
-            self.taps.package(
-                output.tapped,
-                &TapRecord {
-                    time: self.now,
-                    host: self.wiring.host,
-                    module: ModuleId(module),
-                    module_name: &self.wiring.names[module as usize],
-                    port,
-                    output: &output.name,
-                    type_name: output.type_name,
-                    package: package.as_ref(),
-                },
-            );
+            let tapped = TapOutput {
+                host: self.wiring.host,
+                module: ModuleId(module),
+                module_name: &self.wiring.names[module as usize],
+                port,
+                output: &output.name,
+                type_name: output.type_name,
+            };
+            if output.readers.is_empty() {
+                self.taps.package_owned(output.tapped, &tapped, self.now, package);
+                return;
+            }
+            self.taps.package(output.tapped, &tapped.record(self.now, package.as_ref()));
         }
         let mut arrivals = std::mem::take(&mut self.arrivals);
         if let Some((last, others)) = output.readers.split_last() {

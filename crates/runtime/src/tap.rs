@@ -21,6 +21,20 @@ pub struct TapRecord<'a> {
     pub package: &'a dyn ErasedPackage,
 }
 
+impl<'a> TapRecord<'a> {
+    /// The output the record was sent on.
+    pub fn output(&self) -> TapOutput<'a> {
+        TapOutput {
+            host: self.host,
+            module: self.module,
+            module_name: self.module_name,
+            port: self.port,
+            output: self.output,
+            type_name: self.type_name,
+        }
+    }
+}
+
 impl std::fmt::Debug for TapRecord<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("TapRecord")
@@ -44,6 +58,22 @@ pub struct TapOutput<'a> {
     pub type_name: &'static str,
 }
 
+impl<'a> TapOutput<'a> {
+    /// The record of `package`, sent on this output and visible at `time`.
+    pub fn record(&self, time: Time, package: &'a dyn ErasedPackage) -> TapRecord<'a> {
+        TapRecord {
+            time,
+            host: self.host,
+            module: self.module,
+            module_name: self.module_name,
+            port: self.port,
+            output: self.output,
+            type_name: self.type_name,
+            package,
+        }
+    }
+}
+
 /// Receives the packages sent on the outputs it wants (by default, every output). Called on
 /// the sending module's thread, inside its cycle: an implementation must not block (hand the
 /// record to a bounded background writer and count what it drops).
@@ -63,6 +93,18 @@ pub trait Tap: Send + Sync {
     fn wants(&self, output: &TapOutput<'_>) -> bool {
         let _ = output;
         true
+    }
+
+    /// A package of an output no module reads, given to keep: the host would drop it next.
+    /// A tap that keeps packages (a logger handing them to its writer thread) takes it instead
+    /// of cloning it; the others let the default show it to [`Tap::package`]. Of the taps
+    /// that want such an output, the host gives it to one and shows it to the others.
+    ///
+    /// A match sends a third of its packages on outputs nobody reads (the reactive layer's
+    /// reports, the actuation's feedback): kept, a logger spares the sending module a clone
+    /// and a drop of each.
+    fn package_owned(&self, output: &TapOutput<'_>, time: Time, package: Box<dyn ErasedPackage>) {
+        self.package(&output.record(time, package.as_ref()));
     }
 }
 
@@ -89,6 +131,17 @@ impl Tap for Taps {
     fn wants(&self, output: &TapOutput<'_>) -> bool {
         self.0.iter().any(|tap| tap.wants(output))
     }
+
+    /// Shown to every tap but the last, given to the last.
+    fn package_owned(&self, output: &TapOutput<'_>, time: Time, package: Box<dyn ErasedPackage>) {
+        if let Some((last, others)) = self.0.split_last() {
+            let record = output.record(time, package.as_ref());
+            for tap in others {
+                tap.package(&record);
+            }
+            last.package_owned(output, time, package);
+        }
+    }
 }
 
 /// A host's taps, and the dispatch of a record to those that want its output.
@@ -111,6 +164,25 @@ impl HostTaps {
             .enumerate()
             .filter(|(_, tap)| tap.wants(output))
             .fold(0, |mask, (i, _)| mask | 1 << i.min(63))
+    }
+
+    /// Gives `package` (of an output no module reads) to the last tap of `mask` that wants it,
+    /// and shows it to the others.
+    pub(crate) fn package_owned(
+        &self,
+        mask: u64,
+        output: &TapOutput<'_>,
+        time: Time,
+        package: Box<dyn ErasedPackage>,
+    ) {
+        let last = 63 - mask.leading_zeros() as usize;
+        if last >= 63 || mask == 0 {
+            // Beyond 63 taps each decides for itself which records it takes: show them all.
+            self.package(mask, &output.record(time, package.as_ref()));
+            return;
+        }
+        self.package(mask & !(1 << last), &output.record(time, package.as_ref()));
+        self.0[last].package_owned(output, time, package);
     }
 
     /// Shows `record` to the taps of `mask` (see [`HostTaps::wanting`]).

@@ -22,7 +22,7 @@ use crate::module::{Backend, Context, Wake};
 use crate::package::ModuleId;
 use crate::rng::module_rng;
 use crate::stats::{HostKind, HostStats, InputStats, Scheduling, StatsCollector};
-use crate::tap::{HostTaps, Tap, TapRecord};
+use crate::tap::{HostTaps, Tap, TapOutput};
 use crate::time::{Clock, MonotonicClock};
 use crate::wiring::{ModuleParts, Wiring, split};
 
@@ -334,19 +334,20 @@ impl Backend for ThreadedBackend<'_> {
     fn publish(&mut self, port: u16, package: Box<dyn ErasedPackage>) {
         let output = &self.shared.wiring.outputs[self.module.index()][usize::from(port)];
         if output.tapped != 0 {
-            self.shared.taps.package(
-                output.tapped,
-                &TapRecord {
-                    time: self.shared.clock.now(),
-                    host: self.shared.wiring.host,
-                    module: self.module,
-                    module_name: &self.shared.wiring.names[self.module.index()],
-                    port,
-                    output: &output.name,
-                    type_name: output.type_name,
-                    package: package.as_ref(),
-                },
-            );
+            let tapped = TapOutput {
+                host: self.shared.wiring.host,
+                module: self.module,
+                module_name: &self.shared.wiring.names[self.module.index()],
+                port,
+                output: &output.name,
+                type_name: output.type_name,
+            };
+            let now = self.shared.clock.now();
+            if output.readers.is_empty() {
+                self.shared.taps.package_owned(output.tapped, &tapped, now, package);
+                return;
+            }
+            self.shared.taps.package(output.tapped, &tapped.record(now, package.as_ref()));
         }
         let at = Instant::now();
         let notify = |reader: &crate::wiring::Reader, arrival: Option<Arrival>| {

@@ -440,3 +440,92 @@ fn a_tap_sees_only_the_outputs_it_wants() {
     assert_eq!(beside, only, "a tap beside a logger still sees only its output");
     assert_eq!(inside_taps, everything, "a tap inside `Taps` with a logger sees everything");
 }
+
+/// A package of an output nobody reads is given to a tap to keep (one of the taps that want
+/// it, the last; the others are shown it), and it is the package the others see: same value,
+/// stamp and sequence number. Packages of read outputs are only shown.
+#[test]
+fn a_package_nobody_reads_is_given_to_the_last_tap_that_wants_it() {
+    /// Records how each package came: given (`true`) or shown.
+    #[derive(Default)]
+    struct Keeper(Mutex<Vec<(String, u64, u64, bool)>>);
+    impl strata_runtime::Tap for Keeper {
+        fn package(&self, record: &strata_runtime::TapRecord<'_>) {
+            let value = record
+                .package
+                .as_any()
+                .downcast_ref::<strata_runtime::Package<u64>>()
+                .map(|p| p.value);
+            let entry = (record.output.to_owned(), record.package.seq(), value.unwrap_or(0), false);
+            self.0.lock().expect("lock").push(entry);
+        }
+        fn package_owned(
+            &self,
+            output: &strata_runtime::TapOutput<'_>,
+            _time: Time,
+            package: Box<dyn strata_runtime::ErasedPackage>,
+        ) {
+            let seq = package.seq();
+            let kept = package
+                .into_any()
+                .downcast::<strata_runtime::Package<u64>>()
+                .expect("a u64 package");
+            self.0.lock().expect("lock").push((output.output.to_owned(), seq, kept.value, true));
+        }
+    }
+    let run = |how: u8| {
+        let mut graph = GraphBuilder::new();
+        let sensor = graph.add("sensor", |p| {
+            p.trigger(Trigger::every(10 * MS));
+            let out = p.output("raw");
+            (Counter { out, next: 0, noisy: false, limit: None }, out)
+        });
+        let (input, _unread) = graph.add("relay", |p| {
+            let input = p.input("raw", Policy::queue(8));
+            let out = p.output::<u64>("unread");
+            p.trigger(Trigger::on_any([input.into()]));
+            (Relay { input, out }, (input, out))
+        });
+        graph.connect(sensor, input);
+        let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::with_seed(5));
+        let (keeper, other) = (Arc::new(Keeper::default()), Arc::new(Keeper::default()));
+        match how {
+            0 => host.set_tap(keeper.clone()),
+            1 => {
+                host.set_tap(other.clone());
+                host.add_tap(keeper.clone());
+            }
+            _ => host.set_tap(Arc::new(strata_runtime::Taps(vec![other.clone(), keeper.clone()]))),
+        }
+        host.run_for(Duration::from_millis(200)).expect("runs");
+        let keeper = keeper.0.lock().expect("lock").clone();
+        let other = other.0.lock().expect("lock").clone();
+        (keeper, other)
+    };
+    struct Relay {
+        input: Input<u64>,
+        out: Output<u64>,
+    }
+    impl Module for Relay {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            for p in ctx.drain(self.input) {
+                ctx.send_stamped(self.out, p.value * 10, p.stamp);
+            }
+            Ok(())
+        }
+    }
+    let (alone, _) = run(0);
+    assert!(alone.iter().any(|(output, ..)| output == "unread"));
+    for (output, _, _, given) in &alone {
+        assert_eq!(*given, output == "unread", "{output}: given only when nobody reads it");
+    }
+    for how in [1, 2] {
+        let (keeper, other) = run(how);
+        assert_eq!(keeper, alone, "the last tap is given what it would be given alone");
+        assert!(other.iter().all(|(.., given)| !given), "the others are shown");
+        let strip = |v: &[(String, u64, u64, bool)]| -> Vec<(String, u64, u64)> {
+            v.iter().map(|(o, s, x, _)| (o.clone(), *s, *x)).collect()
+        };
+        assert_eq!(strip(&other), strip(&keeper), "shown and given: the same packages");
+    }
+}

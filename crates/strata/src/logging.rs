@@ -17,7 +17,9 @@ use strata_robot::command::ResourceGroup;
 use strata_robot::control::reactive::{MuxReport, ReactiveReport};
 use strata_robot::platform::PlatformInfo;
 use strata_robot::world::WorldModelConfig;
-use strata_runtime::{Encoding, GraphDescription, ModuleId, Package, Tap, TapRecord, Time};
+use strata_runtime::{
+    Encoding, ErasedPackage, GraphDescription, ModuleId, Package, Tap, TapOutput, TapRecord, Time,
+};
 use strata_sim::{GameTruth, GroundTruth, SimConfig};
 use strata_soccer::behaviors::{Decision, Output as DeliberativeOutput};
 use strata_soccer::field::TeamField;
@@ -446,18 +448,32 @@ impl LogFilter {
             _ => {}
         }
     }
-}
 
-impl Tap for LogFilter {
-    fn package(&self, record: &TapRecord<'_>) {
+    /// Derives the game state and behavior path records from `record`; whether the package
+    /// itself is logged.
+    fn inspect(&self, record: &TapRecord<'_>) -> bool {
         match record.output {
-            WORLD_STATE_OUTPUT if !self.keep_world_state(record) => return,
+            WORLD_STATE_OUTPUT => return self.keep_world_state(record),
             "ground_truth" => self.game_state(record),
             "scores" => self.behavior_path(record, Layer::Deliberative),
             "decision" => self.behavior_path(record, Layer::Planning),
             "report" => self.behavior_path(record, Layer::Reactive),
             _ => {}
         }
-        self.tap.package(record);
+        true
+    }
+}
+
+impl Tap for LogFilter {
+    fn package(&self, record: &TapRecord<'_>) {
+        if self.inspect(record) {
+            self.tap.package(record);
+        }
+    }
+
+    fn package_owned(&self, output: &TapOutput<'_>, time: Time, package: Box<dyn ErasedPackage>) {
+        if self.inspect(&output.record(time, package.as_ref())) {
+            self.tap.package_owned(output, time, package);
+        }
     }
 }
