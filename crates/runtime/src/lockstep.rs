@@ -600,7 +600,7 @@ impl LockstepHost {
                 event: TraceEvent::Deliver { port, seq: package.seq(), stamp: package.stamp() },
             });
         }
-        if output.tapped != 0 {
+        let package = if output.tapped != 0 {
             let tapped = TapOutput {
                 host: self.wiring.host,
                 module: ModuleId(module),
@@ -609,12 +609,14 @@ impl LockstepHost {
                 output: &output.name,
                 type_name: output.type_name,
             };
-            if output.readers.is_empty() {
-                self.taps.package_owned(output.tapped, &tapped, self.now, package);
-                return;
+            let read = !output.readers.is_empty();
+            match self.taps.offer(output.tapped, &tapped, self.now, package, read) {
+                Some(package) => package,
+                None => return,
             }
-            self.taps.package(output.tapped, &tapped.record(self.now, package.as_ref()));
-        }
+        } else {
+            package
+        };
         let mut arrivals = std::mem::take(&mut self.arrivals);
         if let Some((last, others)) = output.readers.split_last() {
             for reader in others {

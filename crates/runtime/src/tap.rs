@@ -166,23 +166,27 @@ impl HostTaps {
             .fold(0, |mask, (i, _)| mask | 1 << i.min(63))
     }
 
-    /// Gives `package` (of an output no module reads) to the last tap of `mask` that wants it,
-    /// and shows it to the others.
-    pub(crate) fn package_owned(
+    /// Offers `package`, sent on `output` and visible at `time`, to the taps of `mask`: when a
+    /// module reads the output, they are shown it and the host gets it back to deliver; when
+    /// nobody does, the last tap of `mask` is given it ([`Tap::package_owned`]) and the others
+    /// are shown it.
+    pub(crate) fn offer(
         &self,
         mask: u64,
         output: &TapOutput<'_>,
         time: Time,
         package: Box<dyn ErasedPackage>,
-    ) {
-        let last = 63 - mask.leading_zeros() as usize;
-        if last >= 63 || mask == 0 {
-            // Beyond 63 taps each decides for itself which records it takes: show them all.
+        read: bool,
+    ) -> Option<Box<dyn ErasedPackage>> {
+        let last = 63usize.saturating_sub(mask.leading_zeros() as usize);
+        // Beyond 63 taps each decides for itself which records it takes: show them all.
+        if read || mask == 0 || last >= 63 {
             self.package(mask, &output.record(time, package.as_ref()));
-            return;
+            return read.then_some(package);
         }
         self.package(mask & !(1 << last), &output.record(time, package.as_ref()));
         self.0[last].package_owned(output, time, package);
+        None
     }
 
     /// Shows `record` to the taps of `mask` (see [`HostTaps::wanting`]).

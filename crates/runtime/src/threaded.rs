@@ -333,7 +333,7 @@ struct ThreadedBackend<'a> {
 impl Backend for ThreadedBackend<'_> {
     fn publish(&mut self, port: u16, package: Box<dyn ErasedPackage>) {
         let output = &self.shared.wiring.outputs[self.module.index()][usize::from(port)];
-        if output.tapped != 0 {
+        let package = if output.tapped != 0 {
             let tapped = TapOutput {
                 host: self.shared.wiring.host,
                 module: self.module,
@@ -342,13 +342,14 @@ impl Backend for ThreadedBackend<'_> {
                 output: &output.name,
                 type_name: output.type_name,
             };
-            let now = self.shared.clock.now();
-            if output.readers.is_empty() {
-                self.shared.taps.package_owned(output.tapped, &tapped, now, package);
-                return;
+            let (now, read) = (self.shared.clock.now(), !output.readers.is_empty());
+            match self.shared.taps.offer(output.tapped, &tapped, now, package, read) {
+                Some(package) => package,
+                None => return,
             }
-            self.shared.taps.package(output.tapped, &tapped.record(now, package.as_ref()));
-        }
+        } else {
+            package
+        };
         let at = Instant::now();
         let notify = |reader: &crate::wiring::Reader, arrival: Option<Arrival>| {
             if arrival == Some(Arrival::First) {
