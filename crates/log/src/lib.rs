@@ -9,6 +9,9 @@
 //!   wait instead, for a complete log. The graph description and the run's metadata
 //!   (seed, command line, configuration, version) travel in the file, so a module can be
 //!   rebuilt and replayed from it.
+//! - A [`Derive`] set on the log works out, on the writer thread, the records it makes of
+//!   the packages (a match's game state and behavior paths): the sending modules pay nothing
+//!   for them.
 //! - [`LogReader`] reads a log: a complete one through its summary, a truncated one (killed
 //!   process) by scanning its chunks up to the first incomplete one.
 //! - [`replay`] re-runs modules of a logged graph on the lockstep host from their logged
@@ -32,7 +35,8 @@ pub use reader::{
 };
 pub use schema::infer_json_schema;
 pub use writer::{
-    ConfigFormat, LogCompression, LogSummary, McapTap, McapTapOptions, RunInfo, ScopedTap, WhenFull,
+    ConfigFormat, Derive, DerivedRecords, LogCompression, LogSummary, McapTap, McapTapOptions,
+    RunInfo, ScopedTap, WhenFull,
 };
 
 /// Metadata record holding [`RunInfo`] (seed, version, command line, configuration format).

@@ -214,6 +214,60 @@ impl RunInfo {
     }
 }
 
+/// Records a log derives from its packages on the writer thread: what it holds besides the
+/// packages (a robot's active behavior path, the game state), worked out where it costs the
+/// sending modules' cycles nothing. The records of a package are written just ahead of it, as
+/// if its sender had recorded them.
+pub trait Derive: Send {
+    /// Whether the packages of `topic` go through [`Derive::package`]. Asked once per package
+    /// topic, when it is created; `id` is the number `package` calls it by (dense from 0,
+    /// shared with the record topics). The writer thread needs these packages whole: their
+    /// senders clone them instead of encoding them.
+    fn wants(&mut self, id: u32, topic: &str, type_name: &str) -> bool;
+
+    /// A package of a topic this wants, visible at `time`, before it is written.
+    fn package(
+        &mut self,
+        topic: u32,
+        time: Time,
+        package: &dyn ErasedPackage,
+        records: &mut DerivedRecords,
+    );
+}
+
+/// Where a [`Derive`] puts the records it makes of a package.
+#[derive(Debug)]
+pub struct DerivedRecords {
+    encoding: Encoding,
+    records: Vec<DerivedRecord>,
+    unencodable: u64,
+}
+
+#[derive(Debug)]
+struct DerivedRecord {
+    topic: String,
+    type_name: &'static str,
+    time: Time,
+    bytes: Vec<u8>,
+}
+
+impl DerivedRecords {
+    fn new(encoding: Encoding) -> DerivedRecords {
+        DerivedRecords { encoding, records: Vec::new(), unencodable: 0 }
+    }
+
+    /// Records `value` on `topic` at `time`, as [`McapTap::record_value`] does.
+    pub fn record_value<T: Serialize>(&mut self, topic: &str, time: Time, value: &T) {
+        let mut bytes = Vec::with_capacity(256);
+        if self.encoding.encode(value, &mut bytes).is_err() {
+            self.unencodable += 1;
+            return;
+        }
+        let type_name = std::any::type_name::<T>();
+        self.records.push(DerivedRecord { topic: topic.to_owned(), type_name, time, bytes });
+    }
+}
+
 /// One logged stream: the channel a topic gets in the file.
 #[derive(Debug)]
 struct Topic {
@@ -228,6 +282,8 @@ struct Topic {
     handover: AtomicU8,
     /// The type's CDR schema, for packages the sender encoded.
     cdr: OnceLock<Arc<CdrSchema>>,
+    /// The log's [`Derive`] wants this topic's packages: the writer thread needs them whole.
+    derived: bool,
 }
 
 /// The sender clones the package; the writer thread encodes it. For large packages (a world
@@ -392,24 +448,51 @@ struct Shared {
     /// The CDR schemas of the types senders encode, by type name: worked out once per type
     /// (the IDL text of a type takes a few hundred thousand instructions), not per robot.
     sender_schemas: Mutex<HashMap<String, Option<Arc<CdrSchema>>>>,
+    /// What the log derives from its packages (see [`McapTap::set_derive`]); asked about
+    /// each package topic when it is created, run on the writer thread.
+    derive: Mutex<Option<Box<dyn Derive>>>,
     #[cfg(test)]
     gate: Arc<test_gate::Gate>,
 }
 
 impl Shared {
-    fn new_topic(&self, name: String, type_name: &str) -> Arc<Topic> {
+    /// A new topic; `package`: of packages (which the log's [`Derive`] may want), not of
+    /// application records.
+    fn new_topic(&self, name: String, type_name: &str, package: bool) -> Arc<Topic> {
         let mut topics = self.topics.lock().unwrap_or_else(PoisonError::into_inner);
+        let id = u32::try_from(topics.len()).unwrap_or(u32::MAX);
+        let derived = package
+            && self
+                .derive
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .as_mut()
+                .is_some_and(|derive| derive.wants(id, &name, type_name));
         let topic = Arc::new(Topic {
-            id: u32::try_from(topics.len()).unwrap_or(u32::MAX),
+            id,
             name,
             type_name: type_name.to_owned(),
             dropped: AtomicU64::new(0),
             next_seq: AtomicU64::new(0),
             handover: AtomicU8::new(0),
             cdr: OnceLock::new(),
+            derived,
         });
         topics.push(Arc::clone(&topic));
         topic
+    }
+
+    /// The topic of application records named `name`, created on its first record.
+    fn record_topic(&self, name: &str, type_name: &str) -> Arc<Topic> {
+        let existing =
+            self.record_topics.read().unwrap_or_else(PoisonError::into_inner).get(name).cloned();
+        existing.unwrap_or_else(|| {
+            let mut map = self.record_topics.write().unwrap_or_else(PoisonError::into_inner);
+            Arc::clone(
+                map.entry(name.to_owned())
+                    .or_insert_with(|| self.new_topic(name.to_owned(), type_name, false)),
+            )
+        })
     }
 
     /// The topic with this id.
@@ -600,17 +683,16 @@ impl Shared {
             let (stamp, seq) = (package.get().stamp(), package.get().seq());
             let (log_time, stamp) = (time.as_nanos(), stamp.as_nanos());
             let batch = &mut pending.batch;
-            let payload = match package {
-                Offered::Shown(shown) if handover == HANDOVER_ENCODE => {
-                    let start = batch.bytes.len();
-                    if shown.encode(Encoding::Cdr, &mut batch.bytes).is_err() {
-                        batch.bytes.truncate(start);
-                        Err(package)
-                    } else {
-                        Ok(Payload::Bytes { start, len: batch.bytes.len() - start })
-                    }
+            let payload = if handover == HANDOVER_ENCODE {
+                let start = batch.bytes.len();
+                if package.get().encode(Encoding::Cdr, &mut batch.bytes).is_err() {
+                    batch.bytes.truncate(start);
+                    Err(package)
+                } else {
+                    Ok(Payload::Bytes { start, len: batch.bytes.len() - start })
                 }
-                _ => Ok(Payload::Package(package.keep())),
+            } else {
+                Ok(Payload::Package(package.keep()))
             };
             match payload {
                 Ok(payload) => {
@@ -640,16 +722,17 @@ impl Shared {
     }
 
     /// How a topic's packages are handed over, from its first package: encoded by a sender
-    /// that waits when CDR describes the type, it holds no shared value and its first package
-    /// is small; cloned otherwise.
+    /// that waits when CDR describes the type, it holds no shared value, its first package
+    /// is small and the log derives nothing from it; cloned otherwise.
     fn decide_handover(&self, topic: &Topic, package: &dyn ErasedPackage) -> u8 {
         let decided = topic.handover.load(Ordering::Relaxed);
         if decided != 0 {
             return decided;
         }
-        let format = (self.when_full == WhenFull::Wait && self.encoding == Encoding::Cdr)
-            .then(|| package.format().ok())
-            .flatten();
+        let format =
+            (self.when_full == WhenFull::Wait && self.encoding == Encoding::Cdr && !topic.derived)
+                .then(|| package.format().ok())
+                .flatten();
         let handover = match format {
             Some(format) if !shared::appears_in(&format) => {
                 let mut trial = Vec::new();
@@ -728,7 +811,7 @@ impl TopicCache {
                 );
                 let wanted = shared.modules.is_empty()
                     || shared.modules.iter().any(|prefix| name.starts_with(prefix.as_str()));
-                wanted.then(|| shared.new_topic(name, record.type_name))
+                wanted.then(|| shared.new_topic(name, record.type_name, true))
             })
             .clone()
     }
@@ -809,6 +892,7 @@ impl McapTap {
             topics: Mutex::new(Vec::new()),
             record_topics: RwLock::new(HashMap::new()),
             sender_schemas: Mutex::new(HashMap::new()),
+            derive: Mutex::new(None),
             #[cfg(test)]
             gate: Arc::new(test_gate::Gate::default()),
         });
@@ -853,6 +937,13 @@ impl McapTap {
         }
     }
 
+    /// Has the writer thread derive records from the packages of the topics `derive` wants
+    /// (see [`Derive`]). Set it before the first package: a topic created earlier is not
+    /// asked about.
+    pub fn set_derive(&self, derive: Box<dyn Derive>) {
+        *self.shared.derive.lock().unwrap_or_else(PoisonError::into_inner) = Some(derive);
+    }
+
     /// Logs an application record (ground truth, game state, a behavior path) on `topic`.
     /// Handled like packages: with [`WhenFull::Drop`] it never blocks, and a record that
     /// finds the queue full is dropped and counted.
@@ -878,20 +969,7 @@ impl McapTap {
             self.shared.serialize_errors.fetch_add(1, Ordering::Relaxed);
             return;
         }
-        let existing = self
-            .shared
-            .record_topics
-            .read()
-            .unwrap_or_else(PoisonError::into_inner)
-            .get(topic)
-            .cloned();
-        let topic = existing.unwrap_or_else(|| {
-            let mut map = self.shared.record_topics.write().unwrap_or_else(PoisonError::into_inner);
-            Arc::clone(
-                map.entry(topic.to_owned())
-                    .or_insert_with(|| self.shared.new_topic(topic.to_owned(), type_name)),
-            )
-        });
+        let topic = self.shared.record_topic(topic, type_name);
         let seq = topic.next_seq.fetch_add(1, Ordering::Relaxed);
         self.shared.submit(topic.id, time, time, seq, Payload::Encoded(bytes));
     }
@@ -1255,6 +1333,9 @@ impl WriterThread {
                         let Some(topic) = self.topic_handle(topic) else { continue };
                         match *payload {
                             Payload::Package(ref package) => {
+                                if topic.derived {
+                                    self.derive(&topic, log_time, package.as_ref());
+                                }
                                 self.write_package(&topic, log_time, stamp, seq, package.as_ref());
                             }
                             Payload::Encoded(ref bytes) => {
@@ -1324,6 +1405,23 @@ impl WriterThread {
             package.format().ok().and_then(|format| CdrSchema::of(&format, &topic.type_name));
         self.cdr_schemas.insert(topic.type_name.clone(), schema.clone());
         schema
+    }
+
+    /// Writes the records the log's [`Derive`] makes of `package`, ahead of it.
+    fn derive(&mut self, topic: &Topic, log_time: u64, package: &dyn ErasedPackage) {
+        let mut records = DerivedRecords::new(self.shared.record_encoding());
+        if let Some(derive) =
+            self.shared.derive.lock().unwrap_or_else(PoisonError::into_inner).as_mut()
+        {
+            derive.package(topic.id, Time::from_nanos(log_time), package, &mut records);
+        }
+        self.shared.serialize_errors.fetch_add(records.unencodable, Ordering::Relaxed);
+        for record in records.records {
+            let topic = self.shared.record_topic(&record.topic, record.type_name);
+            let seq = topic.next_seq.fetch_add(1, Ordering::Relaxed);
+            let time = record.time.as_nanos();
+            self.write_message(&topic, records.encoding, None, time, time, seq, &record.bytes);
+        }
     }
 
     fn write_package(

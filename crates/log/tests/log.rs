@@ -6,8 +6,11 @@ mod support;
 use std::sync::Arc;
 use std::time::Duration;
 
-use strata_log::{LogCompression, LogError, LogInfo, LogReader, McapTap, McapTapOptions, WhenFull};
-use strata_runtime::{Encoding, HostConfig, ThreadedHost, Time};
+use strata_log::{
+    Derive, DerivedRecords, LogCompression, LogError, LogInfo, LogReader, McapTap, McapTapOptions,
+    WhenFull,
+};
+use strata_runtime::{Encoding, ErasedPackage, HostConfig, Package, ThreadedHost, Time};
 use support::{CONFIG, SEED, record_demo, scratch};
 
 #[test]
@@ -347,6 +350,92 @@ fn a_tiny_queue_in_wait_mode_loses_nothing() {
     assert_eq!((summary.dropped, summary.serialize_errors), (0, 0));
     let reader = LogReader::open(&path).expect("open");
     assert_holds_what_the_tap_saw(&reader, &seen);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+/// Records the sample count of every second estimate it is shown, and which topics it was
+/// asked about.
+struct EvenSamples {
+    asked: Arc<std::sync::Mutex<Vec<String>>>,
+    estimates: Option<u32>,
+}
+
+impl Derive for EvenSamples {
+    fn wants(&mut self, id: u32, topic: &str, _type_name: &str) -> bool {
+        self.asked.lock().expect("not poisoned").push(topic.to_owned());
+        let wanted = topic == "filter/estimate";
+        if wanted {
+            self.estimates = Some(id);
+        }
+        wanted
+    }
+
+    fn package(
+        &mut self,
+        topic: u32,
+        time: Time,
+        package: &dyn ErasedPackage,
+        records: &mut DerivedRecords,
+    ) {
+        assert_eq!(Some(topic), self.estimates, "shown a package of a topic it did not want");
+        let estimate = package
+            .as_any()
+            .downcast_ref::<Package<support::Estimate>>()
+            .expect("the estimate, whole");
+        if estimate.value.samples % 2 == 0 {
+            let record = serde_json::json!({ "samples": estimate.value.samples });
+            records.record_value("derived/even_samples", time, &record);
+        }
+    }
+}
+
+/// A log's derived records are made on the writer thread from the packages of the topics the
+/// deriver wants (whole, even where a waiting sender would encode them itself), and each is
+/// written just ahead of the package it comes from.
+#[test]
+fn derived_records_come_just_ahead_of_their_package() {
+    let dir = scratch("derive");
+    let path = dir.join("derived.mcap");
+    let graph = support::demo_graph("", &support::config_value());
+    let options = McapTapOptions { when_full: WhenFull::Wait, ..McapTapOptions::default() };
+    let log = Arc::new(McapTap::create(&path, options).expect("create"));
+    let asked = Arc::default();
+    log.set_derive(Box::new(EvenSamples { asked: Arc::clone(&asked), estimates: None }));
+    let mut host = strata_runtime::LockstepHost::new(graph, HostConfig::with_seed(SEED));
+    host.set_tap(log.clone());
+    host.run_until(Time::from_secs_f64(2.0)).expect("run");
+    let summary = log.finish().expect("finish");
+    assert_eq!((summary.dropped, summary.serialize_errors), (0, 0));
+
+    let mut asked = asked.lock().expect("not poisoned").clone();
+    asked.sort();
+    assert_eq!(asked, ["filter/estimate", "monitor/status", "source/reading"]);
+
+    let reader = LogReader::open(&path).expect("open");
+    let messages: Vec<_> = reader.messages().map(|m| m.expect("readable")).collect();
+    let mut derived = 0;
+    let mut even = 0;
+    for (i, message) in messages.iter().enumerate() {
+        match &*message.topic {
+            "derived/even_samples" => {
+                derived += 1;
+                let next = messages.get(i + 1).expect("the package after its record");
+                assert_eq!(&*next.topic, "filter/estimate");
+                assert_eq!(next.log_time, message.log_time);
+                let samples = &next.json().expect("estimate")["samples"];
+                assert_eq!(message.json().expect("record")["samples"], *samples);
+            }
+            "filter/estimate" => {
+                let samples = message.json().expect("estimate")["samples"].as_u64();
+                if samples.expect("a count") % 2 == 0 {
+                    even += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+    assert!(even > 10, "{even} estimates with an even count");
+    assert_eq!(derived, even);
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
 

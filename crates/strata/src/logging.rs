@@ -11,7 +11,8 @@ use std::time::Duration;
 use anyhow::{Context as _, Result, bail};
 use serde::{Deserialize, Serialize};
 use strata_log::{
-    ConfigFormat, LogCompression, LogSummary, McapTap, McapTapOptions, RunInfo, WhenFull,
+    ConfigFormat, Derive, DerivedRecords, LogCompression, LogSummary, McapTap, McapTapOptions,
+    RunInfo, WhenFull,
 };
 use strata_robot::command::ResourceGroup;
 use strata_robot::control::reactive::{MuxReport, ReactiveReport};
@@ -227,27 +228,26 @@ impl MatchLog {
             .context("serializing the match configuration")?;
         let run = RunInfo::current(game.config.seed).with_config(ConfigFormat::Json, config);
         let tap = open_run_log(&settings.path, options, &run, &graph)?;
-        let robots: Vec<String> = game.robots.iter().map(|(id, _)| robot_name(*id)).collect();
         let chosen =
             |name: &str| settings.robots.is_empty() || settings.robots.iter().any(|r| r == name);
-        let filter = LogFilter {
-            tap: Arc::clone(&tap),
-            world_period: settings
-                .world_state_hz
-                .filter(|hz| hz.is_finite() && *hz > 0.0)
-                .map(|hz| Duration::from_secs_f64(1.0 / hz)),
-            last_world: Mutex::new(HashMap::new()),
-            last_game: Mutex::new(None),
-            paths: Mutex::new(Paths {
-                records: robots
-                    .iter()
-                    .filter(|r| chosen(r))
-                    .map(|r| (r.clone(), PathRecord::new(r)))
-                    .collect(),
-                by_module: Vec::new(),
-            }),
-        };
-        game.add_tap(Arc::new(filter));
+        let robots = game.robots.iter().map(|(id, _)| robot_name(*id)).filter(|r| chosen(r));
+        tap.set_derive(Box::new(MatchRecords {
+            robots: robots.map(|r| PathRecord::new(&r)).collect(),
+            sources: Vec::new(),
+            last_game: None,
+        }));
+        let world_period = settings
+            .world_state_hz
+            .filter(|hz| hz.is_finite() && *hz > 0.0)
+            .map(|hz| Duration::from_secs_f64(1.0 / hz));
+        match world_period {
+            Some(period) => game.add_tap(Arc::new(WorldStateDecimation {
+                tap: Arc::clone(&tap),
+                period,
+                last: Mutex::new(HashMap::new()),
+            })),
+            None => game.add_tap(Arc::clone(&tap) as Arc<dyn Tap>),
+        }
         Ok(MatchLog { tap, path: settings.path.clone() })
     }
 
@@ -319,9 +319,10 @@ enum Layer {
 }
 
 struct PathRecord {
+    /// Where the robot's path records go: `home/3/behavior_path`.
     topic: String,
-    deliberative_module: String,
-    planning_module: String,
+    /// The topics of the robot's deliberative scores, planning decisions and reactive reports.
+    sources: [(String, Layer); 3],
     /// The newest path of each layer, and the last one written.
     path: BehaviorPath,
     written: BehaviorPath,
@@ -335,144 +336,176 @@ impl PathRecord {
     fn new(robot: &str) -> PathRecord {
         PathRecord {
             topic: format!("{robot}/{BEHAVIOR_PATH_TOPIC}"),
-            deliberative_module: format!("{robot}/deliberative"),
-            planning_module: format!("{robot}/planning"),
+            sources: [
+                (format!("{robot}/deliberative/scores"), Layer::Deliberative),
+                (format!("{robot}/planning/decision"), Layer::Planning),
+                (format!("{robot}/reactive/report"), Layer::Reactive),
+            ],
             path: BehaviorPath::default(),
             written: BehaviorPath::default(),
             changed: false,
             reactive_key: None,
         }
     }
-}
 
-/// Passes packages to the log, decimating the world state if asked, and adds the records that
-/// are not packages: game-state changes and behavior-path changes (checked every reactive
-/// cycle).
-struct LogFilter {
-    tap: Arc<McapTap>,
-    world_period: Option<Duration>,
-    last_world: Mutex<HashMap<ModuleId, Time>>,
-    last_game: Mutex<Option<GameTruth>>,
-    /// By robot name, and which of them each module id belongs to (found by name once per
-    /// module: a report passes here every reactive cycle of every robot).
-    paths: Mutex<Paths>,
-}
-
-struct Paths {
-    records: Vec<(String, PathRecord)>,
-    /// By module id: the index of its robot's record, `None` if it has none.
-    by_module: Vec<Option<Option<usize>>>,
-}
-
-impl LogFilter {
-    fn keep_world_state(&self, record: &TapRecord<'_>) -> bool {
-        let Some(period) = self.world_period else { return true };
-        let mut last = self.last_world.lock().unwrap_or_else(PoisonError::into_inner);
-        match last.get(&record.module) {
-            Some(t) if record.time < *t + period => false,
-            _ => {
-                last.insert(record.module, record.time);
-                true
+    /// Takes in a package of the robot's `layer`; writes the path when any layer's changed,
+    /// checked at every reactive report (which carries the path of every cycle): a path holds
+    /// until the next record.
+    fn update(
+        &mut self,
+        layer: Layer,
+        time: Time,
+        package: &dyn ErasedPackage,
+        records: &mut DerivedRecords,
+    ) {
+        let any = package.as_any();
+        match layer {
+            Layer::Deliberative => {
+                if let Some(p) = any.downcast_ref::<Package<DeliberativeOutput>>() {
+                    self.path.deliberative.clone_from(&p.value.behavior_path);
+                    self.changed = true;
+                }
+            }
+            Layer::Planning => {
+                if let Some(p) = any.downcast_ref::<Package<Decision>>() {
+                    let a = &p.value.assignment;
+                    self.path.planning = format!("{}/{}", a.mission.name(), a.role.name());
+                    self.changed = true;
+                }
+            }
+            Layer::Reactive => {
+                let Some(p) = any.downcast_ref::<Package<ReactiveReport>>() else { return };
+                let reactive_changed =
+                    self.reactive_key.as_ref().is_none_or(|key| !same_path(key, &p.value));
+                if reactive_changed {
+                    self.reactive_key = Some(path_key(&p.value));
+                    self.path.reactive = p.value.active_path();
+                    self.changed = true;
+                }
+                if self.changed && self.written != self.path {
+                    records.record_value(&self.topic, time, &self.path);
+                    self.written.clone_from(&self.path);
+                }
+                self.changed = false;
             }
         }
     }
+}
 
-    fn game_state(&self, record: &TapRecord<'_>) {
-        let Some(truth) = record.package.as_any().downcast_ref::<Package<GroundTruth>>() else {
+/// What a logged topic's packages are derived into.
+#[derive(Clone, Copy)]
+enum Source {
+    /// The simulator's ground truth: the game state.
+    GroundTruth,
+    /// A layer's output of the robot with this index: its behavior path.
+    Layer(usize, Layer),
+}
+
+/// The records of a match's log that are not packages, derived on the log's writer thread
+/// (see [`strata_log::Derive`]): the game state when it changes, and each logged robot's
+/// behavior path, checked every reactive cycle and written when it changes.
+struct MatchRecords {
+    robots: Vec<PathRecord>,
+    /// By topic id.
+    sources: Vec<Option<Source>>,
+    last_game: Option<GameTruth>,
+}
+
+impl MatchRecords {
+    fn game_state(
+        &mut self,
+        time: Time,
+        package: &dyn ErasedPackage,
+        records: &mut DerivedRecords,
+    ) {
+        let Some(truth) = package.as_any().downcast_ref::<Package<GroundTruth>>() else {
             return;
         };
         let game = &truth.value.game;
-        let mut last = self.last_game.lock().unwrap_or_else(PoisonError::into_inner);
         // The clock runs down and the message budgets shrink all the time: a change of the
         // game state is a change of anything else.
-        let changed = last.as_ref().is_none_or(|g| {
+        let changed = self.last_game.as_ref().is_none_or(|g| {
             let mut g = g.clone();
             g.secs_remaining = game.secs_remaining;
             g.message_budget = game.message_budget;
             g != *game
         });
         if changed {
-            self.tap.record_value(GAME_STATE_TOPIC, record.time, game);
-            *last = Some(game.clone());
+            records.record_value(GAME_STATE_TOPIC, time, game);
+            self.last_game = Some(game.clone());
         }
-    }
-
-    /// `layer`: the layer of the record's output (deliberative scores, planning decisions or
-    /// reactive reports).
-    fn behavior_path(&self, record: &TapRecord<'_>, layer: Layer) {
-        let mut paths = self.paths.lock().unwrap_or_else(PoisonError::into_inner);
-        let Paths { records, by_module } = &mut *paths;
-        let module = record.module.index();
-        if by_module.len() <= module {
-            by_module.resize(module + 1, None);
-        }
-        let index = *by_module[module].get_or_insert_with(|| {
-            records.iter().position(|(robot, _)| {
-                record.module_name.len() > robot.len()
-                    && record.module_name.starts_with(robot.as_str())
-            })
-        });
-        let Some((_, entry)) = index.and_then(|i| records.get_mut(i)) else { return };
-        let any = record.package.as_any();
-        match layer {
-            Layer::Deliberative if record.module_name == entry.deliberative_module => {
-                if let Some(p) = any.downcast_ref::<Package<DeliberativeOutput>>() {
-                    entry.path.deliberative.clone_from(&p.value.behavior_path);
-                    entry.changed = true;
-                }
-            }
-            Layer::Planning if record.module_name == entry.planning_module => {
-                if let Some(p) = any.downcast_ref::<Package<Decision>>() {
-                    let a = &p.value.assignment;
-                    entry.path.planning = format!("{}/{}", a.mission.name(), a.role.name());
-                    entry.changed = true;
-                }
-            }
-            Layer::Reactive => {
-                let Some(p) = any.downcast_ref::<Package<ReactiveReport>>() else { return };
-                // Checked every reactive cycle, written when any layer's path changed: a path
-                // holds until the next record (the reactive report of every cycle has it too).
-                let reactive_changed =
-                    entry.reactive_key.as_ref().is_none_or(|key| !same_path(key, &p.value));
-                if reactive_changed {
-                    entry.reactive_key = Some(path_key(&p.value));
-                    entry.path.reactive = p.value.active_path();
-                    entry.changed = true;
-                }
-                if entry.changed && entry.written != entry.path {
-                    self.tap.record_value(&entry.topic, record.time, &entry.path);
-                    entry.written.clone_from(&entry.path);
-                }
-                entry.changed = false;
-            }
-            _ => {}
-        }
-    }
-
-    /// Derives the game state and behavior path records from `record`; whether the package
-    /// itself is logged.
-    fn inspect(&self, record: &TapRecord<'_>) -> bool {
-        match record.output {
-            WORLD_STATE_OUTPUT => return self.keep_world_state(record),
-            "ground_truth" => self.game_state(record),
-            "scores" => self.behavior_path(record, Layer::Deliberative),
-            "decision" => self.behavior_path(record, Layer::Planning),
-            "report" => self.behavior_path(record, Layer::Reactive),
-            _ => {}
-        }
-        true
     }
 }
 
-impl Tap for LogFilter {
+impl Derive for MatchRecords {
+    fn wants(&mut self, id: u32, topic: &str, _type_name: &str) -> bool {
+        let source = if topic.ends_with("/ground_truth") {
+            Some(Source::GroundTruth)
+        } else {
+            self.robots.iter().enumerate().find_map(|(robot, record)| {
+                let (_, layer) = record.sources.iter().find(|(name, _)| name == topic)?;
+                Some(Source::Layer(robot, *layer))
+            })
+        };
+        let index = id as usize;
+        if self.sources.len() <= index {
+            self.sources.resize(index + 1, None);
+        }
+        self.sources[index] = source;
+        source.is_some()
+    }
+
+    fn package(
+        &mut self,
+        topic: u32,
+        time: Time,
+        package: &dyn ErasedPackage,
+        records: &mut DerivedRecords,
+    ) {
+        match self.sources.get(topic as usize).copied().flatten() {
+            Some(Source::GroundTruth) => self.game_state(time, package, records),
+            Some(Source::Layer(robot, layer)) => {
+                if let Some(record) = self.robots.get_mut(robot) {
+                    record.update(layer, time, package, records);
+                }
+            }
+            None => {}
+        }
+    }
+}
+
+/// Passes packages to the log, the world state of each robot at most once per `period`.
+struct WorldStateDecimation {
+    tap: Arc<McapTap>,
+    period: Duration,
+    last: Mutex<HashMap<ModuleId, Time>>,
+}
+
+impl WorldStateDecimation {
+    fn keep(&self, output: &TapOutput<'_>, time: Time) -> bool {
+        if output.output != WORLD_STATE_OUTPUT {
+            return true;
+        }
+        let mut last = self.last.lock().unwrap_or_else(PoisonError::into_inner);
+        match last.get(&output.module) {
+            Some(t) if time < *t + self.period => false,
+            _ => {
+                last.insert(output.module, time);
+                true
+            }
+        }
+    }
+}
+
+impl Tap for WorldStateDecimation {
     fn package(&self, record: &TapRecord<'_>) {
-        if self.inspect(record) {
+        if self.keep(&record.output(), record.time) {
             self.tap.package(record);
         }
     }
 
     fn package_owned(&self, output: &TapOutput<'_>, time: Time, package: Box<dyn ErasedPackage>) {
-        if self.inspect(&output.record(time, package.as_ref())) {
+        if self.keep(output, time) {
             self.tap.package_owned(output, time, package);
         }
     }
