@@ -353,6 +353,42 @@ fn a_tiny_queue_in_wait_mode_loses_nothing() {
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
 
+/// The lockstep host reaches a log through its sender (a batch of the host's own, no lock per
+/// package), which it flushes when each run returns: the file holds what the log written
+/// through the tap itself holds, in the same order, application records between runs
+/// included.
+#[test]
+fn a_log_written_through_the_host_sender_is_the_same() {
+    let dir = scratch("sender");
+    let options = || McapTapOptions { when_full: WhenFull::Wait, ..McapTapOptions::default() };
+    let through_tap = dir.join("tap.mcap");
+    record_demo(&through_tap, 2.0, options(), CONFIG);
+
+    let through_sender = dir.join("sender.mcap");
+    let graph = support::demo_graph("", &support::config_value());
+    let log = Arc::new(McapTap::create(&through_sender, options()).expect("create"));
+    let mut host = strata_runtime::LockstepHost::new(graph, HostConfig::with_seed(SEED));
+    host.set_tap(log.clone());
+    for step in 1..=20u64 {
+        let t = Time::from_nanos(step * 100_000_000);
+        host.run_until(t).expect("run");
+        let truth = serde_json::json!({ "ball": { "x": step as f64 * 0.01, "y": 0.0 } });
+        log.record("sim/ground_truth", "demo::GroundTruth", t, &truth);
+    }
+    let summary = log.finish().expect("finish");
+    assert_eq!((summary.dropped, summary.serialize_errors), (0, 0));
+
+    let read = |path: &std::path::Path| -> Vec<_> {
+        let reader = LogReader::open(path).expect("open");
+        let messages = reader.messages().map(|m| m.expect("readable"));
+        messages.map(|m| (m.topic, m.log_time, m.stamp, m.seq, m.data)).collect()
+    };
+    let (expected, written) = (read(&through_tap), read(&through_sender));
+    assert!(expected.len() > 500);
+    assert!(written == expected, "the logs differ");
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
 /// Records the sample count of every second estimate it is shown, and which topics it was
 /// asked about.
 struct EvenSamples {

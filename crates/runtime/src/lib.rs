@@ -49,7 +49,7 @@ pub use shared::Shared;
 pub use stats::{
     HostKind, HostStats, InputStats, ModuleStats, RateStats, Scheduling, StatsCollector, Summary,
 };
-pub use tap::{Tap, TapOutput, TapRecord, Taps};
+pub use tap::{Tap, TapOutput, TapRecord, TapSender, Taps};
 pub use threaded::{RunningHost, StopHandle, ThreadedHost};
 pub use time::{Clock, ManualClock, MonotonicClock, Time};
 

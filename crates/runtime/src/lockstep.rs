@@ -32,7 +32,7 @@ use crate::module::{Backend, Context, Wake};
 use crate::package::{ModuleId, Package};
 use crate::rng::{module_rng, timing_rng};
 use crate::stats::{HostKind, HostStats, StatsCollector};
-use crate::tap::{HostTaps, Tap, TapOutput};
+use crate::tap::{HostTaps, Tap, TapOutput, TapSenders};
 use crate::time::Time;
 use crate::wiring::{ModuleParts, Wiring, split};
 
@@ -257,6 +257,8 @@ pub struct LockstepHost {
     inject_order_base: u64,
     externals: Vec<InputRef>,
     taps: HostTaps,
+    /// The senders of the taps that have one ([`Tap::sender`]).
+    tap_senders: TapSenders,
     trace: Option<Vec<TraceEntry>>,
     pacing: Option<Pacing>,
     interrupt: Option<Arc<AtomicBool>>,
@@ -344,6 +346,7 @@ impl LockstepHost {
             inject_order_base: order.base(INJECT_PRIORITY),
             externals,
             taps: HostTaps::default(),
+            tap_senders: TapSenders::default(),
             trace: None,
             pacing: None,
             interrupt: None,
@@ -365,6 +368,8 @@ impl LockstepHost {
     /// Shows `tap` the packages of the outputs it wants ([`Tap::wants`], asked now), instead
     /// of the taps set so far.
     pub fn set_tap(&mut self, tap: Arc<dyn Tap>) {
+        self.tap_senders.flush();
+        self.tap_senders = TapSenders::default();
         self.taps = HostTaps::default();
         self.add_tap(tap);
     }
@@ -372,7 +377,7 @@ impl LockstepHost {
     /// Shows `tap` too the packages of the outputs it wants ([`Tap::wants`], asked now); each
     /// tap is shown only its outputs.
     pub fn add_tap(&mut self, tap: Arc<dyn Tap>) {
-        self.taps.push(tap);
+        self.taps.push_with_sender(tap, &mut self.tap_senders);
         self.wiring.select_tapped(&self.taps);
     }
 
@@ -475,6 +480,12 @@ impl LockstepHost {
 
     /// Runs every event due up to and including `end`; the clock then reads `end`.
     pub fn run_until(&mut self, end: Time) -> Result<(), HostError> {
+        let result = self.run_events_until(end);
+        self.tap_senders.flush();
+        result
+    }
+
+    fn run_events_until(&mut self, end: Time) -> Result<(), HostError> {
         let mut since_check = 0u32;
         while self.queue.peek().is_some_and(|e| e.time <= end) {
             since_check += 1;
@@ -484,7 +495,7 @@ impl LockstepHost {
                     return Ok(());
                 }
             }
-            self.step()?;
+            self.next_event()?;
         }
         self.now = self.now.max(end);
         Ok(())
@@ -502,6 +513,12 @@ impl LockstepHost {
     /// Processes the next event; false when nothing is scheduled. The packages one cycle sent
     /// are delivered in one step as long as no other event comes between them.
     pub fn step(&mut self) -> Result<bool, HostError> {
+        let result = self.next_event();
+        self.tap_senders.flush();
+        result
+    }
+
+    fn next_event(&mut self) -> Result<bool, HostError> {
         let Some(event) = self.queue.pop() else { return Ok(false) };
         if let Some(pacing) = self.pacing {
             let sim_elapsed = event.time.saturating_since(pacing.sim_origin).as_secs_f64();
@@ -610,7 +627,14 @@ impl LockstepHost {
                 type_name: output.type_name,
             };
             let read = !output.readers.is_empty();
-            match self.taps.offer(output.tapped, &tapped, self.now, package, read) {
+            match self.taps.offer(
+                &mut self.tap_senders,
+                output.tapped,
+                &tapped,
+                self.now,
+                package,
+                read,
+            ) {
                 Some(package) => package,
                 None => return,
             }
@@ -781,6 +805,7 @@ impl LockstepHost {
 
     /// Tells every module the run is over (closes files, releases hardware). Idempotent.
     pub fn stop(&mut self) {
+        self.tap_senders.flush();
         if !self.stopped {
             self.stopped = true;
             for state in &mut self.modules {

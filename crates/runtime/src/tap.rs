@@ -3,6 +3,7 @@
 use crate::message::ErasedPackage;
 use crate::package::ModuleId;
 use crate::time::Time;
+use std::sync::Arc;
 
 /// One package as it becomes visible to its readers.
 #[derive(Clone, Copy)]
@@ -106,13 +107,42 @@ pub trait Tap: Send + Sync {
     fn package_owned(&self, output: &TapOutput<'_>, time: Time, package: Box<dyn ErasedPackage>) {
         self.package(&output.record(time, package.as_ref()));
     }
+
+    /// A sender of this tap's own for one host, which the host then calls instead of the tap:
+    /// with `&mut`, from one thread at a time, so it can gather what it is shown and given
+    /// without taking a lock for each package (a match sends about ten thousand packages per
+    /// simulated second). The lockstep host asks for one when the tap is added, flushes it
+    /// ([`TapSender::flush`]) before each of its run calls returns and when it stops, and
+    /// drops it with itself. `None` (the default): the host calls the tap. A tap whose
+    /// records must reach it during a run (a viewer's live feed) keeps the default.
+    fn sender(&self) -> Option<Box<dyn TapSender>> {
+        None
+    }
+}
+
+/// A tap's sender for one host: see [`Tap::sender`]. It sees what the tap would see, in the
+/// same order.
+pub trait TapSender: Send {
+    /// As [`Tap::package`].
+    fn package(&mut self, record: &TapRecord<'_>);
+
+    /// As [`Tap::package_owned`].
+    fn package_owned(
+        &mut self,
+        output: &TapOutput<'_>,
+        time: Time,
+        package: Box<dyn ErasedPackage>,
+    );
+
+    /// Hands on everything gathered so far: the host is between runs, or stopping.
+    fn flush(&mut self);
 }
 
 /// Several taps as one: each sees every record, in order. A host shows each of its own taps
 /// ([`crate::LockstepHost::add_tap`]) only the outputs that tap wants; `Taps` is for a place
 /// that takes a single tap.
 #[derive(Clone, Default)]
-pub struct Taps(pub Vec<std::sync::Arc<dyn Tap>>);
+pub struct Taps(pub Vec<Arc<dyn Tap>>);
 
 impl std::fmt::Debug for Taps {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -145,11 +175,32 @@ impl Tap for Taps {
 }
 
 /// A host's taps, and the dispatch of a record to those that want its output.
-#[derive(Clone, Default)]
-pub(crate) struct HostTaps(Vec<std::sync::Arc<dyn Tap>>);
+#[derive(Default)]
+pub(crate) struct HostTaps(Vec<Arc<dyn Tap>>);
+
+/// By tap of a [`HostTaps`], the sender the host calls instead of it ([`Tap::sender`]), if
+/// any: only a host that calls its taps from one thread (the lockstep host) has them.
+#[derive(Default)]
+pub(crate) struct TapSenders(Vec<Option<Box<dyn TapSender>>>);
+
+impl TapSenders {
+    /// Has every sender hand on what it gathered.
+    pub(crate) fn flush(&mut self) {
+        for sender in self.0.iter_mut().flatten() {
+            sender.flush();
+        }
+    }
+}
 
 impl HostTaps {
-    pub(crate) fn push(&mut self, tap: std::sync::Arc<dyn Tap>) {
+    pub(crate) fn push(&mut self, tap: Arc<dyn Tap>) {
+        self.0.push(tap);
+    }
+
+    /// Adds `tap`, and its sender to `senders` (which then has one place per tap).
+    pub(crate) fn push_with_sender(&mut self, tap: Arc<dyn Tap>, senders: &mut TapSenders) {
+        senders.0.resize_with(self.0.len(), || None);
+        senders.0.push(tap.sender());
         self.0.push(tap);
     }
 
@@ -169,9 +220,41 @@ impl HostTaps {
     /// Offers `package`, sent on `output` and visible at `time`, to the taps of `mask`: when a
     /// module reads the output, they are shown it and the host gets it back to deliver; when
     /// nobody does, the last tap of `mask` is given it ([`Tap::package_owned`]) and the others
-    /// are shown it.
+    /// are shown it. Taps with a sender in `senders` are reached through it.
     pub(crate) fn offer(
         &self,
+        senders: &mut TapSenders,
+        mask: u64,
+        output: &TapOutput<'_>,
+        time: Time,
+        package: Box<dyn ErasedPackage>,
+        read: bool,
+    ) -> Option<Box<dyn ErasedPackage>> {
+        Dispatch { taps: &self.0, senders: &mut senders.0 }.offer(mask, output, time, package, read)
+    }
+
+    /// [`HostTaps::offer`] from a host shared by several threads: every tap is called itself.
+    pub(crate) fn offer_shared(
+        &self,
+        mask: u64,
+        output: &TapOutput<'_>,
+        time: Time,
+        package: Box<dyn ErasedPackage>,
+        read: bool,
+    ) -> Option<Box<dyn ErasedPackage>> {
+        Dispatch { taps: &self.0, senders: &mut [] }.offer(mask, output, time, package, read)
+    }
+}
+
+/// The taps of a host and their senders, as one dispatch sees them.
+struct Dispatch<'a> {
+    taps: &'a [Arc<dyn Tap>],
+    senders: &'a mut [Option<Box<dyn TapSender>>],
+}
+
+impl Dispatch<'_> {
+    fn offer(
+        &mut self,
         mask: u64,
         output: &TapOutput<'_>,
         time: Time,
@@ -185,24 +268,34 @@ impl HostTaps {
             return read.then_some(package);
         }
         self.package(mask & !(1 << last), &output.record(time, package.as_ref()));
-        self.0[last].package_owned(output, time, package);
+        match self.senders.get_mut(last).and_then(Option::as_mut) {
+            Some(sender) => sender.package_owned(output, time, package),
+            None => self.taps[last].package_owned(output, time, package),
+        }
         None
     }
 
     /// Shows `record` to the taps of `mask` (see [`HostTaps::wanting`]).
-    pub(crate) fn package(&self, mask: u64, record: &TapRecord<'_>) {
+    fn package(&mut self, mask: u64, record: &TapRecord<'_>) {
         let mut bits = mask;
         while bits != 0 {
             let i = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             if i < 63 {
-                self.0[i].package(record);
+                self.show(i, record);
             } else {
                 // Beyond 63 taps: each of the rest decides for itself.
-                for tap in &self.0[63..] {
-                    tap.package(record);
+                for i in 63..self.taps.len() {
+                    self.show(i, record);
                 }
             }
+        }
+    }
+
+    fn show(&mut self, tap: usize, record: &TapRecord<'_>) {
+        match self.senders.get_mut(tap).and_then(Option::as_mut) {
+            Some(sender) => sender.package(record),
+            None => self.taps[tap].package(record),
         }
     }
 }

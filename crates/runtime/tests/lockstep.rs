@@ -441,6 +441,137 @@ fn a_tap_sees_only_the_outputs_it_wants() {
     assert_eq!(inside_taps, everything, "a tap inside `Taps` with a logger sees everything");
 }
 
+/// Passes each number on, times ten, on an output nobody reads.
+struct Relay {
+    input: Input<u64>,
+    out: Output<u64>,
+}
+
+impl Module for Relay {
+    fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+        for p in ctx.drain(self.input) {
+            ctx.send_stamped(self.out, p.value * 10, p.stamp);
+        }
+        Ok(())
+    }
+}
+
+/// A counter every 10 ms, read by a relay whose output nobody reads.
+fn relayed_counter_host() -> LockstepHost {
+    let mut graph = GraphBuilder::new();
+    let sensor = graph.add("sensor", |p| {
+        p.trigger(Trigger::every(10 * MS));
+        let out = p.output("raw");
+        (Counter { out, next: 0, noisy: false, limit: None }, out)
+    });
+    let (input, _unread) = graph.add("relay", |p| {
+        let input = p.input("raw", Policy::queue(8));
+        let out = p.output::<u64>("unread");
+        p.trigger(Trigger::on_any([input.into()]));
+        (Relay { input, out }, (input, out))
+    });
+    graph.connect(sensor, input);
+    LockstepHost::new(graph.build().expect("valid"), HostConfig::with_seed(5))
+}
+
+/// What a tap saw of a package: output, sequence number, given (`true`) or shown.
+type TapEntry = (String, u64, bool);
+
+/// A tap that records what it sees, itself or through its sender (which keeps its records
+/// until it is flushed).
+struct Buffered {
+    with_sender: bool,
+    direct: Mutex<Vec<TapEntry>>,
+    pending: Arc<Mutex<Vec<TapEntry>>>,
+    flushed: Arc<Mutex<Vec<TapEntry>>>,
+}
+
+struct BufferSender {
+    pending: Arc<Mutex<Vec<TapEntry>>>,
+    flushed: Arc<Mutex<Vec<TapEntry>>>,
+}
+
+impl strata_runtime::Tap for Buffered {
+    fn package(&self, record: &strata_runtime::TapRecord<'_>) {
+        let entry = (record.output.to_owned(), record.package.seq(), false);
+        self.direct.lock().expect("lock").push(entry);
+    }
+
+    fn package_owned(
+        &self,
+        output: &strata_runtime::TapOutput<'_>,
+        _time: Time,
+        package: Box<dyn strata_runtime::ErasedPackage>,
+    ) {
+        self.direct.lock().expect("lock").push((output.output.to_owned(), package.seq(), true));
+    }
+
+    fn sender(&self) -> Option<Box<dyn strata_runtime::TapSender>> {
+        self.with_sender.then(|| {
+            let (pending, flushed) = (Arc::clone(&self.pending), Arc::clone(&self.flushed));
+            Box::new(BufferSender { pending, flushed }) as Box<_>
+        })
+    }
+}
+
+impl strata_runtime::TapSender for BufferSender {
+    fn package(&mut self, record: &strata_runtime::TapRecord<'_>) {
+        let entry = (record.output.to_owned(), record.package.seq(), false);
+        self.pending.lock().expect("lock").push(entry);
+    }
+
+    fn package_owned(
+        &mut self,
+        output: &strata_runtime::TapOutput<'_>,
+        _time: Time,
+        package: Box<dyn strata_runtime::ErasedPackage>,
+    ) {
+        self.pending.lock().expect("lock").push((output.output.to_owned(), package.seq(), true));
+    }
+
+    fn flush(&mut self) {
+        self.flushed.lock().expect("lock").append(&mut self.pending.lock().expect("lock"));
+    }
+}
+
+/// The lockstep host reaches a tap that has a sender through the sender only, shows and gives
+/// it what it would show and give the tap, and flushes it before each run call returns.
+#[test]
+fn a_tap_with_a_sender_is_reached_through_it_and_flushed_after_each_run() {
+    let tap = |with_sender| {
+        Arc::new(Buffered {
+            with_sender,
+            direct: Mutex::default(),
+            pending: Arc::default(),
+            flushed: Arc::default(),
+        })
+    };
+    let (plain, buffered) = (tap(false), tap(true));
+    let mut plain_host = relayed_counter_host();
+    plain_host.set_tap(plain.clone());
+    plain_host.run_for(Duration::from_millis(400)).expect("runs");
+    let expected = plain.direct.lock().expect("lock").clone();
+    assert!(expected.iter().any(|(_, _, given)| *given) && expected.iter().any(|e| !e.2));
+
+    let mut host = relayed_counter_host();
+    host.set_tap(buffered.clone());
+    for _ in 0..2 {
+        host.run_for(Duration::from_millis(100)).expect("runs");
+        assert!(buffered.pending.lock().expect("lock").is_empty(), "flushed when a run returns");
+    }
+    let mut steps = 0;
+    while host.now() < Time::from_secs_f64(0.3) {
+        host.step().expect("steps");
+        assert!(buffered.pending.lock().expect("lock").is_empty(), "flushed after each step");
+        steps += 1;
+    }
+    assert!(steps > 10);
+    assert!(buffered.direct.lock().expect("lock").is_empty(), "never called itself");
+    let flushed = buffered.flushed.lock().expect("lock").clone();
+    assert!(flushed.len() > expected.len() / 2);
+    assert_eq!(flushed[..], expected[..flushed.len()], "what the tap itself would see, in order");
+}
+
 /// A package of an output nobody reads is given to a tap to keep (one of the taps that want
 /// it, the last; the others are shown it), and it is the package the others see: same value,
 /// stamp and sequence number. Packages of read outputs are only shown.
@@ -474,20 +605,7 @@ fn a_package_nobody_reads_is_given_to_the_last_tap_that_wants_it() {
         }
     }
     let run = |how: u8| {
-        let mut graph = GraphBuilder::new();
-        let sensor = graph.add("sensor", |p| {
-            p.trigger(Trigger::every(10 * MS));
-            let out = p.output("raw");
-            (Counter { out, next: 0, noisy: false, limit: None }, out)
-        });
-        let (input, _unread) = graph.add("relay", |p| {
-            let input = p.input("raw", Policy::queue(8));
-            let out = p.output::<u64>("unread");
-            p.trigger(Trigger::on_any([input.into()]));
-            (Relay { input, out }, (input, out))
-        });
-        graph.connect(sensor, input);
-        let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::with_seed(5));
+        let mut host = relayed_counter_host();
         let (keeper, other) = (Arc::new(Keeper::default()), Arc::new(Keeper::default()));
         match how {
             0 => host.set_tap(keeper.clone()),
@@ -502,18 +620,6 @@ fn a_package_nobody_reads_is_given_to_the_last_tap_that_wants_it() {
         let other = other.0.lock().expect("lock").clone();
         (keeper, other)
     };
-    struct Relay {
-        input: Input<u64>,
-        out: Output<u64>,
-    }
-    impl Module for Relay {
-        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
-            for p in ctx.drain(self.input) {
-                ctx.send_stamped(self.out, p.value * 10, p.stamp);
-            }
-            Ok(())
-        }
-    }
     let (alone, _) = run(0);
     assert!(alone.iter().any(|(output, ..)| output == "unread"));
     for (output, _, _, given) in &alone {
