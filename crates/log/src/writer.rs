@@ -758,16 +758,19 @@ impl Shared {
             let (stamp, seq) = (package.get().stamp(), package.get().seq());
             let (log_time, stamp) = (time.as_nanos(), stamp.as_nanos());
             let batch = &mut pending.batch;
-            let payload = if handover == HANDOVER_ENCODE {
-                let start = batch.bytes.len();
-                if package.get().encode(Encoding::Cdr, &mut batch.bytes).is_err() {
-                    batch.bytes.truncate(start);
-                    Err(package)
-                } else {
-                    Ok(Payload::Bytes { start, len: batch.bytes.len() - start })
+            let payload = match package {
+                // A given package goes over whole: the writer encodes it, and it comes back
+                // with its batch to be dropped here (see `Shared::recycle`).
+                Offered::Shown(shown) if handover == HANDOVER_ENCODE => {
+                    let start = batch.bytes.len();
+                    if shown.encode(Encoding::Cdr, &mut batch.bytes).is_err() {
+                        batch.bytes.truncate(start);
+                        Err(package)
+                    } else {
+                        Ok(Payload::Bytes { start, len: batch.bytes.len() - start })
+                    }
                 }
-            } else {
-                Ok(Payload::Package(package.keep()))
+                _ => Ok(Payload::Package(package.keep())),
             };
             match payload {
                 Ok(payload) => {
