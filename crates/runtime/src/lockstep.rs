@@ -628,7 +628,7 @@ impl LockstepHost {
             };
             let read = !output.readers.is_empty();
             match self.taps.offer(
-                &mut self.tap_senders,
+                Some(&mut self.tap_senders),
                 output.tapped,
                 &tapped,
                 self.now,

@@ -220,29 +220,22 @@ impl HostTaps {
     /// Offers `package`, sent on `output` and visible at `time`, to the taps of `mask`: when a
     /// module reads the output, they are shown it and the host gets it back to deliver; when
     /// nobody does, the last tap of `mask` is given it ([`Tap::package_owned`]) and the others
-    /// are shown it. Taps with a sender in `senders` are reached through it.
+    /// are shown it. Taps with a sender in `senders` are reached through it; a host shared by
+    /// several threads has none and calls every tap itself.
     pub(crate) fn offer(
         &self,
-        senders: &mut TapSenders,
+        senders: Option<&mut TapSenders>,
         mask: u64,
         output: &TapOutput<'_>,
         time: Time,
         package: Box<dyn ErasedPackage>,
         read: bool,
     ) -> Option<Box<dyn ErasedPackage>> {
-        Dispatch { taps: &self.0, senders: &mut senders.0 }.offer(mask, output, time, package, read)
-    }
-
-    /// [`HostTaps::offer`] from a host shared by several threads: every tap is called itself.
-    pub(crate) fn offer_shared(
-        &self,
-        mask: u64,
-        output: &TapOutput<'_>,
-        time: Time,
-        package: Box<dyn ErasedPackage>,
-        read: bool,
-    ) -> Option<Box<dyn ErasedPackage>> {
-        Dispatch { taps: &self.0, senders: &mut [] }.offer(mask, output, time, package, read)
+        let senders = match senders {
+            Some(senders) => &mut senders.0[..],
+            None => &mut [],
+        };
+        Dispatch { taps: &self.0, senders }.offer(mask, output, time, package, read)
     }
 }
 

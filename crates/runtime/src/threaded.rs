@@ -343,7 +343,7 @@ impl Backend for ThreadedBackend<'_> {
                 type_name: output.type_name,
             };
             let (now, read) = (self.shared.clock.now(), !output.readers.is_empty());
-            match self.shared.taps.offer_shared(output.tapped, &tapped, now, package, read) {
+            match self.shared.taps.offer(None, output.tapped, &tapped, now, package, read) {
                 Some(package) => package,
                 None => return,
             }
