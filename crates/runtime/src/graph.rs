@@ -336,7 +336,7 @@ impl Ports<'_> {
 
     /// Runs a cycle when the readers of `output` have taken what it last sent (the paper's
     /// "receiver is ready" message). Without this, the module can still ask
-    /// [`Context::receivers_ready`] during its cycles.
+    /// [`crate::Context::receivers_ready`] during its cycles.
     pub fn wake_when_receivers_ready<T>(&mut self, output: Output<T>) {
         if let Some(decl) = self.decl.outputs.get_mut(usize::from(output.port)) {
             decl.wake_on_ready = true;
