@@ -373,6 +373,13 @@ impl Gathering {
         *outputs.get(usize::from(record.port))?
     }
 
+    /// Adds a message to the batch; the batch, when that filled it (replaced by a spare one).
+    fn push(&mut self, queued: Queued, shared: &Shared) -> Option<Batch> {
+        self.batch.messages.push(queued);
+        (self.batch.messages.len() >= BATCH)
+            .then(|| std::mem::replace(&mut self.batch, shared.spare()))
+    }
+
     fn remember(&mut self, record: &TapOutput<'_>, topic: Option<(u32, u8)>) {
         let index = record.module.index();
         if self.modules.len() <= index {
@@ -579,42 +586,28 @@ impl Shared {
                     self.refused(refused);
                 }
             }
-            WhenFull::Wait => self.gather(gathering, topic, |gathering| {
-                gathering.batch.messages.push(queued);
-                true
-            }),
+            WhenFull::Wait => self.gather(gathering, queued),
         }
     }
 
-    /// Adds to the batch being gathered (a sender that waits): `add` puts a message in it, or
-    /// declines (returns `false`, and adds nothing). A full batch goes to the writer thread.
-    fn gather(
-        &self,
-        gathering: &mut impl Gather,
-        topic: u32,
-        add: impl FnOnce(&mut Gathering) -> bool,
-    ) {
+    /// Adds `queued` to the batch being gathered (a sender that waits). A full batch goes to
+    /// the writer thread.
+    fn gather(&self, gathering: &mut impl Gather, queued: Queued) {
+        let topic = queued.topic;
         let full = gathering.with(|pending| {
             // Checked under the lock `finish` takes to clear it (for the shared batch): a
             // record is either in the last batch or counted as dropped.
-            if !self.accepting.load(Ordering::Acquire) {
-                return Err(());
-            }
-            if !add(pending) {
-                return Ok(None);
-            }
-            let full = pending.batch.messages.len() >= BATCH;
-            Ok(full.then(|| std::mem::replace(&mut pending.batch, self.spare())))
+            self.accepting.load(Ordering::Acquire).then(|| pending.push(queued, self))
         });
         match full {
-            Err(()) => self.drop_id(topic),
-            Ok(full) => gathering.send(self, full),
+            None => self.drop_id(topic),
+            Some(full) => gathering.send(self, full),
         }
     }
 
-    /// Hands a full batch to the writer thread.
+    /// Hands a batch to the writer thread, unless it is empty.
     fn send_batch(&self, batch: Option<Batch>) {
-        if let Some(batch) = batch
+        if let Some(batch) = batch.filter(|batch| !batch.messages.is_empty())
             && let Err(refused) = self.sender.send(Command::Messages(batch))
         {
             self.refused(refused.into_inner());
@@ -674,11 +667,7 @@ impl Shared {
     fn flush(&self) {
         let batch =
             std::mem::take(&mut self.pending.lock().unwrap_or_else(PoisonError::into_inner).batch);
-        if !batch.messages.is_empty()
-            && let Err(refused) = self.sender.send(Command::Messages(batch))
-        {
-            self.refused(refused.into_inner());
-        }
+        self.send_batch(Some(batch));
     }
 
     fn tap_package(
@@ -774,11 +763,8 @@ impl Shared {
             };
             match payload {
                 Ok(payload) => {
-                    batch.messages.push(Queued { topic: id, log_time, stamp, seq, payload });
-                    let full = batch.messages.len() >= BATCH;
-                    Gathered::Done(
-                        full.then(|| std::mem::replace(&mut pending.batch, self.spare())),
-                    )
+                    let queued = Queued { topic: id, log_time, stamp, seq, payload };
+                    Gathered::Done(pending.push(queued, self))
                 }
                 Err(package) => {
                     // From now on the writer encodes this topic's packages.
@@ -1147,11 +1133,7 @@ impl McapTap {
             self.shared.accepting.store(false, Ordering::Release);
             std::mem::take(&mut pending.batch)
         };
-        if !last.messages.is_empty()
-            && let Err(refused) = self.shared.sender.send(Command::Messages(last))
-        {
-            self.shared.refused(refused.into_inner());
-        }
+        self.shared.send_batch(Some(last));
         let sent = self.shared.sender.send(Command::Finish(reply));
         let result = match sent {
             Ok(()) => answer.recv().unwrap_or(Err(LogError::WriterGone { path: path.clone() })),
