@@ -301,8 +301,11 @@ struct Capture {
 
 impl Tap for Capture {
     fn package(&self, record: &TapRecord<'_>) {
-        let topic =
-            format!("{}{}", self.scope, crate::package_topic(record.module_name, record.output));
+        let topic = format!(
+            "{}{}",
+            self.scope,
+            crate::package_topic(record.sent_on.module_name, record.sent_on.output)
+        );
         self.outputs.lock().unwrap_or_else(PoisonError::into_inner).entry(topic).or_default().push(
             Captured {
                 time: record.time,

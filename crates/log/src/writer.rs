@@ -1161,7 +1161,7 @@ impl Tap for McapTap {
     fn package(&self, record: &TapRecord<'_>) {
         let shown = Offered::Shown(record.package);
         let shared_batch = &mut Locked(&self.shared.pending);
-        self.shared.tap_package(shared_batch, &self.topics, &record.output(), record.time, shown);
+        self.shared.tap_package(shared_batch, &self.topics, &record.sent_on, record.time, shown);
     }
 
     fn package_owned(&self, output: &TapOutput<'_>, time: Time, package: Box<dyn ErasedPackage>) {
@@ -1202,7 +1202,7 @@ impl McapSender {
 impl TapSender for McapSender {
     fn package(&mut self, record: &TapRecord<'_>) {
         let shown = Offered::Shown(record.package);
-        let output = record.output();
+        let output = record.sent_on;
         self.shared.tap_package(&mut self.gathering, &self.topics, &output, record.time, shown);
     }
 
@@ -1263,7 +1263,7 @@ impl Tap for ScopedTap {
     fn package(&self, record: &TapRecord<'_>) {
         let shown = Offered::Shown(record.package);
         let shared = &self.tap.shared;
-        let output = record.output();
+        let output = record.sent_on;
         shared.tap_package(&mut Locked(&shared.pending), &self.topics, &output, record.time, shown);
     }
 
@@ -1896,16 +1896,15 @@ mod tests {
             for (i, value) in values.iter().enumerate().take(to).skip(from) {
                 let package =
                     Package::new(value.clone(), Time::from_nanos(i as u64), i as u64, ModuleId(0));
-                tap.package(&TapRecord {
-                    time: Time::from_nanos(i as u64),
+                let sent_on = TapOutput {
                     host: 0,
                     module: ModuleId(0),
                     module_name: "m",
                     port: 0,
                     output: "out",
                     type_name: "(u32, String)",
-                    package: &package,
-                });
+                };
+                tap.package(&sent_on.record(Time::from_nanos(i as u64), &package));
             }
         }
         // Less than a batch stays with the sender.

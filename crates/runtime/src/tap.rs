@@ -10,6 +10,25 @@ use std::sync::Arc;
 pub struct TapRecord<'a> {
     /// When the package became visible (host time).
     pub time: Time,
+    /// The output it was sent on.
+    pub sent_on: TapOutput<'a>,
+    pub package: &'a dyn ErasedPackage,
+}
+
+impl std::fmt::Debug for TapRecord<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TapRecord")
+            .field("time", &self.time)
+            .field("module", &self.sent_on.module_name)
+            .field("output", &self.sent_on.output)
+            .field("seq", &self.package.seq())
+            .finish()
+    }
+}
+
+/// An output as a tap is asked about it, before any package: see [`Tap::wants`].
+#[derive(Clone, Copy, Debug)]
+pub struct TapOutput<'a> {
     /// A number unique to the host in this process: with `module` and `port` it names the
     /// output without comparing names, for a tap that sees several hosts.
     pub host: u64,
@@ -19,59 +38,12 @@ pub struct TapRecord<'a> {
     pub port: u16,
     pub output: &'a str,
     pub type_name: &'static str,
-    pub package: &'a dyn ErasedPackage,
-}
-
-impl<'a> TapRecord<'a> {
-    /// The output the record was sent on.
-    pub fn output(&self) -> TapOutput<'a> {
-        TapOutput {
-            host: self.host,
-            module: self.module,
-            module_name: self.module_name,
-            port: self.port,
-            output: self.output,
-            type_name: self.type_name,
-        }
-    }
-}
-
-impl std::fmt::Debug for TapRecord<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("TapRecord")
-            .field("time", &self.time)
-            .field("module", &self.module_name)
-            .field("output", &self.output)
-            .field("seq", &self.package.seq())
-            .finish()
-    }
-}
-
-/// An output as a tap is asked about it, before any package: see [`Tap::wants`].
-#[derive(Clone, Copy, Debug)]
-pub struct TapOutput<'a> {
-    /// As [`TapRecord::host`].
-    pub host: u64,
-    pub module: ModuleId,
-    pub module_name: &'a str,
-    pub port: u16,
-    pub output: &'a str,
-    pub type_name: &'static str,
 }
 
 impl<'a> TapOutput<'a> {
     /// The record of `package`, sent on this output and visible at `time`.
     pub fn record(&self, time: Time, package: &'a dyn ErasedPackage) -> TapRecord<'a> {
-        TapRecord {
-            time,
-            host: self.host,
-            module: self.module,
-            module_name: self.module_name,
-            port: self.port,
-            output: self.output,
-            type_name: self.type_name,
-            package,
-        }
+        TapRecord { time, sent_on: *self, package }
     }
 }
 

@@ -493,7 +493,7 @@ struct BufferSender {
 
 impl strata_runtime::Tap for Buffered {
     fn package(&self, record: &strata_runtime::TapRecord<'_>) {
-        let entry = (record.output.to_owned(), record.package.seq(), false);
+        let entry = (record.sent_on.output.to_owned(), record.package.seq(), false);
         self.direct.lock().expect("lock").push(entry);
     }
 
@@ -516,7 +516,7 @@ impl strata_runtime::Tap for Buffered {
 
 impl strata_runtime::TapSender for BufferSender {
     fn package(&mut self, record: &strata_runtime::TapRecord<'_>) {
-        let entry = (record.output.to_owned(), record.package.seq(), false);
+        let entry = (record.sent_on.output.to_owned(), record.package.seq(), false);
         self.pending.lock().expect("lock").push(entry);
     }
 
@@ -587,7 +587,8 @@ fn a_package_nobody_reads_is_given_to_the_last_tap_that_wants_it() {
                 .as_any()
                 .downcast_ref::<strata_runtime::Package<u64>>()
                 .map(|p| p.value);
-            let entry = (record.output.to_owned(), record.package.seq(), value.unwrap_or(0), false);
+            let entry =
+                (record.sent_on.output.to_owned(), record.package.seq(), value.unwrap_or(0), false);
             self.0.lock().expect("lock").push(entry);
         }
         fn package_owned(

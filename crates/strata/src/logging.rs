@@ -499,7 +499,7 @@ impl WorldStateDecimation {
 
 impl Tap for WorldStateDecimation {
     fn package(&self, record: &TapRecord<'_>) {
-        if self.keep(&record.output(), record.time) {
+        if self.keep(&record.sent_on, record.time) {
             self.tap.package(record);
         }
     }

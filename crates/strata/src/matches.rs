@@ -152,11 +152,11 @@ impl RoleTap {
 impl Tap for RoleTap {
     fn package(&self, record: &TapRecord<'_>) {
         // Other outputs still come when a logger shares the tap.
-        if record.output != Self::OUTPUT {
+        if record.sent_on.output != Self::OUTPUT {
             return;
         }
         if let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() {
-            let robot = record.module_name.trim_end_matches("/planning").to_owned();
+            let robot = record.sent_on.module_name.trim_end_matches("/planning").to_owned();
             self.roles
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())

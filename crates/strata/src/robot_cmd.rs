@@ -806,7 +806,7 @@ impl Watch {
 
 impl Tap for Watch {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.output != "decision" || record.module_name != self.planning {
+        if record.sent_on.output != "decision" || record.sent_on.module_name != self.planning {
             return;
         }
         let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() else {

@@ -32,7 +32,7 @@ struct Collect {
 impl Tap for Collect {
     fn package(&self, record: &TapRecord<'_>) {
         self.packages.lock().unwrap_or_else(PoisonError::into_inner).push((
-            format!("{}/{}", record.module_name, record.output),
+            format!("{}/{}", record.sent_on.module_name, record.sent_on.output),
             record.package.seq(),
             record.time.as_nanos(),
             record.package.stamp().as_nanos(),

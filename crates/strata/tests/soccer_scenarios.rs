@@ -58,14 +58,16 @@ impl Assignments {
 
 impl Tap for Assignments {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.output != "decision" {
+        if record.sent_on.output != "decision" {
             return;
         }
         let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() else {
             return;
         };
         // Module names are `home/PLAYER/planning`.
-        let Some(player) = record.module_name.split('/').nth(1).and_then(|p| p.parse().ok()) else {
+        let Some(player) =
+            record.sent_on.module_name.split('/').nth(1).and_then(|p| p.parse().ok())
+        else {
             return;
         };
         let d = &package.value;

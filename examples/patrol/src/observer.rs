@@ -75,12 +75,12 @@ impl PatrolObserver {
 
 impl Tap for PatrolObserver {
     fn package(&self, record: &TapRecord<'_>) {
-        let Some((robot, module)) = record.module_name.rsplit_once('/') else { return };
+        let Some((robot, module)) = record.sent_on.module_name.rsplit_once('/') else { return };
         let t = record.time.as_secs_f64();
         let any = record.package.as_any();
         let mut observations =
             self.observations.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        match (module, record.output) {
+        match (module, record.sent_on.output) {
             ("planning", "decision") => {
                 let Some(p) = any.downcast_ref::<Package<Decision>>() else { return };
                 let a = &p.value.assignment;

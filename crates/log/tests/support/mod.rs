@@ -227,7 +227,7 @@ impl Tap for Tee {
             .encode(McapTapOptions::default().encoding, &mut value)
             .expect("serializable");
         self.seen.lock().expect("not poisoned").push((
-            format!("{}/{}", record.module_name, record.output),
+            format!("{}/{}", record.sent_on.module_name, record.sent_on.output),
             record.time,
             record.package.stamp(),
             record.package.seq(),

@@ -69,8 +69,8 @@ impl Tap for Collect {
         r.package.write_json(&mut json).expect("serializable");
         self.0.lock().unwrap_or_else(|e| e.into_inner()).push((
             r.time,
-            r.module_name.to_owned(),
-            r.output.to_owned(),
+            r.sent_on.module_name.to_owned(),
+            r.sent_on.output.to_owned(),
             r.package.seq(),
             r.package.stamp(),
             String::from_utf8(json).expect("utf-8"),

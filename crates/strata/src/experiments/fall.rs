@@ -258,7 +258,7 @@ struct FallTap {
 
 impl Tap for FallTap {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.module_name == self.reactive && record.output == "commands" {
+        if record.sent_on.module_name == self.reactive && record.sent_on.output == "commands" {
             let Some(p) = record.package.as_any().downcast_ref::<Package<MotionCommands>>() else {
                 return;
             };
@@ -274,7 +274,7 @@ impl Tap for FallTap {
             if r.commands.last().is_none_or(|(_, last)| *last != fall) {
                 r.commands.push((record.time.as_secs_f64(), fall));
             }
-        } else if record.module_name == self.reactive && record.output == "report" {
+        } else if record.sent_on.module_name == self.reactive && record.sent_on.output == "report" {
             let Some(p) = record.package.as_any().downcast_ref::<Package<ReactiveReport>>() else {
                 return;
             };
@@ -289,7 +289,9 @@ impl Tap for FallTap {
                 r.fall_reports.push((record.time.as_secs_f64(), p.value.stamp.as_secs_f64()));
             }
             r.last_report_fall = fall;
-        } else if record.module_name == self.deliberative && record.output == "scores" {
+        } else if record.sent_on.module_name == self.deliberative
+            && record.sent_on.output == "scores"
+        {
             self.recorded
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())

@@ -273,7 +273,7 @@ struct KeeperTap {
 
 impl Tap for KeeperTap {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.module_name == self.reactive && record.output == "report" {
+        if record.sent_on.module_name == self.reactive && record.sent_on.output == "report" {
             let Some(p) = record.package.as_any().downcast_ref::<Package<ReactiveReport>>() else {
                 return;
             };
@@ -299,13 +299,16 @@ impl Tap for KeeperTap {
             latest.observe_ball = observe_ball;
             latest.scores = scores;
             latest.head = p.value.active_path();
-        } else if record.module_name == self.deliberative && record.output == "scores" {
+        } else if record.sent_on.module_name == self.deliberative
+            && record.sent_on.output == "scores"
+        {
             let Some(p) = record.package.as_any().downcast_ref::<Package<Output>>() else {
                 return;
             };
             self.latest.lock().unwrap_or_else(|e| e.into_inner()).behavior =
                 p.value.behavior_path.clone();
-        } else if record.module_name == self.world && record.output == "world_state" {
+        } else if record.sent_on.module_name == self.world && record.sent_on.output == "world_state"
+        {
             let Some(p) = record.package.as_any().downcast_ref::<Package<WorldState>>() else {
                 return;
             };

@@ -193,12 +193,12 @@ impl Tap for LiveTap {
     fn package(&self, record: &TapRecord<'_>) {
         // Most packages are of no interest to the viewer: skip them before any allocation.
         if !matches!(
-            record.output,
+            record.sent_on.output,
             "ground_truth" | "world_state" | "report" | "scores" | "decision"
         ) {
             return;
         }
-        let topic = strata_log::package_topic(record.module_name, record.output);
+        let topic = strata_log::package_topic(record.sent_on.module_name, record.sent_on.output);
         let wanted =
             self.data.read().unwrap_or_else(PoisonError::into_inner).wants(&topic, record.time);
         if wanted {
@@ -208,7 +208,7 @@ impl Tap for LiveTap {
                 data::Incoming::Live(record.package),
             );
         }
-        if record.output == "ground_truth" {
+        if record.sent_on.output == "ground_truth" {
             self.pace(record.time);
         }
     }
