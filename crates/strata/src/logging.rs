@@ -175,17 +175,25 @@ pub fn parse_robots(text: &str, players: u8) -> Result<Vec<String>> {
 }
 
 /// Creates a log and writes what a reader needs besides the packages: the run (seed, command
-/// line, configuration) and the graph. What matches, robots and experiments share.
+/// line, configuration) and the graph; the log derives the behavior paths of `robots` (module
+/// prefixes: `home/3`, `t10/3`) and, where the simulator's ground truth is logged, the game
+/// state. What matches, robots and experiments share.
 pub fn open_run_log(
     path: &Path,
     options: McapTapOptions,
     run: &RunInfo,
     graph: &GraphDescription,
+    robots: impl IntoIterator<Item = String>,
 ) -> Result<Arc<McapTap>> {
     let tap = McapTap::create(path, options)
         .with_context(|| format!("creating the log {}", path.display()))?;
     tap.write_run_info(run)?;
     tap.write_graph("", graph)?;
+    tap.set_derive(Box::new(RunRecords {
+        robots: robots.into_iter().map(|robot| PathRecord::new(&robot)).collect(),
+        sources: Vec::new(),
+        last_game: None,
+    }));
     Ok(Arc::new(tap))
 }
 
@@ -227,15 +235,10 @@ impl MatchLog {
         let config = serde_json::to_string_pretty(&RunConfig::of(game))
             .context("serializing the match configuration")?;
         let run = RunInfo::current(game.config.seed).with_config(ConfigFormat::Json, config);
-        let tap = open_run_log(&settings.path, options, &run, &graph)?;
         let chosen =
             |name: &str| settings.robots.is_empty() || settings.robots.iter().any(|r| r == name);
         let robots = game.robots.iter().map(|(id, _)| robot_name(*id)).filter(|r| chosen(r));
-        tap.set_derive(Box::new(MatchRecords {
-            robots: robots.map(|r| PathRecord::new(&r)).collect(),
-            sources: Vec::new(),
-            last_game: None,
-        }));
+        let tap = open_run_log(&settings.path, options, &run, &graph, robots)?;
         let world_period = settings
             .world_state_hz
             .filter(|hz| hz.is_finite() && *hz > 0.0)
@@ -401,17 +404,18 @@ enum Source {
     Layer(usize, Layer),
 }
 
-/// The records of a match's log that are not packages, derived on the log's writer thread
-/// (see [`strata_log::Derive`]): the game state when it changes, and each logged robot's
-/// behavior path, checked every reactive cycle and written when it changes.
-struct MatchRecords {
+/// The records of a log that are not packages, derived on the log's writer thread (see
+/// [`strata_log::Derive`]): the game state when it changes (from the simulator's ground
+/// truth), and each logged robot's behavior path, checked every reactive cycle and written
+/// when it changes.
+struct RunRecords {
     robots: Vec<PathRecord>,
     /// By topic id.
     sources: Vec<Option<Source>>,
     last_game: Option<GameTruth>,
 }
 
-impl MatchRecords {
+impl RunRecords {
     fn game_state(
         &mut self,
         time: Time,
@@ -437,7 +441,7 @@ impl MatchRecords {
     }
 }
 
-impl Derive for MatchRecords {
+impl Derive for RunRecords {
     fn wants(&mut self, id: u32, topic: &str, _type_name: &str) -> bool {
         let source = if topic.ends_with("/ground_truth") {
             Some(Source::GroundTruth)

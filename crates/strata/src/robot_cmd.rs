@@ -436,10 +436,10 @@ fn open_log(
         encoding: args.log_encoding,
         ..McapTapOptions::default()
     };
-    let config =
+    let text =
         serde_json::to_string_pretty(config).context("serializing the robot's configuration")?;
-    let run = RunInfo::current(seed).with_config(ConfigFormat::Json, config);
-    open_run_log(path, options, &run, &graph.describe())
+    let run = RunInfo::current(seed).with_config(ConfigFormat::Json, text);
+    open_run_log(path, options, &run, &graph.describe(), [config.robot.clone()])
 }
 
 fn validate(args: &RobotArgs) -> Result<()> {

@@ -444,6 +444,9 @@ fn an_experiments_first_run_can_be_logged() {
     assert_eq!(reader.run_info().expect("run info").map(|r| r.seed), Some(3));
     let world = reader.topic("home/1/world/world_state").expect("the keeper's world state");
     assert!(world.messages > 0);
+    // Each layer's active behavior path, as a match log has it.
+    let path = reader.topic("home/1/behavior_path").expect("the keeper's behavior paths");
+    assert!(path.messages > 0);
     // The log holds what the keeper was built from: its layers replay exactly (lockstep).
     let registry = strata::replay_registry::soccer();
     for module in ["world", "deliberative", "reactive"] {

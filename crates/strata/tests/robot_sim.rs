@@ -176,6 +176,14 @@ fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
         .expect("a world state")
         .expect("readable");
     assert!(world.json().expect("decodes")["objects"].is_array());
+    // Each layer's active behavior path, derived from the layers' packages as in a match log.
+    let behavior = reader
+        .messages_on(["t10/3/behavior_path"])
+        .next()
+        .expect("a behavior path")
+        .expect("readable");
+    let behavior = behavior.json().expect("decodes");
+    assert!(behavior["reactive"].as_str().is_some_and(|p| !p.is_empty()), "{behavior}");
     assert_eq!(reader.run_info().expect("run info").map(|r| r.seed), Some(77));
     let graphs = reader.graphs().expect("graphs");
     assert_eq!(graphs.len(), 1);

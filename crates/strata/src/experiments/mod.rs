@@ -599,7 +599,7 @@ impl ExperimentLog {
         let config = serde_json::to_string_pretty(&config)
             .context("serializing the experiment's configuration")?;
         let run = RunInfo::current(seed).with_config(ConfigFormat::Json, config);
-        open_run_log(&self.path, options, &run, &graph.describe())
+        open_run_log(&self.path, options, &run, &graph.describe(), robots.keys().cloned())
     }
 }
 
