@@ -551,6 +551,12 @@ impl Shared {
         })
     }
 
+    /// Whether packages on the topic named `name` are logged (the options' module prefixes).
+    fn logs(&self, name: &str) -> bool {
+        self.modules.is_empty()
+            || self.modules.iter().any(|prefix| name.starts_with(prefix.as_str()))
+    }
+
     /// The topic with this id.
     fn topic(&self, id: u32) -> Option<Arc<Topic>> {
         self.topics.lock().unwrap_or_else(PoisonError::into_inner).get(id as usize).cloned()
@@ -875,16 +881,22 @@ impl TopicCache {
         outputs
             .entry(record.output.to_owned())
             .or_insert_with(|| {
-                let name = format!(
-                    "{}{}",
-                    self.prefix,
-                    crate::package_topic(record.module_name, record.output)
-                );
-                let wanted = shared.modules.is_empty()
-                    || shared.modules.iter().any(|prefix| name.starts_with(prefix.as_str()));
-                wanted.then(|| shared.new_topic(name, record.type_name, true))
+                let name = self.name(record);
+                shared.logs(&name).then(|| shared.new_topic(name, record.type_name, true))
             })
             .clone()
+    }
+
+    /// The topic name of an output's packages.
+    fn name(&self, output: &TapOutput<'_>) -> String {
+        format!("{}{}", self.prefix, crate::package_topic(output.module_name, output.output))
+    }
+
+    /// Whether the options log this output's packages; the host then shows it to the tap
+    /// ([`Tap::wants`]). Asked once per output, before its first package: the topic is
+    /// created with that package, so topics keep the order their packages come in.
+    fn wants(&self, shared: &Shared, output: &TapOutput<'_>) -> bool {
+        shared.logs(&self.name(output))
     }
 }
 
@@ -1158,6 +1170,12 @@ impl McapTap {
 }
 
 impl Tap for McapTap {
+    /// Only the outputs of the modules the options log: the host does not even show the
+    /// others' packages (a log of one robot of a match costs the other robots nothing).
+    fn wants(&self, output: &TapOutput<'_>) -> bool {
+        self.topics.wants(&self.shared, output)
+    }
+
     fn package(&self, record: &TapRecord<'_>) {
         let shown = Offered::Shown(record.package);
         let shared_batch = &mut Locked(&self.shared.pending);
@@ -1260,6 +1278,10 @@ impl ScopedTap {
 }
 
 impl Tap for ScopedTap {
+    fn wants(&self, output: &TapOutput<'_>) -> bool {
+        self.topics.wants(&self.tap.shared, output)
+    }
+
     fn package(&self, record: &TapRecord<'_>) {
         let shown = Offered::Shown(record.package);
         let shared = &self.tap.shared;

@@ -10,7 +10,7 @@ use strata_log::{
     Derive, DerivedRecords, LogCompression, LogError, LogInfo, LogReader, McapTap, McapTapOptions,
     WhenFull,
 };
-use strata_runtime::{Encoding, ErasedPackage, HostConfig, Package, ThreadedHost, Time};
+use strata_runtime::{Encoding, ErasedPackage, HostConfig, Package, Tap as _, ThreadedHost, Time};
 use support::{CONFIG, SEED, record_demo, scratch};
 
 #[test]
@@ -327,6 +327,17 @@ fn chosen_modules_only_are_logged() {
     let graph = support::demo_graph("r1/", &config);
     let options = McapTapOptions { modules: vec!["r1/filter".to_owned()], ..Default::default() };
     let log = Arc::new(McapTap::create(&path, options).expect("create"));
+    // The host does not even show the log the other modules' packages.
+    let output = |module_name| strata_runtime::TapOutput {
+        host: 0,
+        module: strata_runtime::ModuleId(0),
+        module_name,
+        port: 0,
+        output: "estimate",
+        type_name: "demo::Estimate",
+    };
+    assert!(log.wants(&output("r1/filter")));
+    assert!(!log.wants(&output("r1/sensor")));
     let mut host = strata_runtime::LockstepHost::new(graph, HostConfig::with_seed(SEED));
     host.set_tap(log.clone());
     host.run_until(Time::from_secs_f64(1.0)).expect("run");

@@ -502,6 +502,10 @@ impl WorldStateDecimation {
 }
 
 impl Tap for WorldStateDecimation {
+    fn wants(&self, output: &TapOutput<'_>) -> bool {
+        self.tap.wants(output)
+    }
+
     fn package(&self, record: &TapRecord<'_>) {
         if self.keep(&record.sent_on, record.time) {
             self.tap.package(record);
