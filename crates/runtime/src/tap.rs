@@ -207,7 +207,19 @@ impl HostTaps {
             Some(senders) => &mut senders.0[..],
             None => &mut [],
         };
-        Dispatch { taps: &self.0, senders }.offer(mask, output, time, package, read)
+        let mut dispatch = Dispatch { taps: &self.0, senders };
+        let last = 63usize.saturating_sub(mask.leading_zeros() as usize);
+        // Beyond 63 taps each decides for itself which records it takes: show them all.
+        if read || mask == 0 || last >= 63 {
+            dispatch.package(mask, &output.record(time, package.as_ref()));
+            return read.then_some(package);
+        }
+        dispatch.package(mask & !(1 << last), &output.record(time, package.as_ref()));
+        match dispatch.senders.get_mut(last).and_then(Option::as_mut) {
+            Some(sender) => sender.package_owned(output, time, package),
+            None => self.0[last].package_owned(output, time, package),
+        }
+        None
     }
 }
 
@@ -218,28 +230,6 @@ struct Dispatch<'a> {
 }
 
 impl Dispatch<'_> {
-    fn offer(
-        &mut self,
-        mask: u64,
-        output: &TapOutput<'_>,
-        time: Time,
-        package: Box<dyn ErasedPackage>,
-        read: bool,
-    ) -> Option<Box<dyn ErasedPackage>> {
-        let last = 63usize.saturating_sub(mask.leading_zeros() as usize);
-        // Beyond 63 taps each decides for itself which records it takes: show them all.
-        if read || mask == 0 || last >= 63 {
-            self.package(mask, &output.record(time, package.as_ref()));
-            return read.then_some(package);
-        }
-        self.package(mask & !(1 << last), &output.record(time, package.as_ref()));
-        match self.senders.get_mut(last).and_then(Option::as_mut) {
-            Some(sender) => sender.package_owned(output, time, package),
-            None => self.taps[last].package_owned(output, time, package),
-        }
-        None
-    }
-
     /// Shows `record` to the taps of `mask` (see [`HostTaps::wanting`]).
     fn package(&mut self, mask: u64, record: &TapRecord<'_>) {
         let mut bits = mask;
