@@ -1,6 +1,8 @@
 //! `strata`: run simulated matches, experiments, the simulator server, robots, the viewer and
 //! replays of the Strata architecture.
 
+use std::process::ExitCode;
+
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
@@ -54,8 +56,29 @@ enum Command {
     Experiment(experiment_cmd::ExperimentArgs),
 }
 
-fn main() -> Result<()> {
-    let cli = Cli::parse();
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            // The message and its causes only: returning the error from `main` would print
+            // anyhow's backtrace too whenever RUST_BACKTRACE is set (as many set it for panics),
+            // burying a config or file error under frames of this program.
+            let mut printed = error.to_string();
+            eprintln!("error: {printed}");
+            for cause in error.chain().skip(1) {
+                // Many errors here quote their cause in their own message already.
+                let cause = cause.to_string();
+                if !printed.contains(&cause) {
+                    eprintln!("  caused by: {cause}");
+                    printed.push_str(&cause);
+                }
+            }
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Match(args) => match_cmd::run(args),
         Command::DemoRuntime(args) => demo::run(args),
