@@ -240,7 +240,10 @@ pub trait Derive: Send {
 /// Where a [`Derive`] puts the records it makes of a package.
 #[derive(Debug)]
 pub struct DerivedRecords {
+    /// The log's encoding of packages.
     encoding: Encoding,
+    /// The self-describing encoding, for values the log's encoding cannot write.
+    fallback: Encoding,
     records: Vec<DerivedRecord>,
     unencodable: u64,
 }
@@ -250,24 +253,66 @@ struct DerivedRecord {
     topic: String,
     type_name: &'static str,
     time: Time,
+    encoding: Encoding,
+    /// The type's format, for a CDR record's channel schema (traced once per type).
+    format: fn() -> Option<Format>,
     bytes: Vec<u8>,
 }
 
 impl DerivedRecords {
-    fn new(encoding: Encoding) -> DerivedRecords {
-        DerivedRecords { encoding, records: Vec::new(), unencodable: 0 }
+    fn new(encoding: Encoding, fallback: Encoding) -> DerivedRecords {
+        DerivedRecords { encoding, fallback, records: Vec::new(), unencodable: 0 }
     }
 
-    /// Records `value` on `topic` at `time`, as [`McapTap::record_value`] does.
-    pub fn record_value<T: Serialize>(&mut self, topic: &str, time: Time, value: &T) {
+    /// Records `value` on `topic` at `time`, in the log's encoding like a package of its type
+    /// (CDR with an IDL schema by default, so that generic tools read it), or in a
+    /// self-describing one when CDR cannot write it.
+    pub fn record_value<T>(&mut self, topic: &str, time: Time, value: &T)
+    where
+        T: Serialize + serde::de::DeserializeOwned + 'static,
+    {
+        let format: fn() -> Option<Format> = || strata_runtime::cdr::format_of::<T>().ok();
         let mut bytes = Vec::with_capacity(256);
-        if self.encoding.encode(value, &mut bytes).is_err() {
+        let mut encoding = self.encoding;
+        if encoding == Encoding::Cdr
+            && (!cdr_describes::<T>() || encoding.encode(value, &mut bytes).is_err())
+        {
+            bytes.clear();
+            encoding = self.fallback;
+        }
+        if encoding != Encoding::Cdr && encoding.encode(value, &mut bytes).is_err() {
             self.unencodable += 1;
             return;
         }
         let type_name = std::any::type_name::<T>();
-        self.records.push(DerivedRecord { topic: topic.to_owned(), type_name, time, bytes });
+        self.records.push(DerivedRecord {
+            topic: topic.to_owned(),
+            type_name,
+            time,
+            encoding,
+            format,
+            bytes,
+        });
     }
+}
+
+/// Whether a derived record of type `T` can go in CDR: its format traces to an IDL schema, and
+/// it holds no shared value (which would be written as a reference to a record of its own;
+/// derived records keep them inline, in the self-describing encoding). Worked out once per
+/// type.
+fn cdr_describes<T: serde::de::DeserializeOwned + 'static>() -> bool {
+    type Known = Mutex<HashMap<std::any::TypeId, bool>>;
+    static KNOWN: OnceLock<Known> = OnceLock::new();
+    let known = KNOWN.get_or_init(Default::default);
+    let id = std::any::TypeId::of::<T>();
+    if let Some(&describes) = known.lock().unwrap_or_else(PoisonError::into_inner).get(&id) {
+        return describes;
+    }
+    let describes = strata_runtime::cdr::format_of::<T>().is_ok_and(|format| {
+        !shared::appears_in(&format) && idl_schema(&format, std::any::type_name::<T>()).is_ok()
+    });
+    known.lock().unwrap_or_else(PoisonError::into_inner).insert(id, describes);
+    describes
 }
 
 /// One logged stream: the channel a topic gets in the file.
@@ -1569,7 +1614,7 @@ impl WriterThread {
 
     /// Writes the records the log's [`Derive`] makes of `package`, ahead of it.
     fn derive(&mut self, topic: &Topic, log_time: u64, package: &dyn ErasedPackage) {
-        let mut records = DerivedRecords::new(self.shared.record_encoding());
+        let mut records = DerivedRecords::new(self.options.encoding, self.shared.record_encoding());
         if let Some(derive) =
             self.shared.derive.lock().unwrap_or_else(PoisonError::into_inner).as_mut()
         {
@@ -1580,8 +1625,31 @@ impl WriterThread {
             let topic = self.shared.record_topic(&record.topic, record.type_name);
             let seq = topic.next_seq.fetch_add(1, Ordering::Relaxed);
             let time = record.time.as_nanos();
-            self.write_message(&topic, records.encoding, None, time, time, seq, &record.bytes);
+            let schema = match record.encoding {
+                Encoding::Cdr => self.record_cdr_schema(&topic, record.format),
+                _ => None,
+            };
+            if record.encoding == Encoding::Cdr && schema.is_none() {
+                // `cdr_describes` found one: cannot happen.
+                self.shared.unencodable();
+                continue;
+            }
+            self.write_message(&topic, record.encoding, schema, time, time, seq, &record.bytes);
         }
+    }
+
+    /// The CDR schema of a derived record's type, worked out on its first record.
+    fn record_cdr_schema(
+        &mut self,
+        topic: &Topic,
+        format: fn() -> Option<Format>,
+    ) -> Option<Arc<CdrSchema>> {
+        if let Some(known) = self.cdr_schemas.get(&topic.type_name) {
+            return known.clone();
+        }
+        let schema = format().and_then(|format| CdrSchema::of(&format, &topic.type_name));
+        self.cdr_schemas.insert(topic.type_name.clone(), schema.clone());
+        schema
     }
 
     fn write_package(

@@ -99,68 +99,25 @@ pub struct SensorFrame {
     pub camera: Option<CameraFrame>,
 }
 
-/// Serialization in two forms: tagged in text (`{ kind = "stand_up", sequence = 2 }` in a
-/// motion file, the same in the simulator's JSON protocol), which people read and write; and
-/// serde's default, externally tagged form in binary encodings (logs), whose positional CDR
-/// cannot hold a tag read before the fields it selects. `$text` and `$binary` are remote
-/// definitions of `$ty` with those attributes.
-macro_rules! text_and_binary_forms {
-    ($ty:ident, $text:ident, $binary:ident) => {
-        impl Serialize for $ty {
-            fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-                if serializer.is_human_readable() {
-                    $text::serialize(self, serializer)
-                } else {
-                    $binary::serialize(self, serializer)
-                }
-            }
-        }
-
-        impl<'de> Deserialize<'de> for $ty {
-            fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<$ty, D::Error> {
-                if deserializer.is_human_readable() {
-                    $text::deserialize(deserializer)
-                } else {
-                    $binary::deserialize(deserializer)
-                }
-            }
-        }
-    };
+strata_runtime::text_and_binary_enum! {
+    /// A non-parametric movement sequence (paper 3.5.1, the special policy). The number selects
+    /// a sequence of that kind in the platform's motion catalogue ([`PlatformInfo::motions`]).
+    /// In text (a motion file, the simulator's JSON protocol) `{ kind = "stand_up", sequence =
+    /// 2 }`; in binary encodings (logs) a variant and a number.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum SpecialMotion {
+        /// Uses the body only: the head stays free.
+        Kick(u8),
+        /// Uses head and body.
+        StandUp(u8),
+        /// Protective fall: minimise joint torque once instability is detected. Head and body.
+        Fall(u8),
+        /// Head and body.
+        Dive(u8),
+    }
+    text: #[serde(tag = "kind", content = "sequence", rename_all = "snake_case")]
+    binary: #[serde(rename_all = "snake_case")]
 }
-
-/// A non-parametric movement sequence (paper 3.5.1, the special policy). The number selects a
-/// sequence of that kind in the platform's motion catalogue ([`PlatformInfo::motions`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum SpecialMotion {
-    /// Uses the body only: the head stays free.
-    Kick(u8),
-    /// Uses head and body.
-    StandUp(u8),
-    /// Protective fall: minimise joint torque once instability is detected. Head and body.
-    Fall(u8),
-    /// Head and body.
-    Dive(u8),
-}
-
-#[derive(Serialize, Deserialize)]
-#[serde(remote = "SpecialMotion", tag = "kind", content = "sequence", rename_all = "snake_case")]
-enum SpecialMotionText {
-    Kick(u8),
-    StandUp(u8),
-    Fall(u8),
-    Dive(u8),
-}
-
-#[derive(Serialize, Deserialize)]
-#[serde(remote = "SpecialMotion", rename_all = "snake_case")]
-enum SpecialMotionBinary {
-    Kick(u8),
-    StandUp(u8),
-    Fall(u8),
-    Dive(u8),
-}
-
-text_and_binary_forms!(SpecialMotion, SpecialMotionText, SpecialMotionBinary);
 
 impl SpecialMotion {
     /// Whether the sequence needs the head as well as the body.
@@ -197,49 +154,31 @@ pub enum FallDirection {
     Right,
 }
 
-/// What the body is doing, as the platform reports it. Tagged by `state` in text (the
-/// simulator's protocol), externally in binary encodings (see `text_and_binary_forms`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum BodyMotionState {
-    Standing,
-    Walking {
-        stage: CycleStage,
-        velocity: Velocity,
-    },
-    Special {
-        motion: SpecialMotion,
-        elapsed: f64,
-        duration: f64,
-    },
-    /// Lying on the ground; only a stand-up sequence helps.
-    Fallen {
-        direction: FallDirection,
-    },
-    /// Motors off or unsupported: the platform does nothing with body orders.
-    Limp,
+strata_runtime::text_and_binary_enum! {
+    /// What the body is doing, as the platform reports it. Tagged by `state` in text (the
+    /// simulator's protocol), externally in binary encodings (logs).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub enum BodyMotionState {
+        Standing,
+        Walking {
+            stage: CycleStage,
+            velocity: Velocity,
+        },
+        Special {
+            motion: SpecialMotion,
+            elapsed: f64,
+            duration: f64,
+        },
+        /// Lying on the ground; only a stand-up sequence helps.
+        Fallen {
+            direction: FallDirection,
+        },
+        /// Motors off or unsupported: the platform does nothing with body orders.
+        Limp,
+    }
+    text: #[serde(tag = "state", rename_all = "snake_case")]
+    binary: #[serde(rename_all = "snake_case")]
 }
-
-#[derive(Serialize, Deserialize)]
-#[serde(remote = "BodyMotionState", tag = "state", rename_all = "snake_case")]
-enum BodyMotionStateText {
-    Standing,
-    Walking { stage: CycleStage, velocity: Velocity },
-    Special { motion: SpecialMotion, elapsed: f64, duration: f64 },
-    Fallen { direction: FallDirection },
-    Limp,
-}
-
-#[derive(Serialize, Deserialize)]
-#[serde(remote = "BodyMotionState", rename_all = "snake_case")]
-enum BodyMotionStateBinary {
-    Standing,
-    Walking { stage: CycleStage, velocity: Velocity },
-    Special { motion: SpecialMotion, elapsed: f64, duration: f64 },
-    Fallen { direction: FallDirection },
-    Limp,
-}
-
-text_and_binary_forms!(BodyMotionState, BodyMotionStateText, BodyMotionStateBinary);
 
 /// What actuation reads back from the platform every cycle.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

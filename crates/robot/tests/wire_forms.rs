@@ -154,3 +154,31 @@ fn commands_and_platform_states_are_tagged_in_text_and_positional_in_cdr() {
         cdr::idl_schema(&format, "T").expect("an IDL schema");
     }
 }
+
+#[test]
+fn symmetry_hints_are_tagged_in_text_and_positional_in_cdr() {
+    use strata_robot::world::{FieldRegion, PosePrior, SymmetryHint, WorldCommand};
+    let prior = PosePrior { pose: strata_robot::Pose::new(-3.0, 0.0, 0.0), sigma: [0.2, 0.2, 0.1] };
+    let hints = vec![
+        SymmetryHint::Region {
+            region: FieldRegion { min_x: -4.5, max_x: 0.0, min_y: -3.0, max_y: 3.0 },
+        },
+        SymmetryHint::Heading { theta: 0.0, sigma: 0.5 },
+        SymmetryHint::NearPoses { poses: vec![prior] },
+    ];
+    // As a configuration file writes them.
+    let from_toml: toml::Table =
+        toml::from_str("hint = { type = \"heading\", theta = 0.0, sigma = 0.5 }").expect("toml");
+    let hint: SymmetryHint = from_toml["hint"].clone().try_into().expect("a config's form");
+    assert_eq!(hint, hints[1]);
+    assert_eq!(serde_json::to_value(&hints[0]).expect("json")["type"], "region");
+    // As a log writes them, inside the command that carries them.
+    let command = WorldCommand::SetHints { hints };
+    for encoding in [Encoding::Cdr, Encoding::MessagePack, Encoding::Json] {
+        let mut bytes = Vec::new();
+        encoding.encode(&command, &mut bytes).expect("encoded");
+        assert_eq!(encoding.decode::<WorldCommand>(&bytes).expect("back"), command, "{encoding:?}");
+    }
+    let format = cdr::trace::<WorldCommand>().expect("CDR describes world commands");
+    cdr::idl_schema(&format, "WorldCommand").expect("an IDL schema");
+}

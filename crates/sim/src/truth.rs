@@ -108,100 +108,124 @@ pub struct CommsStats {
     pub return_packets_rejected: u64,
 }
 
-/// Something that happened, with the time it happened.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// Something that happened, with the time it happened. In text (experiment data, the
+/// simulator's protocol) the kind's fields sit beside the time (`{"time": ..., "event":
+/// "goal", "team": 0, ...}`); in binary encodings (logs, whose CDR has no fields found by name)
+/// the kind is a field of its own.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Event {
     pub time: Time,
-    #[serde(flatten)]
     pub kind: EventKind,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "event", rename_all = "snake_case")]
-pub enum EventKind {
-    GameState {
-        state: GameState,
-        first_half: bool,
-    },
-    Goal {
-        /// Team index that scored.
-        team: usize,
-        score: [u8; 2],
-        /// The robot that touched the ball last.
-        scorer: Option<RobotId>,
-    },
-    BallOut {
-        status: BallStatus,
-        set_play: SetPlay,
-        /// The team awarded the set play.
-        team: Option<usize>,
-        /// Where the ball was when it went out.
-        at: Point<FieldFrame>,
-        /// Where the referee placed it (automatic referee).
-        placed: Option<Point<FieldFrame>>,
-    },
-    SetPlayOver,
-    Fall {
-        robot: RobotId,
-        onset: Time,
-        direction: FallDirection,
-        cause: FallCause,
-    },
-    /// The robot hit the ground.
-    Landed {
-        robot: RobotId,
-        direction: FallDirection,
-    },
-    StandUp {
-        robot: RobotId,
-        success: bool,
-    },
-    Kick {
-        robot: RobotId,
-        motion: SpecialMotion,
-        /// Whether the foot met the ball.
-        hit: bool,
-    },
-    Penalty {
-        robot: RobotId,
-        penalty: Penalty,
-        duration: Option<f64>,
-    },
-    Unpenalized {
-        robot: RobotId,
-    },
-    Collision {
-        a: RobotId,
-        b: RobotId,
-        speed: f64,
-    },
-    RobotAdded {
-        robot: RobotId,
-    },
-    RobotRemoved {
-        robot: RobotId,
-    },
-    Teleported {
-        robot: RobotId,
-        pose: Pose,
-    },
-    Pushed {
-        robot: RobotId,
-        velocity: Vector<FieldFrame>,
-    },
-    BallPlaced {
-        position: Point<FieldFrame>,
-    },
-    BallScripted {
-        waypoints: Vec<Point<FieldFrame>>,
-        speed: f64,
-    },
-    PacketLoss {
-        loss: f64,
-    },
-    IllegalCommunication {
-        team: usize,
-    },
+#[derive(Serialize, Deserialize)]
+#[serde(remote = "Event")]
+struct EventText {
+    time: Time,
+    #[serde(flatten)]
+    kind: EventKind,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(remote = "Event")]
+struct EventBinary {
+    time: Time,
+    kind: EventKind,
+}
+
+strata_runtime::text_and_binary_forms!(Event, EventText, EventBinary);
+
+strata_runtime::text_and_binary_enum! {
+    /// What happened, with its details. Tagged by `event` in text, externally in binary
+    /// encodings.
+    #[derive(Clone, Debug, PartialEq)]
+    pub enum EventKind {
+        GameState {
+            state: GameState,
+            first_half: bool,
+        },
+        Goal {
+            /// Team index that scored.
+            team: usize,
+            score: [u8; 2],
+            /// The robot that touched the ball last.
+            scorer: Option<RobotId>,
+        },
+        BallOut {
+            status: BallStatus,
+            set_play: SetPlay,
+            /// The team awarded the set play.
+            team: Option<usize>,
+            /// Where the ball was when it went out.
+            at: Point<FieldFrame>,
+            /// Where the referee placed it (automatic referee).
+            placed: Option<Point<FieldFrame>>,
+        },
+        SetPlayOver,
+        Fall {
+            robot: RobotId,
+            onset: Time,
+            direction: FallDirection,
+            cause: FallCause,
+        },
+        /// The robot hit the ground.
+        Landed {
+            robot: RobotId,
+            direction: FallDirection,
+        },
+        StandUp {
+            robot: RobotId,
+            success: bool,
+        },
+        Kick {
+            robot: RobotId,
+            motion: SpecialMotion,
+            /// Whether the foot met the ball.
+            hit: bool,
+        },
+        Penalty {
+            robot: RobotId,
+            penalty: Penalty,
+            duration: Option<f64>,
+        },
+        Unpenalized {
+            robot: RobotId,
+        },
+        Collision {
+            a: RobotId,
+            b: RobotId,
+            speed: f64,
+        },
+        RobotAdded {
+            robot: RobotId,
+        },
+        RobotRemoved {
+            robot: RobotId,
+        },
+        Teleported {
+            robot: RobotId,
+            pose: Pose,
+        },
+        Pushed {
+            robot: RobotId,
+            velocity: Vector<FieldFrame>,
+        },
+        BallPlaced {
+            position: Point<FieldFrame>,
+        },
+        BallScripted {
+            waypoints: Vec<Point<FieldFrame>>,
+            speed: f64,
+        },
+        PacketLoss {
+            loss: f64,
+        },
+        IllegalCommunication {
+            team: usize,
+        },
+    }
+    text: #[serde(tag = "event", rename_all = "snake_case")]
+    binary: #[serde(rename_all = "snake_case")]
 }
 
 /// Everything true about the world at one instant.

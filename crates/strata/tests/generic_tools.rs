@@ -1,7 +1,8 @@
 //! A match log read by generic tools: Foxglove's own libraries (`@mcap/core` for the file,
 //! `@foxglove/omgidl-parser` and `@foxglove/omgidl-serialization` for the CDR messages and
-//! their OMG IDL schemas, `fzstd` for the chunks) decode every package of every CDR channel,
-//! and read the values Strata's reader reads.
+//! their OMG IDL schemas, `fzstd` for the chunks) decode every message of every channel
+//! (packages, ground truth, game state, behavior paths), and read the values Strata's reader
+//! reads.
 //!
 //! Needs Node.js and the packages of `tests/foxglove` (`./scripts/test` installs them with
 //! `npm ci`). Without them the test says so and passes, unless `STRATA_REQUIRE_FOXGLOVE` is set
@@ -57,9 +58,15 @@ fn foxglove_reads_every_package_of_a_match_log() {
         "planning/decision",
         "shared/WorldLayout",
         "shared/GoalLabels",
+        "simulator/ground_truth",
+        "game/state",
+        "behavior_path",
     ] {
         assert!(decoded.get(kind).and_then(Value::as_u64).is_some_and(|n| n > 0), "{kind}");
     }
+    // Every channel of a default log has an IDL schema: none is left to a self-describing
+    // encoding that Foxglove has no decoder for.
+    assert_eq!(report["selfDescribing"], serde_json::json!({}), "{}", report["selfDescribing"]);
     let count = |v: &Value| v.as_object().map_or(0, |m| m.values().filter_map(Value::as_u64).sum());
     let reader = LogReader::open(&path).expect("open");
     assert_eq!(

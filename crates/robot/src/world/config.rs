@@ -298,18 +298,22 @@ impl FieldRegion {
     }
 }
 
-/// What the application knows about the robot's pose that the landmarks cannot tell: how real
-/// teams break the field's symmetry (the robot starts in its own half, a penalized robot
-/// re-enters at known spots, the goalkeeper stays in its penalty area).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
-pub enum SymmetryHint {
-    /// The robot is inside this region.
-    Region { region: FieldRegion },
-    /// The robot faces roughly this direction.
-    Heading { theta: f64, sigma: f64 },
-    /// The robot is near one of these poses.
-    NearPoses { poses: Vec<PosePrior> },
+strata_runtime::text_and_binary_enum! {
+    /// What the application knows about the robot's pose that the landmarks cannot tell: how
+    /// real teams break the field's symmetry (the robot starts in its own half, a penalized
+    /// robot re-enters at known spots, the goalkeeper stays in its penalty area). Tagged by
+    /// `type` in text (configuration files), externally in binary encodings (logs).
+    #[derive(Clone, Debug, PartialEq)]
+    pub enum SymmetryHint {
+        /// The robot is inside this region.
+        Region { region: FieldRegion },
+        /// The robot faces roughly this direction.
+        Heading { theta: f64, sigma: f64 },
+        /// The robot is near one of these poses.
+        NearPoses { poses: Vec<PosePrior> },
+    }
+    text: #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+    binary: #[serde(rename_all = "snake_case")]
 }
 
 /// The robot-pose filter, losing and recovering the pose.

@@ -84,6 +84,88 @@ impl serde::de::Error for CdrError {
     }
 }
 
+/// Serialization of `$ty` in two forms: one for text (JSON, TOML: `is_human_readable`), which
+/// people read and write — an internally tagged enum such as `{ kind = "stand_up", sequence =
+/// 2 }` in a motion file, or flattened fields —, and serde's default, externally tagged form
+/// for binary encodings (logs), since positional CDR can neither hold a tag read before the
+/// fields it selects nor fields found by name. `$text` and `$binary` are remote definitions
+/// of `$ty` (`#[serde(remote = "...")]`) with those attributes; the crate using this needs
+/// `serde` among its dependencies.
+#[macro_export]
+macro_rules! text_and_binary_forms {
+    ($ty:ident, $text:ident, $binary:ident) => {
+        impl ::serde::Serialize for $ty {
+            fn serialize<S: ::serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+                if serializer.is_human_readable() {
+                    $text::serialize(self, serializer)
+                } else {
+                    $binary::serialize(self, serializer)
+                }
+            }
+        }
+
+        impl<'de> ::serde::Deserialize<'de> for $ty {
+            fn deserialize<D>(deserializer: D) -> Result<$ty, D::Error>
+            where
+                D: ::serde::Deserializer<'de>,
+            {
+                if deserializer.is_human_readable() {
+                    $text::deserialize(deserializer)
+                } else {
+                    $binary::deserialize(deserializer)
+                }
+            }
+        }
+    };
+}
+
+/// An enum with the two forms of [`text_and_binary_forms!`], written once: the enum as
+/// declared, its text form with the serde attributes after `text:` (e.g. `tag = "event"`) and
+/// its binary form with those after `binary:` (usually only the renaming).
+///
+/// ```
+/// strata_runtime::text_and_binary_enum! {
+///     #[derive(Clone, Debug, PartialEq)]
+///     pub enum Hint {
+///         Region { x: f64 },
+///         Lost,
+///     }
+///     text: #[serde(tag = "type", rename_all = "snake_case")]
+///     binary: #[serde(rename_all = "snake_case")]
+/// }
+/// let text = serde_json::to_string(&Hint::Region { x: 1.0 }).unwrap();
+/// assert_eq!(text, r#"{"type":"region","x":1.0}"#);
+/// let format = strata_runtime::cdr::trace::<Hint>().expect("CDR describes the binary form");
+/// # let _ = format;
+/// ```
+#[macro_export]
+macro_rules! text_and_binary_enum {
+    (
+        $(#[$meta:meta])*
+        $vis:vis enum $name:ident { $($body:tt)* }
+        text: #[serde($($text:tt)*)]
+        binary: #[serde($($binary:tt)*)]
+    ) => {
+        $(#[$meta])*
+        $vis enum $name { $($body)* }
+
+        const _: () = {
+            // serde names the remote type by a path in a string: an alias gives it one.
+            type Remote = $name;
+
+            #[derive(::serde::Serialize, ::serde::Deserialize)]
+            #[serde(remote = "Remote", $($text)*)]
+            enum Text { $($body)* }
+
+            #[derive(::serde::Serialize, ::serde::Deserialize)]
+            #[serde(remote = "Remote", $($binary)*)]
+            enum Binary { $($body)* }
+
+            $crate::text_and_binary_forms!($name, Text, Binary);
+        };
+    };
+}
+
 /// Appends `value` to `out`: the header, then the value.
 pub fn encode<T: Serialize + ?Sized>(value: &T, out: &mut Vec<u8>) -> Result<(), CdrError> {
     let start = out.len();
