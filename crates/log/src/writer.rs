@@ -242,7 +242,8 @@ pub trait Derive: Send {
 pub struct DerivedRecords {
     /// The log's encoding of packages.
     encoding: Encoding,
-    /// The self-describing encoding, for values the log's encoding cannot write.
+    /// The self-describing encoding: the log's own when it is one, otherwise for the values
+    /// CDR cannot write.
     fallback: Encoding,
     records: Vec<DerivedRecord>,
     unencodable: u64,
@@ -273,16 +274,16 @@ impl DerivedRecords {
     {
         let format: fn() -> Option<Format> = || strata_runtime::cdr::format_of::<T>().ok();
         let mut bytes = Vec::with_capacity(256);
-        let mut encoding = self.encoding;
-        if encoding == Encoding::Cdr
-            && (!cdr_describes::<T>() || encoding.encode(value, &mut bytes).is_err())
-        {
+        let in_cdr = self.encoding == Encoding::Cdr
+            && cdr_describes::<T>()
+            && Encoding::Cdr.encode(value, &mut bytes).is_ok();
+        let encoding = if in_cdr { Encoding::Cdr } else { self.fallback };
+        if !in_cdr {
             bytes.clear();
-            encoding = self.fallback;
-        }
-        if encoding != Encoding::Cdr && encoding.encode(value, &mut bytes).is_err() {
-            self.unencodable += 1;
-            return;
+            if encoding.encode(value, &mut bytes).is_err() {
+                self.unencodable += 1;
+                return;
+            }
         }
         let type_name = std::any::type_name::<T>();
         self.records.push(DerivedRecord {
@@ -1601,13 +1602,17 @@ impl WriterThread {
         self.chunk = None;
     }
 
-    /// The CDR schema of a package's type, worked out on its first package.
-    fn cdr_schema(&mut self, topic: &Topic, package: &dyn ErasedPackage) -> Option<Arc<CdrSchema>> {
+    /// The CDR schema of a topic's type (a package's or a derived record's), worked out from
+    /// `format` on its first value.
+    fn cdr_schema(
+        &mut self,
+        topic: &Topic,
+        format: impl FnOnce() -> Option<Format>,
+    ) -> Option<Arc<CdrSchema>> {
         if let Some(known) = self.cdr_schemas.get(&topic.type_name) {
             return known.clone();
         }
-        let schema =
-            package.format().ok().and_then(|format| CdrSchema::of(&format, &topic.type_name));
+        let schema = format().and_then(|format| CdrSchema::of(&format, &topic.type_name));
         self.cdr_schemas.insert(topic.type_name.clone(), schema.clone());
         schema
     }
@@ -1626,7 +1631,7 @@ impl WriterThread {
             let seq = topic.next_seq.fetch_add(1, Ordering::Relaxed);
             let time = record.time.as_nanos();
             let schema = match record.encoding {
-                Encoding::Cdr => self.record_cdr_schema(&topic, record.format),
+                Encoding::Cdr => self.cdr_schema(&topic, record.format),
                 _ => None,
             };
             if record.encoding == Encoding::Cdr && schema.is_none() {
@@ -1636,20 +1641,6 @@ impl WriterThread {
             }
             self.write_message(&topic, record.encoding, schema, time, time, seq, &record.bytes);
         }
-    }
-
-    /// The CDR schema of a derived record's type, worked out on its first record.
-    fn record_cdr_schema(
-        &mut self,
-        topic: &Topic,
-        format: fn() -> Option<Format>,
-    ) -> Option<Arc<CdrSchema>> {
-        if let Some(known) = self.cdr_schemas.get(&topic.type_name) {
-            return known.clone();
-        }
-        let schema = format().and_then(|format| CdrSchema::of(&format, &topic.type_name));
-        self.cdr_schemas.insert(topic.type_name.clone(), schema.clone());
-        schema
     }
 
     fn write_package(
@@ -1664,8 +1655,11 @@ impl WriterThread {
         let (mut encoding, mut schema) = match self.topic(topic.id).encoding {
             Some(encoding) => (encoding, self.topic(topic.id).cdr.clone()),
             None => {
-                let schema =
-                    if wanted == Encoding::Cdr { self.cdr_schema(topic, package) } else { None };
+                let schema = if wanted == Encoding::Cdr {
+                    self.cdr_schema(topic, || package.format().ok())
+                } else {
+                    None
+                };
                 let encoding = match (wanted, &schema) {
                     (Encoding::Cdr, None) => Encoding::MessagePack,
                     _ => wanted,
