@@ -329,8 +329,15 @@ impl<W: Write> McapFile<W> {
             }
             ChunkCompression::Lz4 => {
                 self.scratch.clear();
+                // One independent block per chunk and no content checksum (the chunk record
+                // has its CRC): with the frame defaults (linked 64 KiB blocks, a checksum of
+                // the content) lz4 cost the writer more than zstd at level -1 and slowed a
+                // logged match to 155x against 200x (docs/performance.md).
                 let mut encoder = lz4::EncoderBuilder::new()
                     .block_checksum(lz4::liblz4::BlockChecksum::NoBlockChecksum)
+                    .checksum(lz4::liblz4::ContentChecksum::NoChecksum)
+                    .block_size(lz4::liblz4::BlockSize::Max4MB)
+                    .block_mode(lz4::liblz4::BlockMode::Independent)
                     .build(std::mem::take(&mut self.scratch))?;
                 encoder.write_all(&chunk.records)?;
                 let (buffer, result) = encoder.finish();

@@ -61,8 +61,9 @@ pub struct MatchArgs {
     /// modules that read the world state, and the world model's own outputs).
     #[arg(long, value_name = "HZ", default_value_t = 0.0, requires = "log")]
     pub log_world_hz: f64,
-    /// How the log's chunks are compressed: zstd (small files), lz4 or none (least work while
-    /// recording; docs/logging.md, "Overhead").
+    /// How the log's chunks are compressed: zstd (the smallest files), lz4 (a fifth larger,
+    /// about as fast) or none (least work for the writer, twice the size; docs/logging.md,
+    /// "Figures").
     #[arg(long, value_name = "zstd|lz4|none", default_value = "zstd", requires = "log")]
     pub log_compression: LogCompression,
     /// How package values are encoded: cdr (compact, with OMG IDL schemas Foxglove reads),
