@@ -254,10 +254,44 @@ struct DerivedRecord {
     topic: String,
     type_name: &'static str,
     time: Time,
+    value: EncodedRecord,
+}
+
+/// A record's value, encoded where it was made.
+#[derive(Debug)]
+struct EncodedRecord {
     encoding: Encoding,
     /// The type's format, for a CDR record's channel schema (traced once per type).
     format: fn() -> Option<Format>,
     bytes: Vec<u8>,
+}
+
+impl EncodedRecord {
+    /// `value` in `encoding` when that is CDR and CDR describes `T` (an IDL schema for generic
+    /// tools), otherwise in the self-describing `fallback`; `None` when it cannot be encoded.
+    fn of<T>(value: &T, encoding: Encoding, fallback: Encoding) -> Option<EncodedRecord>
+    where
+        T: Serialize + serde::de::DeserializeOwned + 'static,
+    {
+        let format: fn() -> Option<Format> = || strata_runtime::cdr::format_of::<T>().ok();
+        let mut bytes = Vec::with_capacity(256);
+        let in_cdr = encoding == Encoding::Cdr
+            && cdr_describes::<T>()
+            && Encoding::Cdr.encode(value, &mut bytes).is_ok();
+        let encoding = if in_cdr { Encoding::Cdr } else { fallback };
+        if !in_cdr {
+            bytes.clear();
+            encoding.encode(value, &mut bytes).ok()?;
+        }
+        Some(EncodedRecord { encoding, format, bytes })
+    }
+
+    /// A value without a type to trace (a `serde_json::Value`), in a self-describing encoding.
+    fn untyped<T: Serialize + ?Sized>(value: &T, encoding: Encoding) -> Option<EncodedRecord> {
+        let mut bytes = Vec::with_capacity(256);
+        encoding.encode(value, &mut bytes).ok()?;
+        Some(EncodedRecord { encoding, format: || None, bytes })
+    }
 }
 
 impl DerivedRecords {
@@ -272,35 +306,19 @@ impl DerivedRecords {
     where
         T: Serialize + serde::de::DeserializeOwned + 'static,
     {
-        let format: fn() -> Option<Format> = || strata_runtime::cdr::format_of::<T>().ok();
-        let mut bytes = Vec::with_capacity(256);
-        let in_cdr = self.encoding == Encoding::Cdr
-            && cdr_describes::<T>()
-            && Encoding::Cdr.encode(value, &mut bytes).is_ok();
-        let encoding = if in_cdr { Encoding::Cdr } else { self.fallback };
-        if !in_cdr {
-            bytes.clear();
-            if encoding.encode(value, &mut bytes).is_err() {
-                self.unencodable += 1;
-                return;
-            }
-        }
+        let Some(value) = EncodedRecord::of(value, self.encoding, self.fallback) else {
+            self.unencodable += 1;
+            return;
+        };
         let type_name = std::any::type_name::<T>();
-        self.records.push(DerivedRecord {
-            topic: topic.to_owned(),
-            type_name,
-            time,
-            encoding,
-            format,
-            bytes,
-        });
+        self.records.push(DerivedRecord { topic: topic.to_owned(), type_name, time, value });
     }
 }
 
-/// Whether a derived record of type `T` can go in CDR: its format traces to an IDL schema, and
-/// it holds no shared value (which would be written as a reference to a record of its own;
-/// derived records keep them inline, in the self-describing encoding). Worked out once per
-/// type.
+/// Whether a record of type `T` (application or derived) can go in CDR: its format traces to
+/// an IDL schema, and it holds no shared value (which would be written as a reference to a
+/// record of its own; records keep them inline, in the self-describing encoding). Worked out
+/// once per type.
 fn cdr_describes<T: serde::de::DeserializeOwned + 'static>() -> bool {
     type Known = Mutex<HashMap<std::any::TypeId, bool>>;
     static KNOWN: OnceLock<Known> = OnceLock::new();
@@ -390,8 +408,9 @@ impl Offered<'_> {
 enum Payload {
     /// A package, encoded by the writer thread: the sending module only pays for a clone.
     Package(Box<dyn ErasedPackage>),
-    /// An application record, already encoded (in [`Shared::record_encoding`]).
-    Encoded(Vec<u8>),
+    /// An application record, encoded by its sender (boxed: records are few, and every
+    /// package's entry would pay for the room).
+    Encoded(Box<EncodedRecord>),
     /// A package the sender encoded in CDR: these bytes of its batch.
     Bytes { start: usize, len: usize },
 }
@@ -884,8 +903,8 @@ impl Shared {
             .clone()
     }
 
-    /// The encoding of application records: self-describing, since they come without a
-    /// type to trace (a `serde_json::Value`, or any `Serialize`).
+    /// The self-describing encoding of records: of those without a type to trace (a
+    /// `serde_json::Value`), and of those CDR cannot describe.
     fn record_encoding(&self) -> Encoding {
         if self.encoding.is_self_describing() { self.encoding } else { Encoding::MessagePack }
     }
@@ -1073,35 +1092,44 @@ impl McapTap {
         *self.shared.derive.lock().unwrap_or_else(PoisonError::into_inner) = Some(derive);
     }
 
-    /// Logs an application record (ground truth, game state, a behavior path) on `topic`.
-    /// Handled like packages: with [`WhenFull::Drop`] it never blocks, and a record that
-    /// finds the queue full is dropped and counted.
+    /// Logs an application record on `topic` whose type is named `type_name`, from a value
+    /// without a type to trace: in a self-describing encoding (MessagePack, or the log's own
+    /// when that is JSON) with a JSON Schema inferred from its first value. Handled like
+    /// packages: with [`WhenFull::Drop`] it never blocks, and a record that finds the queue
+    /// full is dropped and counted.
     pub fn record(&self, topic: &str, type_name: &str, time: Time, value: &serde_json::Value) {
-        self.record_encoded(topic, type_name, time, value);
+        let record = EncodedRecord::untyped(value, self.shared.record_encoding());
+        self.submit_record(topic, type_name, time, record);
     }
 
-    /// [`McapTap::record`] for any serializable value, named by its Rust type.
-    pub fn record_value<T: Serialize>(&self, topic: &str, time: Time, value: &T) {
-        self.record_encoded(topic, std::any::type_name::<T>(), time, value);
+    /// [`McapTap::record`] for a value of a Rust type, named by it: in CDR with its OMG IDL
+    /// schema, like a package of its type (so that Foxglove decodes it), when the log is CDR
+    /// and CDR describes the type; otherwise self-describing.
+    pub fn record_value<T>(&self, topic: &str, time: Time, value: &T)
+    where
+        T: Serialize + serde::de::DeserializeOwned + 'static,
+    {
+        let record = EncodedRecord::of(value, self.shared.encoding, self.shared.record_encoding());
+        self.submit_record(topic, std::any::type_name::<T>(), time, record);
     }
 
-    /// Records are few (a game state, a behavior path when it changes): encoded right here.
-    fn record_encoded<T: Serialize + ?Sized>(
+    /// Records are few (a game state, a behavior path when it changes): encoded by the caller.
+    fn submit_record(
         &self,
         topic: &str,
         type_name: &str,
         time: Time,
-        value: &T,
+        record: Option<EncodedRecord>,
     ) {
-        let mut bytes = Vec::with_capacity(256);
-        if self.shared.record_encoding().encode(value, &mut bytes).is_err() {
+        let Some(record) = record else {
             self.shared.serialize_errors.fetch_add(1, Ordering::Relaxed);
             return;
-        }
+        };
         let topic = self.shared.record_topic(topic, type_name);
         let seq = topic.next_seq.fetch_add(1, Ordering::Relaxed);
         let mut shared_batch = Locked(&self.shared.pending);
-        self.shared.submit(&mut shared_batch, topic.id, time, time, seq, Payload::Encoded(bytes));
+        let payload = Payload::Encoded(Box::new(record));
+        self.shared.submit(&mut shared_batch, topic.id, time, time, seq, payload);
     }
 
     /// Writes a metadata record. Waits for room in the queue (metadata is never dropped): call
@@ -1544,11 +1572,8 @@ impl WriterThread {
                                 }
                                 self.write_package(&topic, log_time, stamp, seq, package.as_ref());
                             }
-                            Payload::Encoded(ref bytes) => {
-                                let encoding = self.shared.record_encoding();
-                                self.write_message(
-                                    &topic, encoding, None, log_time, stamp, seq, bytes,
-                                );
+                            Payload::Encoded(ref record) => {
+                                self.write_record(&topic, log_time, stamp, seq, record);
                             }
                             Payload::Bytes { start, len } => {
                                 let schema = topic.cdr.get().cloned();
@@ -1630,17 +1655,29 @@ impl WriterThread {
             let topic = self.shared.record_topic(&record.topic, record.type_name);
             let seq = topic.next_seq.fetch_add(1, Ordering::Relaxed);
             let time = record.time.as_nanos();
-            let schema = match record.encoding {
-                Encoding::Cdr => self.cdr_schema(&topic, record.format),
-                _ => None,
-            };
-            if record.encoding == Encoding::Cdr && schema.is_none() {
-                // `cdr_describes` found one: cannot happen.
-                self.shared.unencodable();
-                continue;
-            }
-            self.write_message(&topic, record.encoding, schema, time, time, seq, &record.bytes);
+            self.write_record(&topic, time, time, seq, &record.value);
         }
+    }
+
+    /// Writes a record encoded where it was made, with its type's IDL schema when in CDR.
+    fn write_record(
+        &mut self,
+        topic: &Topic,
+        log_time: u64,
+        stamp: u64,
+        seq: u64,
+        record: &EncodedRecord,
+    ) {
+        let schema = match record.encoding {
+            Encoding::Cdr => self.cdr_schema(topic, record.format),
+            _ => None,
+        };
+        if record.encoding == Encoding::Cdr && schema.is_none() {
+            // `cdr_describes` found one: cannot happen.
+            self.shared.unencodable();
+            return;
+        }
+        self.write_message(topic, record.encoding, schema, log_time, stamp, seq, &record.bytes);
     }
 
     fn write_package(

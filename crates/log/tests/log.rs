@@ -269,7 +269,7 @@ fn every_message_is_an_object_with_an_object_schema_for_generic_tools() {
         let scalars = dir.join(format!("scalars-{}.mcap", encoding.mcap_name()));
         let log = McapTap::create(&scalars, options).expect("create");
         log.record_value("game/score", Time::from_nanos(5), &(2u8, 1u8));
-        log.record_value("game/phase", Time::from_nanos(6), &"Playing");
+        log.record_value("game/phase", Time::from_nanos(6), &"Playing".to_owned());
         log.record("game/clock", "f64", Time::from_nanos(7), &serde_json::json!(599.5));
         log.finish().expect("finish");
 
@@ -397,6 +397,63 @@ fn a_log_written_through_the_host_sender_is_the_same() {
     let (expected, written) = (read(&through_tap), read(&through_sender));
     assert!(expected.len() > 500);
     assert!(written == expected, "the logs differ");
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+/// An application record of a Rust type goes in CDR with its type's OMG IDL schema, like a
+/// package, so that generic tools decode it; one without a type to trace, or of a type CDR
+/// cannot describe, in MessagePack with a JSON Schema.
+#[test]
+fn typed_application_records_are_cdr_with_an_idl_schema() {
+    #[derive(serde::Serialize, serde::Deserialize, Debug, PartialEq)]
+    struct Score {
+        home: u8,
+        away: u8,
+        phase: String,
+        clock: Option<f64>,
+    }
+    let dir = scratch("typed-records");
+    let path = dir.join("records.mcap");
+    let log = McapTap::create(&path, McapTapOptions::default()).expect("create");
+    let score = Score { home: 2, away: 1, phase: "playing".to_owned(), clock: Some(599.5) };
+    log.record_value("game/score", Time::from_nanos(5), &score);
+    log.record_value("game/untyped", Time::from_nanos(6), &serde_json::json!({ "a": 1 }));
+    log.record("game/clock", "f64", Time::from_nanos(7), &serde_json::json!(599.5));
+    let summary = log.finish().expect("finish");
+    assert_eq!((summary.messages, summary.serialize_errors), (3, 0));
+
+    let bytes = std::fs::read(&path).expect("read");
+    let mut channels = Vec::new();
+    for message in mcap::MessageStream::new(&bytes).expect("stream") {
+        let message = message.expect("message");
+        let schema = message.channel.schema.as_ref().expect("a schema");
+        channels.push((
+            message.channel.topic.clone(),
+            message.channel.message_encoding.clone(),
+            schema.encoding.clone(),
+        ));
+        if message.channel.topic == "game/score" {
+            let idl = String::from_utf8_lossy(&schema.data);
+            assert!(idl.contains("struct Score"), "{idl}");
+        }
+    }
+    let expected = |topic: &str, encoding: &str, schema: &str| {
+        (topic.to_owned(), encoding.to_owned(), schema.to_owned())
+    };
+    assert_eq!(
+        channels,
+        [
+            expected("game/score", "cdr", "omgidl"),
+            expected("game/untyped", "msgpack", "jsonschema"),
+            expected("game/clock", "msgpack", "jsonschema"),
+        ]
+    );
+
+    let reader = LogReader::open(&path).expect("open");
+    let messages: Vec<_> = reader.messages().map(|m| m.expect("readable")).collect();
+    assert_eq!(messages[0].decode::<Score>().expect("decodes"), score);
+    assert_eq!(messages[0].json().expect("json")["clock"], 599.5);
+    assert_eq!(messages[1].json().expect("json"), serde_json::json!({ "a": 1 }));
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
 
