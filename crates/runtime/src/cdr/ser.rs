@@ -22,8 +22,8 @@ impl<'a> Writer<'a> {
         let misalignment = (self.out.len() - self.base) & (align - 1);
         if misalignment != 0 {
             // Eight zeros written and the excess cut: one store. Copying a variable number of
-            // zeros (or `resize`) compiles to a call of `memset`, which cost a logging match
-            // almost 2 % of its thread's time for these few bytes.
+            // zeros (or `resize`) compiles to a call of `memset`, which took 1.6 % of a logging
+            // match thread's samples for these few bytes.
             let padded = self.out.len() + align - misalignment;
             self.out.extend_from_slice(&[0; 8]);
             self.out.truncate(padded);
