@@ -1113,7 +1113,8 @@ impl McapTap {
         self.submit_record(topic, std::any::type_name::<T>(), time, record);
     }
 
-    /// Records are few (a game state, a behavior path when it changes): encoded by the caller.
+    /// Application records are few (a scenario's ground truth, a marker): encoded by the
+    /// caller, handed over like packages.
     fn submit_record(
         &self,
         topic: &str,
@@ -1627,8 +1628,8 @@ impl WriterThread {
         self.chunk = None;
     }
 
-    /// The CDR schema of a topic's type (a package's or a derived record's), worked out from
-    /// `format` on its first value.
+    /// The CDR schema of a topic's type (a package's or a record's), worked out from `format`
+    /// on its first value.
     fn cdr_schema(
         &mut self,
         topic: &Topic,

@@ -6,10 +6,9 @@
 //!
 //! Run: `cargo bench -p strata --bench log_overhead`
 //! (`STRATA_LOG_BENCH_SECONDS` sets the simulated seconds per run, 300 by default, 0 for the
-//! whole game,
-//! `STRATA_LOG_BENCH_ROUNDS` the number of rounds, 6 by default, and `STRATA_LOG_BENCH_ARGS`
-//! adds arguments to the logged run only, e.g. `--log-robots home/1` or `--log-compression
-//! none`.)
+//! whole game; `STRATA_LOG_BENCH_ROUNDS` the number of rounds, 6 by default; and
+//! `STRATA_LOG_BENCH_ARGS` adds arguments to the logged run only, e.g. `--log-robots home/1`
+//! or `--log-compression none`.)
 //!
 //! Each run also prints the CPU time the whole process used. A logged match runs two threads;
 //! on a virtual machine whose two cores sometimes share one physical core the same work then
