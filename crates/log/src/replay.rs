@@ -145,6 +145,10 @@ pub enum ReplayError {
     Log(#[from] LogError),
     #[error("{path} holds no graph description: it was not written with a graph (`--log`)")]
     NoGraph { path: String },
+    #[error(
+        "{path} was cut short before its graph description: the part recovered holds none, so no module of it can be replayed"
+    )]
+    GraphCutOff { path: String },
     #[error("{path} holds no seed (no run metadata); give one")]
     NoSeed { path: String },
     #[error("no module named `{name}` in the log; logged modules: {}", available.join(", "))]
@@ -368,7 +372,11 @@ pub fn replay(
     let path = reader.path().display().to_string();
     let graphs = reader.graphs()?;
     if graphs.is_empty() {
-        return Err(ReplayError::NoGraph { path });
+        return Err(if reader.is_complete() {
+            ReplayError::NoGraph { path }
+        } else {
+            ReplayError::GraphCutOff { path }
+        });
     }
     let run = reader.run_info()?;
     let seed = options

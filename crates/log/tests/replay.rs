@@ -152,5 +152,13 @@ fn a_truncated_log_still_replays_what_it_holds() {
     assert!(report.warnings.iter().any(|w| w.contains("not finished")), "{report}");
     // The replay stops at the last recovered message; outputs up to there match.
     assert!(report.identical(), "{report}");
+
+    // Cut before its graph: said so, not that the log was written without one.
+    let stub = dir.join("stub.mcap");
+    std::fs::write(&stub, &bytes[..64]).expect("write");
+    let reader = LogReader::open(&stub).expect("open");
+    let error = replay(&reader, &registry(), &options(&["filter"], &[])).expect_err("no graph");
+    assert!(matches!(error, ReplayError::GraphCutOff { .. }), "{error}");
+    assert!(error.to_string().contains("cut short"), "{error}");
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }

@@ -110,9 +110,14 @@ impl TeamConfig {
         TeamConfig::from_toml_str(text, &format!("built-in team `{name}`"))
     }
 
-    /// A preset name or a path to a TOML file.
+    /// A preset name or a path to a TOML file. What is neither a file nor a preset is read
+    /// as a file when it looks like one (an extension or a directory in it), so a mistyped
+    /// path is reported as a file that cannot be read, not as an unknown preset.
     pub fn resolve(name_or_path: &str) -> Result<TeamConfig, TeamConfigError> {
-        if Path::new(name_or_path).exists() {
+        let path = Path::new(name_or_path);
+        let is_preset = PRESETS.iter().any(|(name, _)| *name == name_or_path);
+        let looks_like_path = path.extension().is_some() || path.components().count() > 1;
+        if path.exists() || (looks_like_path && !is_preset) {
             TeamConfig::load(name_or_path)
         } else {
             TeamConfig::preset(name_or_path)
@@ -309,6 +314,20 @@ mod tests {
             TeamConfig::preset(name).unwrap_or_else(|e| panic!("{name}: {e}"));
         }
         assert!(!TeamConfig::preset("no-coordination").expect("preset").coordination);
+    }
+
+    #[test]
+    fn a_missing_team_file_is_reported_as_a_file_and_a_mistyped_preset_as_a_preset() {
+        let missing = TeamConfig::resolve("teams/missing-team.toml").expect_err("no such file");
+        assert!(
+            matches!(&missing, TeamConfigError::Read { path, .. } if path == "teams/missing-team.toml"),
+            "{missing}"
+        );
+        let nested = TeamConfig::resolve("teams/missing-team").expect_err("no such file");
+        assert!(matches!(nested, TeamConfigError::Read { .. }), "{nested}");
+        let typo = TeamConfig::resolve("no-coordinaton").expect_err("no such preset");
+        assert!(matches!(typo, TeamConfigError::UnknownPreset(_)), "{typo}");
+        assert!(TeamConfig::resolve("entropy").is_ok());
     }
 
     #[test]
