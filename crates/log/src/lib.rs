@@ -1,4 +1,4 @@
-//! Logging and replay for Strata (DESIGN principle 8: observable by default).
+//! Logging and replay for Strata (docs/architecture.md, Principles, 8: observable by default).
 //!
 //! - [`McapTap`] is a [`strata_runtime::Tap`] that records every package a host delivers into
 //!   an [MCAP](https://mcap.dev) file: one channel per connection writer (`"{module}/{output}"`),

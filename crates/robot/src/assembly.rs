@@ -1,5 +1,5 @@
 //! One robot, assembled: perception, actuation, world modeling and the three layers of hybrid
-//! control, connected with the paper's policies (DESIGN section 3):
+//! control, connected with the paper's policies (docs/architecture.md, One robot as data):
 //!
 //! ```text
 //! Platform ─sensor frame─▶ Perception ─percepts (Latest)─▶ Reactive ─commands (Queue)─▶ Actuation ─▶ Platform

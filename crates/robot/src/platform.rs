@@ -1,6 +1,7 @@
 //! The abstract hardware layer (paper 3.7): everything perception and actuation need from a
 //! robot, and nothing else. Instances: the in-process simulator, the simulator over TCP, a NAO
-//! v6 through LoLA. Simulation swaps the platform, never the robot code (DESIGN principle 7).
+//! v6 through LoLA. Simulation swaps the platform, never the robot code (docs/architecture.md,
+//! Principles, 7).
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;

@@ -13,7 +13,8 @@ use crate::time::Time;
 
 /// Data that can be sent between modules.
 ///
-/// Every package can be logged and replayed (DESIGN principle 8), hence the serde bounds.
+/// Every package can be logged and replayed (docs/architecture.md, Principles, 8), hence the
+/// serde bounds.
 pub trait Message: Clone + Send + Serialize + DeserializeOwned + 'static {}
 
 impl<T> Message for T where T: Clone + Send + Serialize + DeserializeOwned + 'static {}

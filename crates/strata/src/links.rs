@@ -1,6 +1,6 @@
-//! A robot's links on a real network (DESIGN section 6): the team radio over SPL team-message
-//! UDP broadcasts and the GameController over its UDP control and return packets, as the
-//! `robot` crate's [`TeamLink`] and [`ExternalLink`].
+//! A robot's links on a real network (docs/architecture.md, Platforms and the edge): the team
+//! radio over SPL team-message UDP broadcasts and the GameController over its UDP control and
+//! return packets, as the `robot` crate's [`TeamLink`] and [`ExternalLink`].
 //!
 //! They live here, in the binary's library, because they join two crates that must not know
 //! each other: `spl` (wire formats and sockets, no robot) and `robot` (the architecture, no

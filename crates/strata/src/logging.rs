@@ -1,7 +1,7 @@
-//! `--log FILE.mcap` for simulated matches (DESIGN principle 8): every package of the chosen
-//! robots, the simulator's ground truth, the game state and each layer's active behavior path,
-//! with the run's effective configuration and graph, so that `strata replay` can rebuild a
-//! module and `strata view` can show the match (`docs/logging.md`, `docs/viewer.md`).
+//! `--log FILE.mcap` for simulated matches (docs/architecture.md, Principles, 8): every package
+//! of the chosen robots, the simulator's ground truth, the game state and each layer's active
+//! behavior path, with the run's effective configuration and graph, so that `strata replay` can
+//! rebuild a module and `strata view` can show the match (`docs/logging.md`, `docs/viewer.md`).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
