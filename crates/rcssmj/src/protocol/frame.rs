@@ -7,16 +7,17 @@ use thiserror::Error;
 
 /// Largest agent (perception) frame accepted, in bytes.
 ///
-/// Measured with rcsssmj 0.2.1: one T1 seeing 21 field markers, the ball and another T1 sends
-/// 1,846 bytes; each further robot in view adds about 110 bytes (`(P (team T)(id N)` and three
-/// parts), so 22 robots stay under 5 KB. 64 KiB is a dozen times that and still bounds what a
-/// broken or hostile length field can make us allocate.
+/// Measured with rcsssmj 0.2.1 (`--rules fifa`, 11 T1s a side, all in view of each other): the
+/// largest perception was 3,362 bytes, seeing 16 robots (about 110 bytes each: `(P (team T)(id
+/// N)` and three parts) besides the field markers; 21 robots in view stay under 4 KB. 64 KiB is
+/// sixteen times that and still bounds what a broken or hostile length field can make us
+/// allocate.
 pub const MAX_PERCEPTION_FRAME: usize = 64 * 1024;
 
 /// Largest monitor-port frame accepted, in bytes.
 ///
-/// Measured with rcsssmj 0.2.1: a full scene graph is 9.9 KB for the field and ball and adds
-/// about 10 KB per T1 (meshes, materials, transforms), so about 230 KB for 22 robots; diffs are
+/// Measured with rcsssmj 0.2.1: a full scene graph is 9.9 KB for the field and ball and grows
+/// by about 10 KB per T1 (meshes, materials, transforms): 230,935 bytes with 22 T1s. Diffs are
 /// a few KB. 4 MiB leaves room for bigger robots and fields.
 pub const MAX_MONITOR_FRAME: usize = 4 * 1024 * 1024;
 
