@@ -2,8 +2,6 @@
 //! `games/soccer/server/soccer_command_parser.py`). The server applies them after the next
 //! physics step and ignores malformed ones silently, so this encoder checks what it can.
 
-use std::fmt::Write as _;
-
 use crate::protocol::ProtocolError;
 use crate::protocol::game::{FieldSide, PlayMode};
 
@@ -76,19 +74,19 @@ fn check_finite(values: &[f64]) -> Result<(), ProtocolError> {
 }
 
 impl MonitorCommand {
-    /// Appends this command's text to `out`.
-    fn write(&self, out: &mut String) -> Result<(), ProtocolError> {
-        // `write!` into a String cannot fail.
-        let _ = match self {
+    /// This command's text.
+    fn text(&self) -> Result<String, ProtocolError> {
+        Ok(match self {
             MonitorCommand::PlaceBall { position, velocity } => {
                 check_finite(position)?;
                 let [x, y, z] = position;
-                write!(out, "(ball (pos {x} {y} {z})")?;
-                if let Some(v) = velocity {
-                    check_finite(v)?;
-                    write!(out, " (vel {} {} {})", v[0], v[1], v[2])?;
+                match velocity {
+                    Some([vx, vy, vz]) => {
+                        check_finite(&[*vx, *vy, *vz])?;
+                        format!("(ball (pos {x} {y} {z}) (vel {vx} {vy} {vz}))")
+                    }
+                    None => format!("(ball (pos {x} {y} {z}))"),
                 }
-                write!(out, ")")
             }
             MonitorCommand::PlaceRobot { team, player, position, orientation } => {
                 check_finite(position)?;
@@ -107,33 +105,26 @@ impl MonitorCommand {
                     }
                 };
                 let [x, y, z] = position;
-                write!(out, "(agent (unum {player}) (team {team}) ")?;
-                match orientation {
-                    RobotOrientation::Keep => write!(out, "(pos {x} {y} {z}))"),
+                let pose = match orientation {
+                    RobotOrientation::Keep => format!("(pos {x} {y} {z})"),
                     RobotOrientation::Yaw(yaw) => {
                         check_finite(&[*yaw])?;
-                        write!(out, "(move {x} {y} {z} {}))", yaw.to_degrees())
+                        format!("(move {x} {y} {z} {})", yaw.to_degrees())
                     }
                     RobotOrientation::Quaternion(q) => {
                         check_finite(q)?;
-                        write!(out, "(move3d {x} {y} {z} {} {} {} {}))", q[0], q[1], q[2], q[3])
+                        format!("(move3d {x} {y} {z} {} {} {} {})", q[0], q[1], q[2], q[3])
                     }
-                }
+                };
+                format!("(agent (unum {player}) (team {team}) {pose})")
             }
-            MonitorCommand::KickOff(None) => write!(out, "(kickOff)"),
-            MonitorCommand::KickOff(Some(FieldSide::Left)) => write!(out, "(kickOff Left)"),
-            MonitorCommand::KickOff(Some(FieldSide::Right)) => write!(out, "(kickOff Right)"),
-            MonitorCommand::DropBall => write!(out, "(dropBall)"),
-            MonitorCommand::SetPlayMode(mode) => write!(out, "(playMode {})", mode.as_str()),
-            MonitorCommand::KillSim => write!(out, "(killsim)"),
-        };
-        Ok(())
-    }
-}
-
-impl From<std::fmt::Error> for ProtocolError {
-    fn from(_: std::fmt::Error) -> Self {
-        invalid("formatting into a string failed")
+            MonitorCommand::KickOff(None) => "(kickOff)".to_owned(),
+            MonitorCommand::KickOff(Some(FieldSide::Left)) => "(kickOff Left)".to_owned(),
+            MonitorCommand::KickOff(Some(FieldSide::Right)) => "(kickOff Right)".to_owned(),
+            MonitorCommand::DropBall => "(dropBall)".to_owned(),
+            MonitorCommand::SetPlayMode(mode) => format!("(playMode {})", mode.as_str()),
+            MonitorCommand::KillSim => "(killsim)".to_owned(),
+        })
     }
 }
 
@@ -146,7 +137,7 @@ pub fn encode_monitor_commands(
     out.clear();
     let mut text = String::new();
     for command in commands {
-        command.write(&mut text)?;
+        text += &command.text()?;
     }
     out.extend_from_slice(text.as_bytes());
     Ok(())
