@@ -18,13 +18,17 @@ use strata_rcssmj::protocol::{
     decode_perception, encode_effectors, encode_init, read_frame, write_frame,
 };
 
-/// Kills the server when the test ends, however it ends.
-struct Server(Child);
+/// Kills the server and removes its working directory when the test ends, however it ends.
+struct Server {
+    child: Child,
+    workdir: PathBuf,
+}
 
 impl Drop for Server {
     fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_dir_all(&self.workdir);
     }
 }
 
@@ -92,7 +96,7 @@ fn a_placed_ball_is_seen_by_the_camera_and_the_monitor() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap_or_else(|e| panic!("cannot start {}: {e}", binary.display()));
-    let _server = Server(child);
+    let server = Server { child, workdir };
 
     // An observer reads the monitor stream on its own thread (an unread monitor stalls the
     // server); a second connection sends the commands.
@@ -181,6 +185,6 @@ fn a_placed_ball_is_seen_by_the_camera_and_the_monitor() {
     assert!(monitor_saw, "the monitor never reported the placed ball");
     drop(ball_positions);
     drop(trainer);
-    drop(_server);
+    drop(server);
     let _ = reader.join();
 }
