@@ -128,6 +128,13 @@ def _strided_values(record, storage_values):
 
 
 def read_network(pt_path):
+    try:
+        return _read_network(pt_path)
+    except (KeyError, zipfile.BadZipFile, pickle.UnpicklingError, EOFError, struct.error) as err:
+        raise ConversionError(f"{pt_path}: not a readable TorchScript archive: {err}") from None
+
+
+def _read_network(pt_path):
     with zipfile.ZipFile(pt_path) as archive:
         names = archive.namelist()
         prefix = names[0].split("/", 1)[0]
@@ -331,7 +338,7 @@ def main(argv):
     try:
         tensors = read_network(source / "T1.pt")
         toml_text = config_toml(source / "T1.yaml")
-    except (ConversionError, OSError, KeyError, zipfile.BadZipFile, pickle.UnpicklingError) as err:
+    except (ConversionError, OSError) as err:
         print(f"convert-t1-policy: {err}", file=sys.stderr)
         return 1
     output.mkdir(parents=True, exist_ok=True)

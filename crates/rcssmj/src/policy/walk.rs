@@ -327,4 +327,68 @@ mod tests {
         assert!(approx(policy.smoothed_command().vx, 0.02));
         Ok(())
     }
+
+    #[test]
+    fn targets_stay_within_the_clip_of_the_default_pose() -> Result<(), PolicyError> {
+        let mut policy = policy()?;
+        let defaults = policy.config().default_targets();
+        // A wild state: tumbling, joints far off, fast.
+        let state = LegState {
+            torso_orientation: [0.3, 0.8, -0.4, 0.3],
+            torso_angular_velocity: [6.0, -5.0, 4.0],
+            joint_positions: std::array::from_fn(|i| if i % 2 == 0 { 2.0 } else { -2.0 }),
+            joint_velocities: [20.0; ACTION_LEN],
+        };
+        for _ in 0..20 {
+            let targets = policy.step(&state, WalkCommand { vx: 1.0, ..WalkCommand::STAND });
+            for (target, &index) in targets.iter().zip(&LEG_JOINTS) {
+                assert!((target.q - defaults[index].q).abs() <= 1.0 + 1e-9, "{target:?}");
+                assert_eq!((target.kp, target.kd), (defaults[index].kp, defaults[index].kd));
+            }
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn non_finite_state_gives_finite_targets() -> Result<(), PolicyError> {
+        let mut policy = policy()?;
+        let mut state = standing_state(&policy);
+        state.torso_orientation = [f64::NAN; 4];
+        state.joint_positions[3] = f64::NAN;
+        state.joint_velocities[7] = f64::INFINITY;
+        for _ in 0..3 {
+            let targets = policy.step(&state, WalkCommand::STAND);
+            assert!(targets.iter().all(|t| t.q.is_finite()), "{targets:?}");
+        }
+        assert!(policy.previous_action().iter().all(|a| a.is_finite()));
+        Ok(())
+    }
+
+    #[test]
+    fn gains_are_the_deployment_ones_in_si() -> Result<(), PolicyError> {
+        let mut policy = policy()?;
+        let state = standing_state(&policy);
+        let targets = policy.step(&state, WalkCommand::STAND);
+        // Left hip pitch and left ankle pitch, N m/rad and N m s/rad.
+        assert_eq!((targets[0].kp, targets[0].kd), (200.0, 5.0));
+        assert_eq!((targets[4].kp, targets[4].kd), (50.0, 3.0));
+        let upper = policy.upper_body_targets();
+        assert_eq!(upper[0], JointTarget { q: 0.0, kp: 20.0, kd: 0.2 });
+        // Left shoulder roll holds the arm down at -1.35 rad; the waist is stiff.
+        assert_eq!(upper[3].q, -1.35);
+        assert_eq!((upper[10].kp, upper[10].kd), (200.0, 5.0));
+        Ok(())
+    }
+
+    #[test]
+    fn an_invalid_config_is_refused() -> Result<(), PolicyError> {
+        let mut config = T1Config::shipped()?;
+        config.joints.pop();
+        let message = WalkPolicy::new(config, WalkNetwork::shipped()?)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(message.contains("`joints`"), "{message}");
+        Ok(())
+    }
 }
