@@ -17,9 +17,10 @@ use crate::objects::{LandmarkKind, ObjectKind};
 
 const SPL_TOML: &str = include_str!("../fields/spl.toml");
 const PAPER2010_TOML: &str = include_str!("../fields/paper2010.toml");
+const RCSSSERVERMJ_TOML: &str = include_str!("../fields/rcssservermj.toml");
 
 /// Names accepted by [`Field::preset`].
-pub const PRESETS: [&str; 2] = ["spl", "paper2010"];
+pub const PRESETS: [&str; 3] = ["spl", "paper2010", "rcssservermj"];
 
 /// A field that could not be loaded: the message names the source and the offending value.
 #[derive(Debug, Error)]
@@ -34,7 +35,7 @@ pub enum FieldError {
         #[source]
         source: std::io::Error,
     },
-    #[error("unknown field preset {0:?} (known: spl, paper2010)")]
+    #[error("unknown field preset {0:?} (known: spl, paper2010, rcssservermj)")]
     UnknownPreset(String),
 }
 
@@ -352,11 +353,13 @@ pub struct Field {
 }
 
 impl Field {
-    /// A built-in field: "spl" (current rules) or "paper2010" (the paper's field with beacons).
+    /// A built-in field: "spl" (current rules), "paper2010" (the paper's field with beacons) or
+    /// "rcssservermj" (the physics simulator's FIFA 7 vs 7 field).
     pub fn preset(name: &str) -> Result<Field, FieldError> {
         match name {
             "spl" => Field::from_toml_str(SPL_TOML, "fields/spl.toml"),
             "paper2010" => Field::from_toml_str(PAPER2010_TOML, "fields/paper2010.toml"),
+            "rcssservermj" => Field::from_toml_str(RCSSSERVERMJ_TOML, "fields/rcssservermj.toml"),
             other => Err(FieldError::UnknownPreset(other.to_owned())),
         }
     }

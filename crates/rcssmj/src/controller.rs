@@ -1,0 +1,583 @@
+//! What happens in one server cycle, without sockets or threads: the newest orders and the
+//! measured body in, one command per joint out. The platform runs this on its connection
+//! thread, once per 20 ms server cycle; tests run it directly.
+//!
+//! The body resource is Booster's walking policy (see [`crate::policy`]): standing is the
+//! policy with a zero command, walking the policy with the ordered velocity. A protective fall
+//! softens every joint; a robot lying on the ground is reported fallen and held soft until it
+//! is upright again (the T1 has no get-up motion here yet: docs/rcssservermj.md). The head
+//! resource is the neck, driven towards head orders at their speed limit.
+
+use serde::{Deserialize, Serialize};
+use strata_robot::geometry::{Odometry, Velocity};
+use strata_robot::platform::{
+    ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, FallDirection, HeadAngles, HeadOrder,
+    MotionSpec, PlatformError, SpecialMotion,
+};
+
+use crate::joints::{
+    FIRST_LEG, HEAD_PITCH, HEAD_PITCH_LIMITS, HEAD_YAW, HEAD_YAW_LIMITS, JOINT_COUNT, JointArray,
+    LEG_COUNT,
+};
+use crate::kinematics::Quaternion;
+use crate::policy::{LegState, WalkCommand, WalkPolicy};
+
+/// The server's agent cycle, s: every perception advances the controller by this much.
+pub const CYCLE: f64 = 0.02;
+
+/// How long a protective fall keeps the joints soft, s.
+const FALL_DURATION: f64 = 0.6;
+
+/// Tuning of the platform's own motion control.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MotionConfig {
+    /// The fastest walk the platform accepts (forward, sideways m/s, turning rad/s); faster
+    /// orders are clamped. Booster trained the policy for about these.
+    pub max_velocity: Velocity,
+    /// Upper bound on any head order's speed, rad/s.
+    pub max_head_speed: f64,
+    /// Head orders count as reached when the joints are this close to the target, rad.
+    pub head_settled_tolerance: f64,
+    /// Head joint gains, N m/rad and N m s/rad.
+    pub head_stiffness: f64,
+    pub head_damping: f64,
+    /// Torso tilt beyond this means lying on the ground, rad.
+    pub fallen_angle: f64,
+    /// Consecutive cycles beyond `fallen_angle` before the robot counts as fallen.
+    pub fallen_cycles: u32,
+    /// Consecutive upright cycles before a fallen robot counts as standing again.
+    pub upright_cycles: u32,
+    /// Gains of a soft body (protective fall, lying), as a share of the policy's.
+    pub soft_gain: f64,
+    /// The walk the body really makes for a commanded one, per axis (forward, sideways,
+    /// turning): odometry reports commanded x factor. Measured on this policy in the server
+    /// (docs/rcssservermj.md).
+    pub odometry_scale: [f64; 3],
+}
+
+impl Default for MotionConfig {
+    fn default() -> Self {
+        MotionConfig {
+            max_velocity: Velocity::new(0.6, 0.3, 1.0),
+            max_head_speed: 4.0,
+            head_settled_tolerance: 0.05,
+            head_stiffness: 20.0,
+            head_damping: 0.2,
+            fallen_angle: 1.0,
+            fallen_cycles: 5,
+            upright_cycles: 25,
+            soft_gain: 0.1,
+            odometry_scale: [0.92, 0.85, 1.0],
+        }
+    }
+}
+
+/// The body as measured in one cycle.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeasuredBody {
+    /// The torso's orientation in the world (the IMU's filter output).
+    pub orientation: Quaternion,
+    /// Torso angular velocity in the torso frame, rad/s.
+    pub gyro: [f64; 3],
+    /// Joint angles, rad, and velocities, rad/s, in [`crate::joints::JOINTS`] order.
+    pub joint_positions: JointArray<f64>,
+    pub joint_velocities: JointArray<f64>,
+}
+
+/// One joint's command: a PD target with feed-forward torque, SI units.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct JointCommand {
+    /// rad
+    pub q: f64,
+    /// rad/s
+    pub dq: f64,
+    /// N m/rad
+    pub kp: f64,
+    /// N m s/rad
+    pub kd: f64,
+    /// N m
+    pub tau: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum BodyMode {
+    Standing,
+    Walking(Velocity),
+    /// A protective fall: soft joints for a while.
+    Falling {
+        elapsed: f64,
+    },
+    Fallen(FallDirection),
+}
+
+/// The T1's motion control.
+#[derive(Debug)]
+pub struct T1Controller {
+    config: MotionConfig,
+    policy: WalkPolicy,
+    body: BodyMode,
+    head_order: Option<HeadOrder>,
+    /// Where the head is being driven this cycle (moves towards the order's target).
+    head_command: Option<HeadAngles>,
+    measured: Option<MeasuredBody>,
+    odometry: Odometry,
+    tilted_cycles: u32,
+    upright_cycles: u32,
+}
+
+impl T1Controller {
+    pub fn new(config: MotionConfig, policy: WalkPolicy) -> T1Controller {
+        T1Controller {
+            config,
+            policy,
+            body: BodyMode::Standing,
+            head_order: None,
+            head_command: None,
+            measured: None,
+            odometry: Odometry::ZERO,
+            tilted_cycles: 0,
+            upright_cycles: 0,
+        }
+    }
+
+    pub fn config(&self) -> &MotionConfig {
+        &self.config
+    }
+
+    /// The special motions this body can make.
+    pub fn catalogue(&self) -> Vec<MotionSpec> {
+        vec![MotionSpec {
+            motion: SpecialMotion::Fall(0),
+            name: "protective fall: every joint soft".to_owned(),
+            duration: std::time::Duration::from_secs_f64(FALL_DURATION),
+        }]
+    }
+
+    /// Starts over after the server put the robot somewhere with every joint at zero (a
+    /// beam): the policy forgets its previous actions, the body stands, the head is driven
+    /// from where it is.
+    pub fn restart(&mut self) {
+        self.policy.reset();
+        self.body = BodyMode::Standing;
+        self.head_command = None;
+        self.measured = None;
+        self.tilted_cycles = 0;
+        self.upright_cycles = 0;
+    }
+
+    /// Takes new orders; a `None` part keeps the previous one.
+    pub fn apply(&mut self, orders: &ActuatorOrders) -> Result<(), PlatformError> {
+        if let Some(head) = orders.head {
+            if !(head.target.yaw.is_finite() && head.target.pitch.is_finite()) {
+                return Err(PlatformError::Unsupported(format!(
+                    "a head order to {:?}",
+                    head.target
+                )));
+            }
+            self.head_order = Some(head);
+        }
+        let Some(body) = orders.body else { return Ok(()) };
+        match (body, self.body) {
+            // Lying, or falling, the body takes no walking orders: only a stand-up would help.
+            (
+                BodyOrder::Stand | BodyOrder::Walk { .. },
+                BodyMode::Fallen(_) | BodyMode::Falling { .. },
+            ) => Ok(()),
+            (BodyOrder::Stand, _) => {
+                self.body = BodyMode::Standing;
+                Ok(())
+            }
+            (BodyOrder::Walk { velocity }, _) => {
+                if !velocity.is_finite() {
+                    return Err(PlatformError::Unsupported(format!("walking at {velocity:?}")));
+                }
+                let max = self.config.max_velocity;
+                let v = Velocity::new(
+                    velocity.vx.clamp(-max.vx, max.vx),
+                    velocity.vy.clamp(-max.vy, max.vy),
+                    velocity.omega.clamp(-max.omega, max.omega),
+                );
+                self.body = if v.is_zero() { BodyMode::Standing } else { BodyMode::Walking(v) };
+                Ok(())
+            }
+            (BodyOrder::Special { motion: SpecialMotion::Fall(_) }, BodyMode::Fallen(_)) => Ok(()),
+            (BodyOrder::Special { motion: SpecialMotion::Fall(_) }, BodyMode::Falling { .. }) => {
+                Ok(())
+            }
+            (BodyOrder::Special { motion: SpecialMotion::Fall(_) }, _) => {
+                self.body = BodyMode::Falling { elapsed: 0.0 };
+                Ok(())
+            }
+            (BodyOrder::Special { motion }, _) => Err(PlatformError::Unsupported(format!(
+                "special motion {motion:?} on the T1 (its catalogue: protective fall only)"
+            ))),
+        }
+    }
+
+    /// One server cycle: updates the body's state from the measurement and returns every
+    /// joint's command.
+    pub fn step(&mut self, measured: MeasuredBody) -> JointArray<JointCommand> {
+        let previous_yaw = self.measured.as_ref().map(|m| m.orientation.yaw());
+        self.track_fall(&measured);
+        let mut commands = self.hold_default_pose();
+        let soft = self.config.soft_gain;
+        match &mut self.body {
+            BodyMode::Standing | BodyMode::Walking(_) => {
+                let velocity = match self.body {
+                    BodyMode::Walking(v) => v,
+                    _ => Velocity::ZERO,
+                };
+                let command =
+                    WalkCommand { vx: velocity.vx, vy: velocity.vy, yaw_rate: velocity.omega };
+                let state = leg_state(&measured);
+                let targets = self.policy.step(&state, command);
+                for (i, target) in targets.iter().enumerate() {
+                    commands[FIRST_LEG + i] = JointCommand {
+                        q: target.q,
+                        dq: 0.0,
+                        kp: target.kp,
+                        kd: target.kd,
+                        tau: 0.0,
+                    };
+                }
+                self.integrate_odometry(previous_yaw, &measured);
+            }
+            BodyMode::Falling { elapsed } => {
+                *elapsed += CYCLE;
+                for command in &mut commands {
+                    command.kp *= soft;
+                    command.kd *= soft;
+                }
+                if *elapsed >= FALL_DURATION && self.tilted_cycles == 0 {
+                    // A protective fall that ended upright (a false alarm, a stumble caught).
+                    self.body = BodyMode::Standing;
+                    self.policy.reset();
+                }
+            }
+            BodyMode::Fallen(_) => {
+                for command in &mut commands {
+                    command.kp *= soft;
+                    command.kd *= soft;
+                }
+            }
+        }
+        self.step_head(&measured, &mut commands);
+        self.measured = Some(measured);
+        commands
+    }
+
+    /// Every joint at the deployment's default pose with its gains: what arms and waist do
+    /// always, and the legs' start before the policy overrides them.
+    fn hold_default_pose(&self) -> JointArray<JointCommand> {
+        self.policy.config().default_targets().map(|target| JointCommand {
+            q: target.q,
+            dq: 0.0,
+            kp: target.kp,
+            kd: target.kd,
+            tau: 0.0,
+        })
+    }
+
+    fn track_fall(&mut self, measured: &MeasuredBody) {
+        let [roll, pitch] = measured.orientation.roll_pitch();
+        let tilted = roll.abs().max(pitch.abs()) > self.config.fallen_angle;
+        if tilted {
+            self.tilted_cycles += 1;
+            self.upright_cycles = 0;
+        } else {
+            self.tilted_cycles = 0;
+            self.upright_cycles += 1;
+        }
+        match self.body {
+            BodyMode::Fallen(_) if self.upright_cycles >= self.config.upright_cycles => {
+                // Put back on its feet (a referee's or a trainer's beam).
+                self.body = BodyMode::Standing;
+                self.policy.reset();
+            }
+            BodyMode::Fallen(_) => {}
+            _ if self.tilted_cycles >= self.config.fallen_cycles => {
+                self.body = BodyMode::Fallen(fall_direction(roll, pitch));
+            }
+            _ => {}
+        }
+    }
+
+    fn integrate_odometry(&mut self, previous_yaw: Option<f64>, measured: &MeasuredBody) {
+        let [sx, sy, st] = self.config.odometry_scale;
+        let v = self.policy.smoothed_command();
+        // Turning comes from the IMU's heading (what a real T1 integrates from its gyro); a
+        // first cycle has no previous heading and contributes only the commanded turn.
+        let dtheta = match previous_yaw {
+            Some(yaw) => strata_robot::geometry::normalize_angle(measured.orientation.yaw() - yaw),
+            None => st * v.yaw_rate * CYCLE,
+        };
+        let step = Odometry { dx: sx * v.vx * CYCLE, dy: sy * v.vy * CYCLE, dtheta };
+        self.odometry = self.odometry.then(step);
+    }
+
+    fn step_head(&mut self, measured: &MeasuredBody, commands: &mut JointArray<JointCommand>) {
+        let encoders = HeadAngles {
+            yaw: measured.joint_positions[HEAD_YAW],
+            pitch: measured.joint_positions[HEAD_PITCH],
+        };
+        let current = self.head_command.unwrap_or(encoders);
+        let next = match self.head_order {
+            Some(order) => {
+                let target = clamp_head(order.target);
+                let speed = if order.max_speed.is_finite() && order.max_speed > 0.0 {
+                    order.max_speed.min(self.config.max_head_speed)
+                } else {
+                    self.config.max_head_speed
+                };
+                let (dy, dp) = (target.yaw - current.yaw, target.pitch - current.pitch);
+                let distance = dy.hypot(dp);
+                let reach = speed * CYCLE;
+                if distance <= reach {
+                    target
+                } else {
+                    let t = reach / distance;
+                    HeadAngles { yaw: current.yaw + dy * t, pitch: current.pitch + dp * t }
+                }
+            }
+            None => current,
+        };
+        self.head_command = Some(next);
+        let falling = matches!(self.body, BodyMode::Falling { .. } | BodyMode::Fallen(_));
+        let gain = if falling { self.config.soft_gain } else { 1.0 };
+        for (joint, q) in [(HEAD_YAW, next.yaw), (HEAD_PITCH, next.pitch)] {
+            commands[joint] = JointCommand {
+                q,
+                dq: 0.0,
+                kp: gain * self.config.head_stiffness,
+                kd: gain * self.config.head_damping,
+                tau: 0.0,
+            };
+        }
+    }
+
+    /// The head's measured angles.
+    pub fn head(&self) -> HeadAngles {
+        self.measured
+            .as_ref()
+            .map(|m| HeadAngles {
+                yaw: m.joint_positions[HEAD_YAW],
+                pitch: m.joint_positions[HEAD_PITCH],
+            })
+            .unwrap_or_default()
+    }
+
+    /// Whether the head reached its last ordered target.
+    pub fn head_settled(&self) -> bool {
+        let Some(order) = self.head_order else { return true };
+        let target = clamp_head(order.target);
+        let head = self.head();
+        (head.yaw - target.yaw).abs() <= self.config.head_settled_tolerance
+            && (head.pitch - target.pitch).abs() <= self.config.head_settled_tolerance
+    }
+
+    /// What the body is doing, as actuation reads it.
+    pub fn body_state(&self) -> BodyMotionState {
+        match self.body {
+            BodyMode::Standing => BodyMotionState::Standing,
+            BodyMode::Walking(velocity) => {
+                // The policy's gait has no start or stop phase: any cycle may take a new
+                // command (the deployment smooths it), so walking is always in execution.
+                BodyMotionState::Walking { stage: CycleStage::Execution, velocity }
+            }
+            BodyMode::Falling { elapsed } => BodyMotionState::Special {
+                motion: SpecialMotion::Fall(0),
+                elapsed,
+                duration: FALL_DURATION,
+            },
+            BodyMode::Fallen(direction) => BodyMotionState::Fallen { direction },
+        }
+    }
+
+    /// The motion since the last call.
+    pub fn take_odometry(&mut self) -> Odometry {
+        std::mem::replace(&mut self.odometry, Odometry::ZERO)
+    }
+}
+
+fn leg_state(measured: &MeasuredBody) -> LegState {
+    let legs = FIRST_LEG..FIRST_LEG + LEG_COUNT;
+    let mut positions = [0.0; LEG_COUNT];
+    let mut velocities = [0.0; LEG_COUNT];
+    positions.copy_from_slice(&measured.joint_positions[legs.clone()]);
+    velocities.copy_from_slice(&measured.joint_velocities[legs]);
+    let q = measured.orientation;
+    LegState {
+        torso_orientation: [q.w, q.x, q.y, q.z],
+        torso_angular_velocity: measured.gyro,
+        joint_positions: positions,
+        joint_velocities: velocities,
+    }
+}
+
+fn fall_direction(roll: f64, pitch: f64) -> FallDirection {
+    if pitch.abs() >= roll.abs() {
+        if pitch > 0.0 { FallDirection::Front } else { FallDirection::Back }
+    } else if roll > 0.0 {
+        FallDirection::Right
+    } else {
+        FallDirection::Left
+    }
+}
+
+fn clamp_head(target: HeadAngles) -> HeadAngles {
+    HeadAngles {
+        yaw: target.yaw.clamp(HEAD_YAW_LIMITS.0, HEAD_YAW_LIMITS.1),
+        pitch: target.pitch.clamp(HEAD_PITCH_LIMITS.0, HEAD_PITCH_LIMITS.1),
+    }
+}
+
+const _: () = assert!(JOINT_COUNT == FIRST_LEG + LEG_COUNT);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_robot::platform::HeadOrder;
+
+    fn controller() -> T1Controller {
+        let policy = WalkPolicy::shipped().expect("the shipped policy loads");
+        T1Controller::new(MotionConfig::default(), policy)
+    }
+
+    fn upright() -> MeasuredBody {
+        MeasuredBody {
+            orientation: Quaternion::IDENTITY,
+            gyro: [0.0; 3],
+            joint_positions: [0.0; JOINT_COUNT],
+            joint_velocities: [0.0; JOINT_COUNT],
+        }
+    }
+
+    fn pitched(angle: f64) -> MeasuredBody {
+        MeasuredBody {
+            orientation: Quaternion {
+                w: (angle / 2.0).cos(),
+                x: 0.0,
+                y: (angle / 2.0).sin(),
+                z: 0.0,
+            },
+            ..upright()
+        }
+    }
+
+    fn body(order: BodyOrder) -> ActuatorOrders {
+        ActuatorOrders { head: None, body: Some(order) }
+    }
+
+    #[test]
+    fn walk_orders_are_clamped_and_a_zero_walk_is_standing() {
+        let mut c = controller();
+        c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(3.0, -2.0, 0.5) })).expect("taken");
+        match c.body_state() {
+            BodyMotionState::Walking { velocity, .. } => {
+                assert_eq!((velocity.vx, velocity.vy, velocity.omega), (0.6, -0.3, 0.5));
+            }
+            other => panic!("walking expected, got {other:?}"),
+        }
+        c.apply(&body(BodyOrder::Walk { velocity: Velocity::ZERO })).expect("taken");
+        assert_eq!(c.body_state(), BodyMotionState::Standing);
+        let nan = Velocity::new(f64::NAN, 0.0, 0.0);
+        assert!(c.apply(&body(BodyOrder::Walk { velocity: nan })).is_err());
+        let kick = BodyOrder::Special { motion: SpecialMotion::Kick(0) };
+        assert!(matches!(c.apply(&body(kick)), Err(PlatformError::Unsupported(_))));
+    }
+
+    #[test]
+    fn the_policy_drives_the_legs_and_the_rest_holds_the_default_pose() {
+        let mut c = controller();
+        let commands = c.step(upright());
+        let defaults = c.policy.config().default_targets();
+        for i in 2..FIRST_LEG {
+            assert_eq!(commands[i].q, defaults[i].q, "joint {i}");
+            assert!(commands[i].kp > 0.0);
+        }
+        // Legs at zero are far from the default pose: the policy moves them, within its clip.
+        assert!(commands[FIRST_LEG..].iter().all(|c| c.q.is_finite() && c.kp > 0.0));
+    }
+
+    #[test]
+    fn lying_for_a_few_cycles_is_fallen_and_upright_again_is_standing() {
+        let mut c = controller();
+        for _ in 0..4 {
+            c.step(pitched(1.3));
+        }
+        assert_eq!(c.body_state(), BodyMotionState::Standing, "a stumble is not a fall");
+        c.step(pitched(1.3));
+        assert_eq!(c.body_state(), BodyMotionState::Fallen { direction: FallDirection::Front });
+        let soft = c.step(pitched(-1.5));
+        assert!(soft[FIRST_LEG].kp < 0.2 * c.policy.config().default_targets()[FIRST_LEG].kp);
+        // Walking orders do nothing to a robot on the ground.
+        c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(0.3, 0.0, 0.0) })).expect("ok");
+        assert!(matches!(c.body_state(), BodyMotionState::Fallen { .. }));
+        for _ in 0..MotionConfig::default().upright_cycles {
+            c.step(upright());
+        }
+        assert_eq!(c.body_state(), BodyMotionState::Standing);
+    }
+
+    #[test]
+    fn a_protective_fall_softens_every_joint_for_its_duration() {
+        let mut c = controller();
+        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::Fall(0) })).expect("taken");
+        let commands = c.step(upright());
+        assert!(matches!(c.body_state(), BodyMotionState::Special { .. }));
+        let defaults = c.policy.config().default_targets();
+        for (command, default) in commands.iter().zip(defaults).skip(2) {
+            assert!(command.kp <= 0.1 * default.kp + 1e-12);
+        }
+        for _ in 0..(FALL_DURATION / CYCLE).ceil() as usize {
+            c.step(upright());
+        }
+        assert_eq!(c.body_state(), BodyMotionState::Standing, "caught upright: standing again");
+    }
+
+    #[test]
+    fn the_head_moves_at_its_speed_limit_and_settles() {
+        let mut c = controller();
+        let order = HeadOrder { target: HeadAngles { yaw: 1.0, pitch: 0.3 }, max_speed: 2.0 };
+        c.apply(&ActuatorOrders { head: Some(order), body: None }).expect("taken");
+        let first = c.step(upright());
+        let moved = first[HEAD_YAW].q.hypot(first[HEAD_PITCH].q);
+        assert!((moved - 2.0 * CYCLE).abs() < 1e-9, "moved {moved}");
+        assert!(!c.head_settled());
+        let mut at_target = upright();
+        at_target.joint_positions[HEAD_YAW] = 1.0;
+        at_target.joint_positions[HEAD_PITCH] = 0.3;
+        c.step(at_target);
+        assert!(c.head_settled());
+        // Beyond the neck's range the order is clamped.
+        let far = HeadOrder { target: HeadAngles { yaw: 3.0, pitch: -1.0 }, max_speed: 100.0 };
+        c.apply(&ActuatorOrders { head: Some(far), body: None }).expect("taken");
+        let mut last = c.step(upright());
+        for _ in 0..50 {
+            last = c.step(upright());
+        }
+        assert_eq!(
+            (last[HEAD_YAW].q, last[HEAD_PITCH].q),
+            (HEAD_YAW_LIMITS.1, HEAD_PITCH_LIMITS.0)
+        );
+    }
+
+    #[test]
+    fn odometry_turns_with_the_imu_and_moves_with_the_command() {
+        let mut c = controller();
+        c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(0.5, 0.0, 0.0) })).expect("ok");
+        for _ in 0..100 {
+            c.step(upright());
+        }
+        let odometry = c.take_odometry();
+        assert!(odometry.dx > 0.0 && odometry.dtheta.abs() < 1e-12, "{odometry:?}");
+        assert_eq!(c.take_odometry(), Odometry::ZERO);
+        let yawed = MeasuredBody {
+            orientation: Quaternion { w: (0.05f64).cos(), x: 0.0, y: 0.0, z: (0.05f64).sin() },
+            ..upright()
+        };
+        c.step(yawed);
+        assert!((c.take_odometry().dtheta - 0.1).abs() < 1e-9);
+    }
+}

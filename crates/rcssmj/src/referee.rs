@@ -1,0 +1,248 @@
+//! The server's referee as a GameController: each game-state perceptor (`GS`: play mode,
+//! scores, team names) becomes the control packet an SPL GameController would send, so the
+//! soccer application follows the game on this platform exactly as on a field.
+//!
+//! Play modes map to the SPL's states and set plays:
+//!
+//! | rcssservermj | GameController |
+//! |---|---|
+//! | `BeforeKickOff`, `Goal_Left/Right` | Ready (robots take their kick-off positions) |
+//! | `KickOff_Left/Right` | Playing, that team kicking off |
+//! | `PlayOn` | Playing |
+//! | `KickIn_*` | Playing, set play kick-in |
+//! | `corner_kick_*` | Playing, set play corner kick |
+//! | `goal_kick_*` | Playing, set play goal kick |
+//! | `free_kick_*`, `direct_free_kick_*`, `offside_*` | Playing, set play pushing free kick |
+//! | `penalty_kick_*`, `penalty_shoot_*` | Playing, set play penalty kick |
+//! | `GameOver` | Finished |
+//!
+//! The left team is listed first and, in the first half, attacks +x, which is where the server
+//! puts it (it defends the goal at negative x).
+
+use std::sync::{Arc, Mutex, PoisonError};
+
+use strata_robot::platform::{ExternalLink, LinkError, ReceivedPacket};
+use strata_runtime::Time;
+use strata_spl::gamecontroller::{GameControlData, GameState, SetPlay, TeamInfo};
+
+use crate::protocol::{FieldSide, GameStatePerceptor, PlayMode};
+
+/// The team numbers the packets use: ours, and the one that stands for the other team.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TeamNumbers {
+    pub own: u8,
+    pub opponent: u8,
+}
+
+impl TeamNumbers {
+    /// `own` and a different number for the opponent.
+    pub fn new(own: u8) -> TeamNumbers {
+        TeamNumbers { own, opponent: if own == 1 { 2 } else { 1 } }
+    }
+}
+
+/// The control packet for a game state, or `None` while our team is on neither side (the
+/// server lists a team once one of its robots has joined).
+pub fn control_data(
+    game: &GameStatePerceptor,
+    team_name: &str,
+    numbers: TeamNumbers,
+    players_per_team: u8,
+) -> Option<GameControlData> {
+    let side = game.side_of(team_name)?;
+    let (left, right) = match side {
+        FieldSide::Left => (numbers.own, numbers.opponent),
+        FieldSide::Right => (numbers.opponent, numbers.own),
+    };
+    let team_of = |s: FieldSide| match s {
+        FieldSide::Left => left,
+        FieldSide::Right => right,
+    };
+    let (state, set_play, kicking) = match game.play_mode {
+        None | Some(PlayMode::BeforeKickOff) => (GameState::Ready, SetPlay::None, None),
+        Some(PlayMode::GoalLeft) => (GameState::Ready, SetPlay::None, Some(FieldSide::Right)),
+        Some(PlayMode::GoalRight) => (GameState::Ready, SetPlay::None, Some(FieldSide::Left)),
+        Some(PlayMode::GameOver) => (GameState::Finished, SetPlay::None, None),
+        Some(PlayMode::PlayOn) => (GameState::Playing, SetPlay::None, None),
+        Some(mode) => {
+            let (set_play, side) = set_play_of(mode);
+            (GameState::Playing, set_play, Some(side))
+        }
+    };
+    let team = |number: u8, score: u32| TeamInfo {
+        team_number: number,
+        score: u8::try_from(score).unwrap_or(u8::MAX),
+        // The server has no message budget: an unlimited one.
+        message_budget: u16::MAX,
+        ..TeamInfo::default()
+    };
+    Some(GameControlData {
+        players_per_team,
+        state,
+        set_play,
+        first_half: true,
+        kicking_team: kicking.map(team_of),
+        secs_remaining: i16::try_from(game.play_time.round() as i64).unwrap_or(i16::MAX),
+        teams: [team(left, game.score_left), team(right, game.score_right)],
+        ..GameControlData::default()
+    })
+}
+
+fn set_play_of(mode: PlayMode) -> (SetPlay, FieldSide) {
+    use FieldSide::{Left, Right};
+    match mode {
+        PlayMode::KickOffLeft => (SetPlay::None, Left),
+        PlayMode::KickOffRight => (SetPlay::None, Right),
+        PlayMode::KickInLeft => (SetPlay::KickIn, Left),
+        PlayMode::KickInRight => (SetPlay::KickIn, Right),
+        PlayMode::CornerKickLeft => (SetPlay::CornerKick, Left),
+        PlayMode::CornerKickRight => (SetPlay::CornerKick, Right),
+        PlayMode::GoalKickLeft => (SetPlay::GoalKick, Left),
+        PlayMode::GoalKickRight => (SetPlay::GoalKick, Right),
+        PlayMode::FreeKickLeft | PlayMode::DirectFreeKickLeft | PlayMode::OffsideLeft => {
+            (SetPlay::PushingFreeKick, Left)
+        }
+        PlayMode::FreeKickRight | PlayMode::DirectFreeKickRight | PlayMode::OffsideRight => {
+            (SetPlay::PushingFreeKick, Right)
+        }
+        PlayMode::PenaltyKickLeft | PlayMode::PenaltyShootLeft => (SetPlay::PenaltyKick, Left),
+        PlayMode::PenaltyKickRight | PlayMode::PenaltyShootRight => (SetPlay::PenaltyKick, Right),
+        // Handled by the caller; listed so a new play mode is a compile error here.
+        PlayMode::BeforeKickOff
+        | PlayMode::PlayOn
+        | PlayMode::GameOver
+        | PlayMode::GoalLeft
+        | PlayMode::GoalRight => (SetPlay::None, Left),
+    }
+}
+
+/// The newest game state, shared by the platform's connection thread and the link.
+pub type SharedGame = Arc<Mutex<Option<GameStatePerceptor>>>;
+
+/// A GameController link whose packets are made from the server's game state: one packet per
+/// `receive` when the state changed, and at least every half second (a GameController's rate).
+#[derive(Debug)]
+pub struct RefereeLink {
+    game: SharedGame,
+    team_name: String,
+    numbers: TeamNumbers,
+    players_per_team: u8,
+    last: Option<(GameControlData, Time)>,
+    packet_number: u8,
+}
+
+impl RefereeLink {
+    pub fn new(
+        game: SharedGame,
+        team_name: &str,
+        numbers: TeamNumbers,
+        players_per_team: u8,
+    ) -> RefereeLink {
+        RefereeLink {
+            game,
+            team_name: team_name.to_owned(),
+            numbers,
+            players_per_team,
+            last: None,
+            packet_number: 0,
+        }
+    }
+}
+
+impl ExternalLink for RefereeLink {
+    fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
+        let game = self.game.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        let Some(data) = game
+            .and_then(|g| control_data(&g, &self.team_name, self.numbers, self.players_per_team))
+        else {
+            return Ok(Vec::new());
+        };
+        let due = match &self.last {
+            None => true,
+            Some((last, at)) => {
+                // The clock ticking is not news; a changed state is.
+                let changed = GameControlData { secs_remaining: 0, packet_number: 0, ..*last }
+                    != GameControlData { secs_remaining: 0, packet_number: 0, ..data };
+                changed || now.saturating_since(*at).as_secs_f64() >= 0.5
+            }
+        };
+        if !due {
+            return Ok(Vec::new());
+        }
+        self.packet_number = self.packet_number.wrapping_add(1);
+        let data = GameControlData { packet_number: self.packet_number, ..data };
+        self.last = Some((data, now));
+        Ok(vec![ReceivedPacket { received: now, bytes: data.encode().to_vec() }])
+    }
+
+    /// Return packets have nobody to go to: the server's referee does not read them.
+    fn send(&mut self, _now: Time, _payload: &[u8]) -> Result<(), LinkError> {
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gs(mode: PlayMode, left: Option<&str>, right: Option<&str>) -> GameStatePerceptor {
+        GameStatePerceptor {
+            play_time: 12.4,
+            play_mode_text: mode.as_str().to_owned(),
+            play_mode: Some(mode),
+            team_left: left.map(str::to_owned),
+            team_right: right.map(str::to_owned),
+            score_left: 2,
+            score_right: 1,
+        }
+    }
+
+    #[test]
+    fn play_modes_become_game_states_for_the_right_team() {
+        let numbers = TeamNumbers::new(10);
+        let before = gs(PlayMode::BeforeKickOff, Some("Us"), None);
+        let data = control_data(&before, "Us", numbers, 7).expect("our team is on the left");
+        assert_eq!(data.state, GameState::Ready);
+        assert_eq!(data.teams[0].team_number, 10);
+        assert_eq!(data.teams[0].score, 2);
+        // Listed first in the first half: we attack +x, as the server's left team does.
+        assert!(data.first_half);
+
+        let kick_off = gs(PlayMode::KickOffRight, Some("Them"), Some("Us"));
+        let data = control_data(&kick_off, "Us", numbers, 7).expect("on the right");
+        assert_eq!(data.state, GameState::Playing);
+        assert_eq!(data.teams[1].team_number, 10);
+        assert_eq!(data.kicking_team, Some(10));
+
+        let corner = gs(PlayMode::CornerKickLeft, Some("Them"), Some("Us"));
+        let data = control_data(&corner, "Us", numbers, 7).expect("on the right");
+        assert_eq!(
+            (data.set_play, data.kicking_team),
+            (SetPlay::CornerKick, Some(numbers.opponent))
+        );
+
+        assert_eq!(
+            control_data(&gs(PlayMode::GameOver, Some("Us"), None), "Us", numbers, 7)
+                .map(|d| d.state),
+            Some(GameState::Finished)
+        );
+        assert!(control_data(&before, "Nobody", numbers, 7).is_none());
+    }
+
+    #[test]
+    fn the_link_sends_on_change_and_twice_a_second() {
+        let game: SharedGame = Arc::new(Mutex::new(None));
+        let mut link = RefereeLink::new(Arc::clone(&game), "Us", TeamNumbers::new(3), 5);
+        let at = |ms: u64| Time::from_nanos(ms * 1_000_000);
+        assert!(link.receive(at(0)).expect("never fails").is_empty());
+        *game.lock().expect("not poisoned") = Some(gs(PlayMode::BeforeKickOff, Some("Us"), None));
+        let first = link.receive(at(10)).expect("never fails");
+        assert_eq!(first.len(), 1);
+        let decoded = GameControlData::decode(&first[0].bytes).expect("a valid packet");
+        assert_eq!(decoded.state, GameState::Ready);
+        assert!(link.receive(at(100)).expect("never fails").is_empty());
+        assert_eq!(link.receive(at(600)).expect("never fails").len(), 1);
+        *game.lock().expect("not poisoned") = Some(gs(PlayMode::PlayOn, Some("Us"), None));
+        assert_eq!(link.receive(at(610)).expect("never fails").len(), 1);
+    }
+}

@@ -1,0 +1,188 @@
+//! The T1 against the real rcssservermj, in sync mode and as fast as the server runs (the
+//! platform's `pace` 0): standing, walking to a point, turning, a lost server.
+//!
+//! Needs the server (`scripts/setup-rcssservermj`). Without it each test says so and passes,
+//! unless `STRATA_REQUIRE_RCSSSERVERMJ` is set (as `scripts/test` does after installing it).
+//! The physics is MuJoCo's, not ours, and the server steps when our answer arrives, so a run
+//! is close to but not bit-for-bit repeatable: the thresholds leave room for that.
+
+use std::time::{Duration, Instant};
+
+use strata_rcssmj::platform::{GroundTruth, RcssConfig, RcssPlatform};
+use strata_rcssmj::server::{ServerError, ServerOptions, ServerProcess};
+use strata_robot::geometry::Velocity;
+use strata_robot::platform::{
+    ActuatorOrders, BodyMotionState, BodyOrder, MotionFeedback, Platform, PlatformError,
+};
+use strata_runtime::Time;
+
+fn server() -> Option<ServerProcess> {
+    match ServerProcess::start(&ServerOptions::default()) {
+        Ok(server) => Some(server),
+        Err(ServerError::NotInstalled)
+            if std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none() =>
+        {
+            eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
+            None
+        }
+        Err(error) => panic!("starting rcssservermj: {error}"),
+    }
+}
+
+fn t1(server: &ServerProcess, team: &str, beam: [f64; 3]) -> RcssPlatform {
+    let config = RcssConfig { pace: 0.0, beam: Some(beam), ..RcssConfig::default() };
+    RcssPlatform::connect(&server.agent_address(), team, 1, config).expect("a T1 connects")
+}
+
+/// Runs the robot for `seconds` of simulation time, calling `each` with the newest ground
+/// truth and feedback every cycle; returns the last truth.
+fn run_for(
+    robot: &mut RcssPlatform,
+    seconds: f64,
+    mut each: impl FnMut(&GroundTruth, &MotionFeedback, f64) -> bool,
+) -> GroundTruth {
+    let start = robot.ground_truth().expect("a first perception").time;
+    let deadline = Instant::now() + Duration::from_secs_f64(seconds * 2.0 + 30.0);
+    let mut last_time = start;
+    loop {
+        assert!(Instant::now() < deadline, "the server did not advance {seconds} s in time");
+        let now = Time::ZERO;
+        match robot.read_sensors(now) {
+            Ok(Some(_)) => {}
+            Ok(None) => {
+                std::thread::sleep(Duration::from_micros(200));
+                continue;
+            }
+            Err(error) => panic!("the platform failed: {error}"),
+        }
+        let truth = robot.ground_truth().expect("truth");
+        if truth.time <= last_time {
+            continue;
+        }
+        last_time = truth.time;
+        let motion = robot.read_motion(now).expect("motion");
+        if !each(&truth, &motion, truth.time - start) || truth.time - start >= seconds {
+            return truth;
+        }
+    }
+}
+
+fn fallen(motion: &MotionFeedback) -> bool {
+    matches!(motion.body, BodyMotionState::Fallen { .. })
+}
+
+fn order(robot: &mut RcssPlatform, body: BodyOrder) {
+    robot
+        .write(Time::ZERO, &ActuatorOrders { head: None, body: Some(body) })
+        .expect("orders are taken");
+}
+
+#[test]
+fn a_t1_stands_thirty_seconds() {
+    let Some(server) = server() else { return };
+    let mut robot = t1(&server, "Stand", [-3.0, 0.0, 0.0]);
+    order(&mut robot, BodyOrder::Stand);
+    let mut lowest = f64::INFINITY;
+    let truth = run_for(&mut robot, 30.0, |truth, motion, t| {
+        if t > 1.0 {
+            lowest = lowest.min(truth.position[2]);
+            assert!(!fallen(motion), "fell at {t:.2} s");
+        }
+        true
+    });
+    assert!(lowest > 0.55, "the torso sank to {lowest:.3} m");
+    println!("stood 30 s: torso at {:.3} m, lowest {lowest:.3} m", truth.position[2]);
+}
+
+#[test]
+fn a_t1_walks_three_metres_by_odometry_and_stops() {
+    let Some(server) = server() else { return };
+    let mut robot = t1(&server, "Walker", [-6.0, 0.0, 0.0]);
+    order(&mut robot, BodyOrder::Stand);
+    let settled = run_for(&mut robot, 2.0, |_, _, _| true);
+    let start = [settled.position[0], settled.position[1]];
+    // The command is smoothed by 0.02 m/s per 20 ms cycle (1 m/s^2): stopping from 0.5 m/s
+    // takes another 0.125 m, so the order to stand goes out that much before the point.
+    let speed = 0.5;
+    let braking = speed * speed / 2.0;
+    order(&mut robot, BodyOrder::Walk { velocity: Velocity::new(speed, 0.0, 0.0) });
+    let mut travelled = 0.0;
+    let mut cruise = None;
+    run_for(&mut robot, 20.0, |truth, motion, t| {
+        assert!(!fallen(motion), "fell while walking");
+        travelled += motion.odometry.dx;
+        // Cruise speed from the ground truth between 2 s and 6 s of walking.
+        if t >= 2.0 && cruise.is_none() {
+            cruise = Some((t, [truth.position[0], truth.position[1]], 0.0));
+        }
+        if let Some((t0, p0, speed)) = &mut cruise
+            && t <= 6.0
+        {
+            *speed = (truth.position[0] - p0[0]).hypot(truth.position[1] - p0[1]) / (t - *t0);
+        }
+        travelled < 3.0 - braking
+    });
+    order(&mut robot, BodyOrder::Stand);
+    let end = run_for(&mut robot, 2.0, |_, motion, _| {
+        assert!(!fallen(motion), "fell stopping");
+        travelled += motion.odometry.dx;
+        true
+    });
+    let distance = (end.position[0] - start[0]).hypot(end.position[1] - start[1]);
+    let cruise_speed = cruise.map_or(0.0, |(_, _, s)| s);
+    println!(
+        "odometry said {travelled:.2} m; the ground truth moved {distance:.2} m; cruise speed \
+         {cruise_speed:.3} m/s for {speed} commanded (tracking error {:+.1} %)",
+        (cruise_speed / speed - 1.0) * 100.0
+    );
+    assert!((distance - 3.0).abs() < 0.3, "walked {distance:.2} m to a point 3 m away");
+}
+
+#[test]
+fn a_t1_turns_half_a_circle_in_place() {
+    let Some(server) = server() else { return };
+    let mut robot = t1(&server, "Turn", [-3.0, 3.0, 0.0]);
+    order(&mut robot, BodyOrder::Stand);
+    let settled = run_for(&mut robot, 2.0, |_, _, _| true);
+    // Stopping from 0.6 rad/s at the policy's smoothing of 0.02 rad/s per cycle turns another
+    // 0.18 rad: the order to stand goes out that much before half a circle.
+    let rate = 0.6;
+    order(&mut robot, BodyOrder::Walk { velocity: Velocity::new(0.0, 0.0, rate) });
+    let mut turned = 0.0;
+    run_for(&mut robot, 20.0, |_, motion, _| {
+        assert!(!fallen(motion), "fell while turning");
+        turned += motion.odometry.dtheta;
+        turned < std::f64::consts::PI - rate * rate / 2.0
+    });
+    order(&mut robot, BodyOrder::Stand);
+    let end = run_for(&mut robot, 2.0, |_, _, _| true);
+    let heading = strata_robot::geometry::normalize_angle(end.heading - settled.heading);
+    let error = strata_robot::geometry::normalize_angle(heading - std::f64::consts::PI);
+    let drift =
+        (end.position[0] - settled.position[0]).hypot(end.position[1] - settled.position[1]);
+    println!(
+        "turned {:.0} degrees by the ground truth ({:+.0} from 180), drifting {drift:.2} m",
+        heading.rem_euclid(std::f64::consts::TAU).to_degrees(),
+        error.to_degrees()
+    );
+    assert!(error.abs() < 20f64.to_radians(), "turned {:.0} degrees", heading.to_degrees());
+    assert!(drift < 0.5, "drifted {drift:.2} m turning in place");
+}
+
+#[test]
+fn a_lost_server_ends_the_robot_with_a_clear_error() {
+    let Some(mut server) = server() else { return };
+    let mut robot = t1(&server, "Lost", [-3.0, -3.0, 0.0]);
+    run_for(&mut robot, 0.5, |_, _, _| true);
+    server.kill();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        if let Err(PlatformError::Disconnected(reason)) = robot.read_sensors(Time::ZERO) {
+            assert!(reason.contains("rcssservermj"), "{reason}");
+            break;
+        }
+        assert!(Instant::now() < deadline, "the lost server went unnoticed");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert!(matches!(robot.read_motion(Time::ZERO), Err(PlatformError::Disconnected(_))));
+}
