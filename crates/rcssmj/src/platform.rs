@@ -162,12 +162,25 @@ pub struct GroundTruth {
     pub heading: f64,
 }
 
+/// The newest ground truth, shared with whoever reports accuracy.
+#[derive(Clone, Debug, Default)]
+pub struct TruthSource(Arc<Mutex<Option<GroundTruth>>>);
+
+impl TruthSource {
+    pub fn get(&self) -> Option<GroundTruth> {
+        *self.0.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn set(&self, truth: GroundTruth) {
+        *self.0.lock().unwrap_or_else(PoisonError::into_inner) = Some(truth);
+    }
+}
+
 #[derive(Debug)]
 struct Shared {
     controller: T1Controller,
     unread: Option<SensorFrame>,
     last_at: Option<Instant>,
-    truth: Option<GroundTruth>,
     pending: Vec<String>,
     pending_dropped: usize,
     disconnected: Option<String>,
@@ -198,6 +211,7 @@ pub struct RcssPlatform {
     address: String,
     team: String,
     game: SharedGame,
+    truth: TruthSource,
     shared: SharedState,
     info: PlatformInfo,
     stop: Arc<AtomicBool>,
@@ -210,6 +224,7 @@ pub struct RcssPlatform {
 struct Session {
     team: String,
     game: SharedGame,
+    truth: TruthSource,
     player: u8,
     config: RcssConfig,
     camera: CameraModel,
@@ -281,7 +296,6 @@ impl RcssPlatform {
                 controller,
                 unread: None,
                 last_at: None,
-                truth: None,
                 pending: Vec::new(),
                 pending_dropped: 0,
                 disconnected: None,
@@ -306,8 +320,15 @@ impl RcssPlatform {
         let first_timeout = config.first_perception_timeout;
         let stall_timeout = config.stall_timeout;
         let game: SharedGame = Arc::default();
-        let session =
-            Session { team: team.to_owned(), game: Arc::clone(&game), player, config, camera };
+        let truth = TruthSource::default();
+        let session = Session {
+            team: team.to_owned(),
+            game: Arc::clone(&game),
+            truth: truth.clone(),
+            player,
+            config,
+            camera,
+        };
         let thread = {
             let shared = Arc::clone(&shared);
             let stop = Arc::clone(&stop);
@@ -320,6 +341,7 @@ impl RcssPlatform {
             address: address.to_owned(),
             team: team.to_owned(),
             game,
+            truth,
             shared,
             info,
             stop,
@@ -373,7 +395,12 @@ impl RcssPlatform {
 
     /// The server's ground truth of the torso (for accuracy reports only).
     pub fn ground_truth(&self) -> Option<GroundTruth> {
-        lock(&self.shared).truth
+        self.truth.get()
+    }
+
+    /// A handle on the ground truth that other threads can read without the platform.
+    pub fn truth_source(&self) -> TruthSource {
+        self.truth.clone()
     }
 
     pub fn stats(&self) -> RcssStats {
@@ -636,7 +663,7 @@ fn cycle(
     guard.unread = Some(frame);
     guard.last_at = Some(arrived);
     if let (Some(time), Some(position)) = (perception.time, perception.torso_position_truth) {
-        guard.truth = Some(GroundTruth { time, position, heading: orientation.yaw() });
+        session.truth.set(GroundTruth { time, position, heading: orientation.yaw() });
     }
     shared.1.notify_all();
     Ok(commands)

@@ -315,3 +315,23 @@ pub trait ExternalLink: Send {
     /// Sends a status packet back to the device.
     fn send(&mut self, now: Time, payload: &[u8]) -> Result<(), LinkError>;
 }
+
+impl<L: TeamLink + ?Sized> TeamLink for Box<L> {
+    fn send(&mut self, now: Time, payload: &[u8]) -> Result<(), LinkError> {
+        (**self).send(now, payload)
+    }
+
+    fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
+        (**self).receive(now)
+    }
+}
+
+impl<L: ExternalLink + ?Sized> ExternalLink for Box<L> {
+    fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
+        (**self).receive(now)
+    }
+
+    fn send(&mut self, now: Time, payload: &[u8]) -> Result<(), LinkError> {
+        (**self).send(now, payload)
+    }
+}

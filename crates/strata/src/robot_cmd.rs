@@ -6,6 +6,9 @@
 //!   through the server; so do team messages and the game state, unless `--net`.
 //! - `--platform nao`: a NAO v6 through LoLA. Team messages and the game state come from the
 //!   field's network (`--net` is implied).
+//! - `--platform rcssservermj`: a Booster T1 in the RoboCup simulation league's MuJoCo server.
+//!   The game state comes from the server's referee; the server carries no team messages of
+//!   Strata's size, so teammates talk over UDP with `--net` or not at all.
 //!
 //! With `--net`, the GameController's control packets arrive on UDP (3838), return packets go
 //! back to it (3939), and team messages are UDP broadcasts (10000 + team): the protocols of a
@@ -28,11 +31,15 @@ use strata::logging::{RobotRunConfig, open_run_log};
 use strata::matches::LayerRate;
 use strata_log::{ConfigFormat, LogCompression, McapTap, McapTapOptions, RunInfo, WhenFull};
 use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
+use strata_rcssmj::platform::{RcssConfig, RcssPlatform, TruthSource};
+use strata_rcssmj::referee::TeamNumbers;
 use strata_robot::assembly::RobotModules;
+use strata_robot::geometry::normalize_angle;
 use strata_robot::platform::{
     ActuatorOrders, ExternalLink, MotionFeedback, Platform, PlatformError, PlatformInfo,
     ReceivedPacket, SensorFrame, SharedPlatform, TeamLink,
 };
+use strata_robot::world::WorldState;
 use strata_runtime::{
     Clock, Encoding, GraphBuilder, HostConfig, HostError, HostStats, MonotonicClock, Package, Tap,
     TapRecord, ThreadedHost, Time,
@@ -43,7 +50,7 @@ use strata_soccer::game::GameDirective;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
 use strata_soccer::world_config::world_config;
 use strata_spl::Field;
-use strata_spl::gamecontroller::GameControlData;
+use strata_spl::gamecontroller::{GameControlData, MAX_NUM_PLAYERS};
 
 use crate::sim_cmd;
 
@@ -55,6 +62,8 @@ pub enum PlatformKind {
     Sim,
     /// A NAO v6 through LoLA.
     Nao,
+    /// A Booster T1 in rcssservermj (docs/rcssservermj.md).
+    Rcssservermj,
 }
 
 /// What drives the robot.
@@ -84,7 +93,8 @@ pub struct RobotArgs {
     /// entropy) or a team TOML file.
     #[arg(long, default_value = "full")]
     pub team_config: String,
-    /// The simulator server (platform sim) [default: 127.0.0.1:7500].
+    /// The simulator server (platform sim) [default: 127.0.0.1:7500], or rcssservermj's agent
+    /// port (platform rcssservermj) [default: 127.0.0.1:60000].
     #[arg(long, value_name = "ADDR")]
     pub server: Option<String>,
     /// LoLA's socket (platform nao).
@@ -93,9 +103,21 @@ pub struct RobotArgs {
     /// LoLA platform configuration (TOML, docs/nao.md), platform nao.
     #[arg(long, value_name = "FILE")]
     pub lola_config: Option<PathBuf>,
-    /// Field preset (spl, paper2010) or field TOML file; must be the simulator's.
-    #[arg(long, default_value = "spl")]
-    pub field: String,
+    /// The team's name in rcssservermj (platform rcssservermj) [default: Strata<team>].
+    #[arg(long, value_name = "NAME")]
+    pub team_name: Option<String>,
+    /// rcssservermj platform configuration (TOML, docs/rcssservermj.md): camera model, walk
+    /// limits, pacing.
+    #[arg(long, value_name = "FILE")]
+    pub rcss_config: Option<PathBuf>,
+    /// Where the server places the robot before kick-off (platform rcssservermj): x, y in
+    /// metres in the team's frame and a heading in degrees, e.g. `--beam=-3,0,0`.
+    #[arg(long, value_name = "X,Y,DEG", value_parser = parse_beam, allow_hyphen_values = true)]
+    pub beam: Option<[f64; 3]>,
+    /// Field preset (spl, paper2010, rcssservermj) or field TOML file; must be the
+    /// simulator's [default: rcssservermj on that platform, spl elsewhere].
+    #[arg(long)]
+    pub field: Option<String>,
     /// Length of a half, s (paces team messages within the budget).
     #[arg(long, default_value_t = 600.0)]
     pub half_duration: f64,
@@ -161,6 +183,17 @@ pub struct RobotArgs {
     pub log_encoding: Encoding,
 }
 
+fn parse_beam(text: &str) -> Result<[f64; 3], String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("`{v}` is not a number")))
+        .collect::<Result<_, _>>()?;
+    match values[..] {
+        [x, y, degrees] if values.iter().all(|v| v.is_finite()) => Ok([x, y, degrees.to_radians()]),
+        _ => Err(format!("expected X,Y,DEG (three numbers), got `{text}`")),
+    }
+}
+
 fn parse_sign(text: &str) -> Result<f64, String> {
     match text.trim() {
         "1" | "+1" | "+" => Ok(1.0),
@@ -182,7 +215,10 @@ pub fn run(args: RobotArgs) -> Result<()> {
     let early_clock = MonotonicClock::start();
     let config = TeamConfig::resolve(&args.team_config)
         .with_context(|| format!("team configuration `{}`", args.team_config))?;
-    let field = resolve_field(&args.field)?;
+    let field = resolve_field(args.field.as_deref().unwrap_or(match args.platform {
+        PlatformKind::Rcssservermj => "rcssservermj",
+        PlatformKind::Sim | PlatformKind::Nao => "spl",
+    }))?;
     let out = Output { json: args.json, name: format!("robot {}/{}", args.team, args.player) };
 
     // The body.
@@ -211,30 +247,37 @@ pub fn run(args: RobotArgs) -> Result<()> {
             ),
         };
         let (team_counters, gc_counters) = (team.counters(), gc.counters());
-        if let Some(links) = platform.sim_links {
+        if let Some(links) = platform.links {
             // The server still forwards its referee's packets and teammates' messages; drain
             // them so they do not pile up in the client.
-            let SimLinks { mut team_link, mut game_controller } = links;
+            let PlatformLinks { mut team_link, mut game_controller } = links;
             let clock = early_clock;
             unused_sim_links.push(Box::new(move || {
-                let _ = team_link.receive(clock.now());
+                if let Some(team_link) = &mut team_link {
+                    let _ = team_link.receive(clock.now());
+                }
                 let _ = game_controller.receive(clock.now());
             }));
         }
         let team: Box<dyn TeamLink> = Box::new(team);
         let gc: Box<dyn ExternalLink> = Box::new(gc);
-        (team, gc, team_counters, gc_counters, endpoints)
+        (Some(team), gc, team_counters, gc_counters, endpoints)
     } else {
-        let Some(SimLinks { team_link, game_controller }) = platform.sim_links else {
+        let Some(PlatformLinks { team_link, game_controller }) = platform.links else {
             bail!("without --net the simulator server must carry team messages and game state");
         };
         let (team_counters, gc_counters) = (Arc::<LinkCounters>::default(), Arc::default());
-        let team: Box<dyn TeamLink> = Box::new(Counted::new(team_link, Arc::clone(&team_counters)));
+        let team: Option<Box<dyn TeamLink>> = team_link.map(|link| {
+            Box::new(Counted::new(link, Arc::clone(&team_counters))) as Box<dyn TeamLink>
+        });
         let gc: Box<dyn ExternalLink> =
             Box::new(Counted::new(game_controller, Arc::clone(&gc_counters)));
         let endpoints = Endpoints {
-            game_controller: "simulator server".to_owned(),
-            team: "simulator server".to_owned(),
+            game_controller: platform.source.clone(),
+            team: match team {
+                Some(_) => platform.source.clone(),
+                None => "none (the platform carries no team messages; --net for UDP)".to_owned(),
+            },
         };
         (team, gc, team_counters, gc_counters, endpoints)
     };
@@ -253,7 +296,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
         player: args.player,
         field: Arc::clone(&team_field),
         platform: Arc::clone(&platform.shared),
-        team_link: Some(team_link),
+        team_link,
         game_controller: Some(gc_link),
         half_duration: args.half_duration,
     };
@@ -282,6 +325,17 @@ pub fn run(args: RobotArgs) -> Result<()> {
     };
     let mut host = ThreadedHost::new(graph, host_config);
     host.add_tap(Arc::clone(&watch) as Arc<dyn Tap>);
+    let accuracy = platform.truth.clone().map(|truth| {
+        Arc::new(Accuracy {
+            world: modules.world.clone(),
+            truth,
+            attack_sign,
+            state: Mutex::default(),
+        })
+    });
+    if let Some(accuracy) = &accuracy {
+        host.add_tap(Arc::clone(accuracy) as Arc<dyn Tap>);
+    }
     if let Some(log) = &log {
         host.add_tap(Arc::clone(log) as Arc<dyn Tap>);
     }
@@ -413,6 +467,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
         &modules,
         stats,
     );
+    let report = Report { localization: accuracy.and_then(|a| a.snapshot()), ..report };
     out.report(&report);
     match failure {
         Some(error) => Err(error).context("a module of the robot failed"),
@@ -470,6 +525,11 @@ fn validate(args: &RobotArgs) -> Result<()> {
                 bail!("{option} configures the UDP links: add --net");
             }
         }
+        PlatformKind::Rcssservermj => {
+            if args.controller == ControllerKind::Test {
+                bail!("--controller test runs against the simulator server only");
+            }
+        }
         PlatformKind::Nao => {
             if args.server.is_some() {
                 bail!("--server is for --platform sim; a NAO reads its sensors through LoLA");
@@ -482,8 +542,13 @@ fn validate(args: &RobotArgs) -> Result<()> {
     if args.controller == ControllerKind::Test && args.log.is_some() {
         bail!("--log records the modules of the full architecture: not with --controller test");
     }
-    if args.platform == PlatformKind::Sim && args.lola_config.is_some() {
+    if args.platform != PlatformKind::Nao && args.lola_config.is_some() {
         bail!("--lola-config is for --platform nao");
+    }
+    if args.platform != PlatformKind::Rcssservermj
+        && (args.rcss_config.is_some() || args.beam.is_some() || args.team_name.is_some())
+    {
+        bail!("--rcss-config, --beam and --team-name are for --platform rcssservermj");
     }
     if args.controller == ControllerKind::Test && args.net {
         bail!(
@@ -511,6 +576,13 @@ fn net_config(args: &RobotArgs) -> Result<NetConfig> {
         config.team_port = port;
     }
     Ok(config)
+}
+
+/// rcssservermj's default agent port.
+const RCSS_DEFAULT_ADDR: &str = "127.0.0.1:60000";
+
+fn rcss_team_name(args: &RobotArgs) -> String {
+    args.team_name.clone().unwrap_or_else(|| format!("Strata{}", args.team))
 }
 
 fn resolve_field(name: &str) -> Result<Field> {
@@ -614,9 +686,10 @@ impl<P: Platform> Platform for Observed<P> {
     }
 }
 
-struct SimLinks {
-    team_link: strata_sim::net::TcpTeamLink,
-    game_controller: strata_sim::net::TcpGameControllerLink,
+/// The team and game-controller links a platform carries itself.
+struct PlatformLinks {
+    team_link: Option<Box<dyn TeamLink>>,
+    game_controller: Box<dyn ExternalLink>,
 }
 
 struct OpenPlatform {
@@ -625,8 +698,10 @@ struct OpenPlatform {
     counters: Arc<PlatformCounters>,
     /// Where the sensors come from, for the start line.
     source: String,
-    sim_links: Option<SimLinks>,
+    links: Option<PlatformLinks>,
     nao: Option<Arc<Mutex<Observed<LolaPlatform>>>>,
+    /// Where the robot really is, on platforms that know it (for the accuracy report only).
+    truth: Option<TruthSource>,
 }
 
 fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
@@ -651,11 +726,12 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
                 info,
                 counters,
                 source: format!("simulator server {server}"),
-                sim_links: Some(SimLinks {
-                    team_link: robot.team_link,
-                    game_controller: robot.game_controller,
+                links: Some(PlatformLinks {
+                    team_link: Some(Box::new(robot.team_link)),
+                    game_controller: Box::new(robot.game_controller),
                 }),
                 nao: None,
+                truth: None,
             })
         }
         PlatformKind::Nao => {
@@ -679,8 +755,45 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
                 info,
                 counters,
                 source: format!("LoLA {}", args.socket.display()),
-                sim_links: None,
+                links: None,
                 nao: Some(nao),
+                truth: None,
+            })
+        }
+        PlatformKind::Rcssservermj => {
+            let mut config = match &args.rcss_config {
+                Some(path) => {
+                    let text = std::fs::read_to_string(path)
+                        .with_context(|| format!("reading {}", path.display()))?;
+                    toml::from_str::<RcssConfig>(&text)
+                        .with_context(|| format!("rcssservermj configuration {}", path.display()))?
+                }
+                None => RcssConfig::default(),
+            };
+            if args.beam.is_some() {
+                config.beam = args.beam;
+            }
+            config.camera_seed = args
+                .seed
+                .unwrap_or(100 * u64::from(args.team) + u64::from(args.player))
+                .wrapping_add(1);
+            let server = args.server.clone().unwrap_or_else(|| RCSS_DEFAULT_ADDR.to_owned());
+            let team_name = rcss_team_name(args);
+            let t1 = RcssPlatform::connect(&server, &team_name, args.player, config)
+                .with_context(|| format!("connecting a T1 to rcssservermj at {server}"))?;
+            let info = t1.info();
+            let referee = t1.referee_link(TeamNumbers::new(args.team), MAX_NUM_PLAYERS as u8);
+            let truth = t1.truth_source();
+            let shared: SharedPlatform =
+                Arc::new(Mutex::new(Observed { inner: t1, counters: Arc::clone(&counters) }));
+            Ok(OpenPlatform {
+                shared,
+                info,
+                counters,
+                source: format!("rcssservermj {server} as {team_name} #{}", args.player),
+                links: Some(PlatformLinks { team_link: None, game_controller: Box::new(referee) }),
+                nao: None,
+                truth: Some(truth),
             })
         }
     }
@@ -830,6 +943,72 @@ impl Tap for Watch {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Self-localization against the ground truth (platforms that have one).
+
+/// How far the world model's pose is from where the robot really is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+struct LocalizationAccuracy {
+    /// World states compared.
+    samples: u64,
+    /// Position error, m.
+    mean_error_m: f64,
+    max_error_m: f64,
+    last_error_m: f64,
+    /// Heading error, degrees.
+    mean_heading_error_deg: f64,
+    /// Where the robot really was last (team frame: x towards the opponent goal), m.
+    truth: [f64; 2],
+    /// Where the world model put it.
+    estimate: [f64; 2],
+}
+
+/// Compares each of the world module's states with the platform's ground truth.
+struct Accuracy {
+    world: String,
+    truth: TruthSource,
+    attack_sign: f64,
+    state: Mutex<(LocalizationAccuracy, f64)>,
+}
+
+impl Accuracy {
+    fn snapshot(&self) -> Option<LocalizationAccuracy> {
+        let (accuracy, _) = *self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        (accuracy.samples > 0).then_some(accuracy)
+    }
+}
+
+impl Tap for Accuracy {
+    fn package(&self, record: &TapRecord<'_>) {
+        if record.sent_on.output != "world_state" || record.sent_on.module_name != self.world {
+            return;
+        }
+        let Some(package) = record.package.as_any().downcast_ref::<Package<WorldState>>() else {
+            return;
+        };
+        let Some(truth) = self.truth.get() else { return };
+        let pose = package.value.pose.pose;
+        // The team frame is the server's world frame turned half a circle for a team that
+        // attacks towards -x.
+        let s = self.attack_sign;
+        let (tx, ty) = (s * truth.position[0], s * truth.position[1]);
+        let heading = if s < 0.0 { truth.heading + std::f64::consts::PI } else { truth.heading };
+        let error = (pose.x - tx).hypot(pose.y - ty);
+        let heading_error = normalize_angle(pose.theta - heading).abs().to_degrees();
+        let mut state = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let (accuracy, heading_sum) = &mut *state;
+        accuracy.samples += 1;
+        let n = accuracy.samples as f64;
+        accuracy.mean_error_m += (error - accuracy.mean_error_m) / n;
+        *heading_sum += heading_error;
+        accuracy.mean_heading_error_deg = *heading_sum / n;
+        accuracy.max_error_m = accuracy.max_error_m.max(error);
+        accuracy.last_error_m = error;
+        accuracy.truth = [tx, ty];
+        accuracy.estimate = [pose.x, pose.y];
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Output.
 
 struct Endpoints {
@@ -921,6 +1100,9 @@ struct Report {
     layers: Vec<LayerRate>,
     /// Every module.
     host: HostStats,
+    /// Self-localization against the platform's ground truth (rcssservermj only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    localization: Option<LocalizationAccuracy>,
 }
 
 impl Report {
@@ -969,6 +1151,7 @@ impl Report {
                 })
                 .collect(),
             host,
+            localization: None,
         }
     }
 }
@@ -1086,6 +1269,21 @@ impl Output {
             report.detections,
             report.platform_errors
         );
+        if let Some(l) = &report.localization {
+            println!(
+                "{}: self-localization against the ground truth: mean error {:.2} m (max {:.2}, last {:.2}), heading {:.1} degrees, over {} world states; last at ({:.2}, {:.2}), estimated ({:.2}, {:.2})",
+                self.name,
+                l.mean_error_m,
+                l.max_error_m,
+                l.last_error_m,
+                l.mean_heading_error_deg,
+                l.samples,
+                l.truth[0],
+                l.truth[1],
+                l.estimate[0],
+                l.estimate[1]
+            );
+        }
         println!(
             "{}: game states followed: {}",
             self.name,
