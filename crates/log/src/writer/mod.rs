@@ -11,7 +11,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TrySendError};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use strata_runtime::cdr::{Format, Schema, idl_schema};
 use strata_runtime::shared::{self, NewRecord, Recorder};
 use strata_runtime::{
@@ -25,6 +25,13 @@ use crate::{
     CONFIG_ATTACHMENT_PREFIX, FORMAT_KEY, GRAPH_METADATA, PUBLISH_TIME_KEY, RUN_METADATA,
     SHARED_KEY, STATS_METADATA, WRAP_FIELD, WRAPPED_KEY,
 };
+
+mod options;
+mod run_info;
+
+use options::ZSTD_LEVEL;
+pub use options::{LogCompression, LogSummary, McapTapOptions, WhenFull};
+pub use run_info::{ConfigFormat, RunInfo};
 
 /// How a wrapped message is framed in each encoding (see `WriterThread::channel`): the bytes
 /// of a one-entry map with the key [`WRAP_FIELD`] in front of the value, and what closes it.
@@ -50,46 +57,6 @@ fn is_map(encoding: Encoding, bytes: &[u8]) -> bool {
     }
 }
 
-/// How chunks are compressed: zstd at a fast level by default, on the writer thread only (no
-/// compression worker threads competing with the real-time layers for the robot's cores).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum LogCompression {
-    #[default]
-    Zstd,
-    Lz4,
-    None,
-}
-
-impl std::str::FromStr for LogCompression {
-    type Err = String;
-
-    fn from_str(text: &str) -> Result<LogCompression, String> {
-        match text {
-            "zstd" => Ok(LogCompression::Zstd),
-            "lz4" => Ok(LogCompression::Lz4),
-            "none" => Ok(LogCompression::None),
-            _ => Err(format!("unknown compression `{text}` (zstd, lz4 or none)")),
-        }
-    }
-}
-
-/// What a record does when the writer's queue is full.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum WhenFull {
-    /// Dropped and counted: the sending module never waits for the disk. For real-time hosts.
-    #[default]
-    Drop,
-    /// The sender waits for room. For simulated-time runs (the lockstep host), where waiting
-    /// costs no deadline and a complete log is what replay needs.
-    Wait,
-}
-
-/// The zstd level of compressed logs: one of zstd's fast negative levels, whose ratio on
-/// logged packages is close to level 1's at about 1.5 times its speed (`docs/logging.md`).
-const ZSTD_LEVEL: i32 = -1;
-
 /// Messages handed to the writer thread at once by a sender that waits for it.
 const BATCH: usize = 512;
 
@@ -98,123 +65,6 @@ const WAIT_QUEUE: usize = 4 * BATCH;
 
 /// Batches kept for reuse.
 const SPARE_BATCHES: usize = 12;
-
-/// How a [`McapTap`] buffers and writes.
-#[derive(Clone, Debug, PartialEq)]
-pub struct McapTapOptions {
-    /// Records the queue between the tap and the writer thread holds (with
-    /// [`WhenFull::Wait`], at most 2048, in batches of 512).
-    pub capacity: usize,
-    /// What happens to a record that finds the queue full.
-    pub when_full: WhenFull,
-    /// Log only packages of modules whose full name (topic prefix included) starts with one of
-    /// these, e.g. `["home/3/"]` for one robot; empty: every module. Application records
-    /// ([`McapTap::record`]) are always logged.
-    pub modules: Vec<String>,
-    /// A chunk is closed once this many uncompressed bytes are in it.
-    pub chunk_size: u64,
-    /// ... or once it spans this much log time: a killed process loses at most the open chunk,
-    /// so this bounds the loss in match time.
-    pub max_chunk_span: Duration,
-    /// ... or once it has been open this long in real time (a quiet real-time robot).
-    pub max_chunk_age: Duration,
-    pub compression: LogCompression,
-    /// How package values are encoded (MCAP's `message_encoding`). With CDR (the default), a
-    /// package type that CDR cannot describe (see [`strata_runtime::cdr`]) is logged as
-    /// MessagePack, and so are application records.
-    pub encoding: Encoding,
-}
-
-impl Default for McapTapOptions {
-    fn default() -> Self {
-        McapTapOptions {
-            capacity: 65_536,
-            when_full: WhenFull::Drop,
-            modules: Vec::new(),
-            chunk_size: 1 << 20,
-            max_chunk_span: Duration::from_millis(200),
-            max_chunk_age: Duration::from_millis(500),
-            compression: LogCompression::Zstd,
-            encoding: Encoding::Cdr,
-        }
-    }
-}
-
-/// What a finished log holds.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct LogSummary {
-    /// Messages written (packages and application records).
-    pub messages: u64,
-    /// Records dropped because the queue was full, the writer had failed or the log was
-    /// already finished.
-    pub dropped: u64,
-    /// Packages whose value could not be encoded (not written).
-    pub serialize_errors: u64,
-    /// Size of the file.
-    pub bytes: u64,
-    /// Number of topics (channels).
-    pub topics: usize,
-    /// Drops per topic, for the topics that had any.
-    pub dropped_by_topic: BTreeMap<String, u64>,
-}
-
-/// The format of the configuration text stored with a run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ConfigFormat {
-    Toml,
-    Json,
-}
-
-impl ConfigFormat {
-    pub fn extension(self) -> &'static str {
-        match self {
-            ConfigFormat::Toml => "toml",
-            ConfigFormat::Json => "json",
-        }
-    }
-
-    fn media_type(self) -> &'static str {
-        match self {
-            ConfigFormat::Toml => "application/toml",
-            ConfigFormat::Json => "application/json",
-        }
-    }
-}
-
-/// What replay needs to rebuild a run besides the graph: the seed, the configuration the
-/// modules were built from (store the effective one, defaults filled in, so `--set` can reach
-/// every parameter), and where it came from.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RunInfo {
-    pub seed: u64,
-    pub command_line: Vec<String>,
-    /// The program's version (no git: a release's crate version and build profile).
-    pub version: String,
-    /// The configuration text as given, and its format.
-    pub config: Option<(ConfigFormat, String)>,
-}
-
-impl RunInfo {
-    /// A run of this process: its command line and the version of this crate.
-    pub fn current(seed: u64) -> RunInfo {
-        RunInfo {
-            seed,
-            command_line: std::env::args().collect(),
-            version: format!(
-                "strata {} ({})",
-                env!("CARGO_PKG_VERSION"),
-                if cfg!(debug_assertions) { "debug" } else { "release" }
-            ),
-            config: None,
-        }
-    }
-
-    pub fn with_config(mut self, format: ConfigFormat, text: impl Into<String>) -> RunInfo {
-        self.config = Some((format, text.into()));
-        self
-    }
-}
 
 /// Records a log derives from its packages on the writer thread: what it holds besides the
 /// packages (a robot's active behavior path, the game state), worked out where it costs the
