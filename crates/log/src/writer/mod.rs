@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender, TrySendError};
 use serde::Serialize;
-use strata_runtime::cdr::{Format, Schema, idl_schema};
+use strata_runtime::cdr::{Format, idl_schema};
 use strata_runtime::shared::{self, NewRecord, Recorder};
 use strata_runtime::{
     Encoding, ErasedPackage, GraphDescription, Tap, TapOutput, TapRecord, TapSender, Time,
@@ -26,36 +26,17 @@ use crate::{
     SHARED_KEY, STATS_METADATA, WRAP_FIELD, WRAPPED_KEY,
 };
 
+mod derive;
+mod encoding;
 mod options;
 mod run_info;
 
+pub use derive::{Derive, DerivedRecords};
+pub(crate) use encoding::wrap_frame;
+use encoding::{CdrSchema, EncodedRecord, is_map};
 use options::ZSTD_LEVEL;
 pub use options::{LogCompression, LogSummary, McapTapOptions, WhenFull};
 pub use run_info::{ConfigFormat, RunInfo};
-
-/// How a wrapped message is framed in each encoding (see `WriterThread::channel`): the bytes
-/// of a one-entry map with the key [`WRAP_FIELD`] in front of the value, and what closes it.
-/// CDR values are never wrapped: their schema declares the wrapping struct, whose bytes are
-/// the value's own.
-pub(crate) fn wrap_frame(encoding: Encoding) -> (&'static [u8], &'static [u8]) {
-    match encoding {
-        Encoding::Json => (b"{\"value\":", b"}"),
-        // fixmap of one entry, then fixstr "value".
-        Encoding::MessagePack => (b"\x81\xa5value", b""),
-        Encoding::Cdr => (b"", b""),
-    }
-}
-
-/// Whether an encoded value is a map (an object), as generic tools expect messages to be.
-fn is_map(encoding: Encoding, bytes: &[u8]) -> bool {
-    match (encoding, bytes.first()) {
-        (Encoding::Json, Some(first)) => *first == b'{',
-        // fixmap, map 16, map 32.
-        (Encoding::MessagePack, Some(first)) => matches!(first, 0x80..=0x8f | 0xde | 0xdf),
-        (Encoding::Cdr, _) => true,
-        (_, None) => false,
-    }
-}
 
 /// Messages handed to the writer thread at once by a sender that waits for it.
 const BATCH: usize = 512;
@@ -65,124 +46,6 @@ const WAIT_QUEUE: usize = 4 * BATCH;
 
 /// Batches kept for reuse.
 const SPARE_BATCHES: usize = 12;
-
-/// Records a log derives from its packages on the writer thread: what it holds besides the
-/// packages (a robot's active behavior path, the game state), worked out where it costs the
-/// sending modules' cycles nothing. The records of a package are written just ahead of it, as
-/// if its sender had recorded them.
-pub trait Derive: Send {
-    /// Whether the packages of `topic` go through [`Derive::package`]. Asked once per package
-    /// topic, when it is created; `id` is the number `package` calls it by (dense from 0,
-    /// shared with the record topics). The writer thread needs these packages whole: their
-    /// senders clone them instead of encoding them.
-    fn wants(&mut self, id: u32, topic: &str, type_name: &str) -> bool;
-
-    /// A package of a topic this wants, visible at `time`, before it is written.
-    fn package(
-        &mut self,
-        topic: u32,
-        time: Time,
-        package: &dyn ErasedPackage,
-        records: &mut DerivedRecords,
-    );
-}
-
-/// Where a [`Derive`] puts the records it makes of a package.
-#[derive(Debug)]
-pub struct DerivedRecords {
-    /// The log's encoding of packages.
-    encoding: Encoding,
-    /// The self-describing encoding: the log's own when it is one, otherwise for the values
-    /// CDR cannot write.
-    fallback: Encoding,
-    records: Vec<DerivedRecord>,
-    unencodable: u64,
-}
-
-#[derive(Debug)]
-struct DerivedRecord {
-    topic: String,
-    type_name: &'static str,
-    time: Time,
-    value: EncodedRecord,
-}
-
-/// A record's value, encoded where it was made.
-#[derive(Debug)]
-struct EncodedRecord {
-    encoding: Encoding,
-    /// The type's format, for a CDR record's channel schema (traced once per type).
-    format: fn() -> Option<Format>,
-    bytes: Vec<u8>,
-}
-
-impl EncodedRecord {
-    /// `value` in `encoding` when that is CDR and CDR describes `T` (an IDL schema for generic
-    /// tools), otherwise in the self-describing `fallback`; `None` when it cannot be encoded.
-    fn of<T>(value: &T, encoding: Encoding, fallback: Encoding) -> Option<EncodedRecord>
-    where
-        T: Serialize + serde::de::DeserializeOwned + 'static,
-    {
-        let format: fn() -> Option<Format> = || strata_runtime::cdr::format_of::<T>().ok();
-        let mut bytes = Vec::with_capacity(256);
-        let in_cdr = encoding == Encoding::Cdr
-            && cdr_describes::<T>()
-            && Encoding::Cdr.encode(value, &mut bytes).is_ok();
-        let encoding = if in_cdr { Encoding::Cdr } else { fallback };
-        if !in_cdr {
-            bytes.clear();
-            encoding.encode(value, &mut bytes).ok()?;
-        }
-        Some(EncodedRecord { encoding, format, bytes })
-    }
-
-    /// A value without a type to trace (a `serde_json::Value`), in a self-describing encoding.
-    fn untyped<T: Serialize + ?Sized>(value: &T, encoding: Encoding) -> Option<EncodedRecord> {
-        let mut bytes = Vec::with_capacity(256);
-        encoding.encode(value, &mut bytes).ok()?;
-        Some(EncodedRecord { encoding, format: || None, bytes })
-    }
-}
-
-impl DerivedRecords {
-    fn new(encoding: Encoding, fallback: Encoding) -> DerivedRecords {
-        DerivedRecords { encoding, fallback, records: Vec::new(), unencodable: 0 }
-    }
-
-    /// Records `value` on `topic` at `time`, in the log's encoding like a package of its type
-    /// (CDR with an IDL schema by default, so that generic tools read it), or in a
-    /// self-describing one when CDR cannot write it.
-    pub fn record_value<T>(&mut self, topic: &str, time: Time, value: &T)
-    where
-        T: Serialize + serde::de::DeserializeOwned + 'static,
-    {
-        let Some(value) = EncodedRecord::of(value, self.encoding, self.fallback) else {
-            self.unencodable += 1;
-            return;
-        };
-        let type_name = std::any::type_name::<T>();
-        self.records.push(DerivedRecord { topic: topic.to_owned(), type_name, time, value });
-    }
-}
-
-/// Whether a record of type `T` (application or derived) can go in CDR: its format traces to
-/// an IDL schema, and it holds no shared value (which would be written as a reference to a
-/// record of its own; records keep them inline, in the self-describing encoding). Worked out
-/// once per type.
-fn cdr_describes<T: serde::de::DeserializeOwned + 'static>() -> bool {
-    type Known = Mutex<HashMap<std::any::TypeId, bool>>;
-    static KNOWN: OnceLock<Known> = OnceLock::new();
-    let known = KNOWN.get_or_init(Default::default);
-    let id = std::any::TypeId::of::<T>();
-    if let Some(&describes) = known.lock().unwrap_or_else(PoisonError::into_inner).get(&id) {
-        return describes;
-    }
-    let describes = strata_runtime::cdr::format_of::<T>().is_ok_and(|format| {
-        !shared::appears_in(&format) && idl_schema(&format, std::any::type_name::<T>()).is_ok()
-    });
-    known.lock().unwrap_or_else(PoisonError::into_inner).insert(id, describes);
-    describes
-}
 
 /// One logged stream: the channel a topic gets in the file.
 #[derive(Debug)]
@@ -1295,21 +1158,6 @@ struct OpenChunk {
 struct ChannelState {
     id: u16,
     wrapped: bool,
-}
-
-/// How a package type is logged in CDR: its schema, and its format for the channel metadata.
-#[derive(Debug)]
-struct CdrSchema {
-    idl: Schema,
-    format_json: String,
-}
-
-impl CdrSchema {
-    fn of(format: &Format, type_name: &str) -> Option<Arc<CdrSchema>> {
-        let idl = idl_schema(format, type_name).ok()?;
-        let format_json = serde_json::to_string(format).ok()?;
-        Some(Arc::new(CdrSchema { idl, format_json }))
-    }
 }
 
 struct WriterThread {
