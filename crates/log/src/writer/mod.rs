@@ -30,6 +30,7 @@ mod derive;
 mod encoding;
 mod options;
 mod run_info;
+mod topics;
 
 pub use derive::{Derive, DerivedRecords};
 pub(crate) use encoding::wrap_frame;
@@ -37,6 +38,7 @@ use encoding::{CdrSchema, EncodedRecord, is_map};
 use options::ZSTD_LEVEL;
 pub use options::{LogCompression, LogSummary, McapTapOptions, WhenFull};
 pub use run_info::{ConfigFormat, RunInfo};
+use topics::{Topic, TopicCache};
 
 /// Messages handed to the writer thread at once by a sender that waits for it.
 const BATCH: usize = 512;
@@ -46,24 +48,6 @@ const WAIT_QUEUE: usize = 4 * BATCH;
 
 /// Batches kept for reuse.
 const SPARE_BATCHES: usize = 12;
-
-/// One logged stream: the channel a topic gets in the file.
-#[derive(Debug)]
-struct Topic {
-    id: u32,
-    name: String,
-    type_name: String,
-    dropped: AtomicU64,
-    /// Sequence numbers of application records (packages carry their own).
-    next_seq: AtomicU64,
-    /// How a sender that waits hands this topic's packages over ([`HANDOVER_CLONE`] or
-    /// [`HANDOVER_ENCODE`]), decided by its first package; 0 until then.
-    handover: AtomicU8,
-    /// The type's CDR schema, for packages the sender encoded.
-    cdr: OnceLock<Arc<CdrSchema>>,
-    /// The log's [`Derive`] wants this topic's packages: the writer thread needs them whole.
-    derived: bool,
-}
 
 /// The sender clones the package; the writer thread encodes it. For large packages (a world
 /// state: cloning one copies a few pointers to its shared parts, encoding it writes them
@@ -637,44 +621,6 @@ impl Shared {
         }
         self.flush();
         self.sender.send(command).map_err(|_| LogError::WriterGone { path: self.path.clone() })
-    }
-}
-
-/// Per output name, its topic (`None`: the module is not logged).
-type OutputTopics = HashMap<String, Option<Arc<Topic>>>;
-
-/// Topics of packages by module and output name, where they are created (once each); the
-/// usual lookup goes through [`Gathering`].
-#[derive(Default)]
-struct TopicCache {
-    prefix: String,
-    by_name: Mutex<HashMap<String, OutputTopics>>,
-}
-
-impl TopicCache {
-    /// The topic of a record's output; `None` for modules the options leave out.
-    fn topic(&self, shared: &Shared, record: &TapOutput<'_>) -> Option<Arc<Topic>> {
-        let mut by_name = self.by_name.lock().unwrap_or_else(PoisonError::into_inner);
-        let outputs = by_name.entry(record.module_name.to_owned()).or_default();
-        outputs
-            .entry(record.output.to_owned())
-            .or_insert_with(|| {
-                let name = self.name(record);
-                shared.logs(&name).then(|| shared.new_topic(name, record.type_name, true))
-            })
-            .clone()
-    }
-
-    /// The topic name of an output's packages.
-    fn name(&self, output: &TapOutput<'_>) -> String {
-        format!("{}{}", self.prefix, crate::package_topic(output.module_name, output.output))
-    }
-
-    /// Whether the options log this output's packages; the host then shows it to the tap
-    /// ([`Tap::wants`]). Asked once per output, before its first package: the topic is
-    /// created with that package, so topics keep the order their packages come in.
-    fn wants(&self, shared: &Shared, output: &TapOutput<'_>) -> bool {
-        shared.logs(&self.name(output))
     }
 }
 
