@@ -9,10 +9,10 @@ use strata_runtime::Encoding;
 use strata_runtime::cdr::{Format, Schema, idl_schema};
 use strata_runtime::shared;
 
-/// How a wrapped message is framed in each encoding (see `WriterThread::channel`): the bytes
-/// of a one-entry map with the key [`WRAP_FIELD`](crate::WRAP_FIELD) in front of the value, and what closes it.
-/// CDR values are never wrapped: their schema declares the wrapping struct, whose bytes are
-/// the value's own.
+/// How a wrapped message is framed in each encoding (see `WriterThread::channel`): the bytes of a
+/// one-entry map with the key [`WRAP_FIELD`](crate::WRAP_FIELD) in front of the value, and what
+/// closes it. CDR values are never wrapped: their schema declares the wrapping struct, whose bytes
+/// are the value's own.
 pub(crate) fn wrap_frame(encoding: Encoding) -> (&'static [u8], &'static [u8]) {
     match encoding {
         Encoding::Json => (b"{\"value\":", b"}"),

@@ -6,12 +6,12 @@ use strata_runtime::{ErasedPackage, TapOutput, TapRecord, TapSender, Time};
 
 use super::{Gather, Gathering, Offered, Shared, TopicCache, WhenFull};
 
-/// A log's sender for one host ([`Tap::sender`](strata_runtime::Tap::sender)): the batches of a sender that waits
-/// ([`WhenFull::Wait`]) gathered without the lock of the log's shared batch. A real-time
-/// sender hands each package over at once and has none. Application records
-/// ([`McapTap::record`](crate::McapTap::record)) still go to the shared batch, which is handed over ahead of each of
-/// the host's: records written between two runs of the host come after the packages of the
-/// first and before those of the second, as they would through the tap itself.
+/// A log's sender for one host ([`Tap::sender`](strata_runtime::Tap::sender)): the batches of a
+/// sender that waits ([`WhenFull::Wait`]) gathered without the lock of the log's shared batch. A
+/// real-time sender hands each package over at once and has none. Application records
+/// ([`McapTap::record`](crate::McapTap::record)) still go to the shared batch, which is handed over
+/// ahead of each of the host's: records written between two runs of the host come after the
+/// packages of the first and before those of the second, as they would through the tap itself.
 pub(super) struct McapSender {
     pub(super) shared: Arc<Shared>,
     pub(super) topics: Arc<TopicCache>,

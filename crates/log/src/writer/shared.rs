@@ -63,8 +63,9 @@ pub(super) struct Shared {
     /// The CDR schemas of the types senders encode, by type name: worked out once per type
     /// (the IDL text of a type takes a few hundred thousand instructions), not per robot.
     pub(super) sender_schemas: Mutex<HashMap<String, Option<Arc<CdrSchema>>>>,
-    /// What the log derives from its packages (see [`McapTap::set_derive`](crate::McapTap::set_derive)); asked about
-    /// each package topic when it is created, run on the writer thread.
+    /// What the log derives from its packages (see
+    /// [`McapTap::set_derive`](crate::McapTap::set_derive)); asked about each package topic when it
+    /// is created, run on the writer thread.
     pub(super) derive: Mutex<Option<Box<dyn Derive>>>,
     #[cfg(test)]
     pub(super) gate: Arc<test_gate::Gate>,

@@ -18,12 +18,14 @@ pub(super) struct Topic {
     pub(super) dropped: AtomicU64,
     /// Sequence numbers of application records (packages carry their own).
     pub(super) next_seq: AtomicU64,
-    /// How a sender that waits hands this topic's packages over ([`HANDOVER_CLONE`](super::HANDOVER_CLONE) or
-    /// [`HANDOVER_ENCODE`](super::HANDOVER_ENCODE)), decided by its first package; 0 until then.
+    /// How a sender that waits hands this topic's packages over
+    /// ([`HANDOVER_CLONE`](super::HANDOVER_CLONE) or [`HANDOVER_ENCODE`](super::HANDOVER_ENCODE)),
+    /// decided by its first package; 0 until then.
     pub(super) handover: AtomicU8,
     /// The type's CDR schema, for packages the sender encoded.
     pub(super) cdr: OnceLock<Arc<CdrSchema>>,
-    /// The log's [`Derive`](crate::Derive) wants this topic's packages: the writer thread needs them whole.
+    /// The log's [`Derive`](crate::Derive) wants this topic's packages: the writer thread needs
+    /// them whole.
     pub(super) derived: bool,
 }
 
@@ -58,8 +60,9 @@ impl TopicCache {
     }
 
     /// Whether the options log this output's packages; the host then shows it to the tap
-    /// ([`Tap::wants`](strata_runtime::Tap::wants)). Asked once per output, before its first package: the topic is
-    /// created with that package, so topics keep the order their packages come in.
+    /// ([`Tap::wants`](strata_runtime::Tap::wants)). Asked once per output, before its first
+    /// package: the topic is created with that package, so topics keep the order their packages
+    /// come in.
     pub(super) fn wants(&self, shared: &Shared, output: &TapOutput<'_>) -> bool {
         shared.logs(&self.name(output))
     }
