@@ -512,7 +512,7 @@ fn build_graph(
             kind,
             name: &module.name,
             robot: options.robot.as_deref(),
-            config: &config,
+            config,
             logged: module,
         };
         factory(&mut builder, &spec)
@@ -615,14 +615,17 @@ fn check_interfaces(
     Ok(())
 }
 
-/// The logged packages of the fed inputs up to `end`, and every (package, input) injection:
-/// (instant, class, package, feed).
+/// A logged package injected into a fed input: the instant, where it falls relative to the
+/// readers' cycles at that instant (see [`replay`]), the package's index and the feed's.
+type Injection = (Time, u8, usize, usize);
+
+/// The logged packages of the fed inputs up to `end`, and every injection of one into an input.
 fn logged_inputs(
     reader: &LogReader,
     feeds: &[Feed],
     end: Time,
     warnings: &mut Vec<String>,
-) -> Result<(Vec<LogMessage>, Vec<(Time, u8, usize, usize)>), ReplayError> {
+) -> Result<(Vec<LogMessage>, Vec<Injection>), ReplayError> {
     // The logged input packages, in log-time order (a threaded host's log is only nearly
     // sorted: module threads hand packages to the tap concurrently).
     let topics: Vec<&str> = {
@@ -647,7 +650,7 @@ fn logged_inputs(
 
     // Every (package, input) injection, ordered by instant, then by where it falls relative
     // to the readers' cycles at that instant, then as logged.
-    let mut injections: Vec<(Time, u8, usize, usize)> = Vec::new();
+    let mut injections: Vec<Injection> = Vec::new();
     for (m, message) in packages.iter().enumerate() {
         for (f, feed) in feeds.iter().enumerate().filter(|(_, f)| *f.topic == *message.topic) {
             let class = match (feed.before_cycle, feed.reader_periodic) {
@@ -669,7 +672,7 @@ fn run_replay(
     seed: u64,
     scope: &str,
     packages: &[LogMessage],
-    injections: Vec<(Time, u8, usize, usize)>,
+    injections: Vec<Injection>,
     feeds: &mut [Feed],
     end: Time,
 ) -> Result<HashMap<String, Vec<Captured>>, ReplayError> {

@@ -19,8 +19,9 @@ pub(super) struct Topic {
     /// Sequence numbers of application records (packages carry their own).
     pub(super) next_seq: AtomicU64,
     /// How a sender that waits hands this topic's packages over
-    /// ([`HANDOVER_CLONE`](super::HANDOVER_CLONE) or [`HANDOVER_ENCODE`](super::HANDOVER_ENCODE)),
-    /// decided by its first package; 0 until then.
+    /// ([`HANDOVER_CLONE`](super::gather::HANDOVER_CLONE) or
+    /// [`HANDOVER_ENCODE`](super::gather::HANDOVER_ENCODE)), decided by its first package; 0 until
+    /// then.
     pub(super) handover: AtomicU8,
     /// The type's CDR schema, for packages the sender encoded.
     pub(super) cdr: OnceLock<Arc<CdrSchema>>,
