@@ -4,8 +4,9 @@
 //! One room per file: the log's [`options`] and [`run_info`]; the [`tap`] hosts hand their
 //! packages to, with its [`scoped`] form and a host's own [`sender`]; [`gather`], how packages
 //! are handed over and batched for the writer thread; the state they [`shared`] with it, and
-//! the [`topics`]; the writer [`thread`], how it [`write`]s messages and the [`channels`] it
-//! creates; the [`encoding`] helpers, and what a log may [`derive`] from its packages.
+//! the [`topics`]; the writer [`thread`], how it [`write`](mod@write)s messages and the
+//! [`channels`] it creates; the [`encoding`] helpers, and what a log may
+//! [`derive`](mod@derive) from its packages.
 
 mod channels;
 mod derive;

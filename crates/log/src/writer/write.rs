@@ -15,7 +15,7 @@ use super::{
 };
 
 impl WriterThread {
-    /// Writes the records the log's [`Derive`] makes of `package`, ahead of it.
+    /// Writes the records the log's [`Derive`](crate::Derive) makes of `package`, ahead of it.
     pub(super) fn derive(&mut self, topic: &Topic, log_time: u64, package: &dyn ErasedPackage) {
         let mut records = DerivedRecords::new(self.options.encoding, self.shared.record_encoding());
         if let Some(derive) =
