@@ -25,13 +25,14 @@ use serde_json::Value;
 use strata_runtime::cdr::{self, Format};
 use strata_runtime::shared::{self, Recorder};
 use strata_runtime::{
-    Encoding, ErasedPackage, GraphBuilder, GraphDescription, GraphErrors, HostConfig, HostError,
-    InputRef, LockstepHost, ModuleDescription, PortDescription, Tap, TapRecord, Time, Trigger,
+    Encoding, ErasedPackage, Graph, GraphBuilder, GraphDescription, GraphErrors, HostConfig,
+    HostError, InputRef, LockstepHost, ModuleDescription, PortDescription, Tap, TapRecord, Time,
+    Trigger,
 };
 
 use crate::error::LogError;
 use crate::overrides::{Override, OverrideError, apply_overrides};
-use crate::reader::{LogReader, LoggedGraph};
+use crate::reader::{LogMessage, LogReader, LoggedGraph};
 
 /// What a module constructor may fail with.
 pub type BuildError = Box<dyn std::error::Error + Send + Sync>;
@@ -387,6 +388,75 @@ pub fn replay(
     apply_overrides(&mut config, &options.overrides)?;
 
     // Which logged modules are meant.
+    let targets = find_targets(&graphs, registry, options)?;
+    let Some(&(_, graph_index, _)) = targets.first() else {
+        return Err(ReplayError::UnknownModule { name: String::new(), available: Vec::new() });
+    };
+    let scope = &graphs[graph_index].scope;
+
+    // The graph of the modules under test.
+    let mut warnings: Vec<String> = Vec::new();
+    let (graph, mut feeds, unfed) =
+        build_graph(registry, options, &config, &targets, &graphs[graph_index], &mut warnings)?;
+    check_interfaces(&graph.describe(), &targets, &mut warnings)?;
+
+    if let Some(stats) = reader.stats() {
+        if stats.dropped > 0 {
+            warnings.push(format!(
+                "the log dropped {} packages while recording: inputs or outputs may be missing",
+                stats.dropped
+            ));
+        }
+    } else {
+        warnings.push("the log was not finished: its last packages may be missing".to_owned());
+    }
+
+    let end = options.until.or(reader.time_range().map(|(_, end)| end)).unwrap_or(Time::ZERO);
+
+    let (packages, injections) = logged_inputs(reader, &feeds, end, &mut warnings)?;
+
+    let replayed = run_replay(graph, seed, scope, &packages, injections, &mut feeds, end)?;
+
+    // Compare. Shared values the log holds are written as its references, so that equal
+    // packages have equal bytes.
+    let recorder = Recorder::knowing(shared::registered_ids()).install();
+    let (outputs, differences, total) = compare(reader, options, &targets, scope, &replayed, end)?;
+    Recorder::uninstall();
+    if let Some(previous) = recorder {
+        previous.install();
+    }
+    let mut inputs: Vec<InputFeed> = feeds
+        .iter()
+        .map(|f| InputFeed {
+            input: f.label.clone(),
+            topic: Some(f.topic.clone()),
+            packages: f.packages,
+        })
+        .collect();
+    inputs.extend(unfed.into_iter().map(|input| InputFeed { input, topic: None, packages: 0 }));
+    Ok(ReplayReport {
+        modules: targets.iter().map(|(_, _, m)| format!("{scope}{}", m.name)).collect(),
+        seed,
+        overrides: options.overrides.iter().map(|o| format!("{}={}", o.key, o.raw)).collect(),
+        end,
+        inputs,
+        outputs,
+        differences,
+        total_differences: total,
+        warnings,
+    })
+}
+
+/// A logged module to replay: its kind (`--module`), the index of its graph among the log's,
+/// and how it was logged.
+type Target<'o, 'g> = (&'o str, usize, &'g ModuleDescription);
+
+/// The logged modules `options.modules` name, all of one graph.
+fn find_targets<'o, 'g>(
+    graphs: &'g [LoggedGraph],
+    registry: &ModuleRegistry,
+    options: &'o ReplayOptions,
+) -> Result<Vec<Target<'o, 'g>>, ReplayError> {
     let mut targets: Vec<(&str, usize, &ModuleDescription)> = Vec::new();
     for kind in &options.modules {
         let full = registry.full_name(options.robot.as_deref(), kind);
@@ -417,14 +487,23 @@ pub fn replay(
         }
         targets.push((kind.as_str(), g, module));
     }
-    let Some(&(_, graph_index, _)) = targets.first() else {
-        return Err(ReplayError::UnknownModule { name: String::new(), available: Vec::new() });
-    };
-    let LoggedGraph { scope, description } = &graphs[graph_index];
+    Ok(targets)
+}
 
-    // The graph of the modules under test.
+/// The graph of the modules under test: connections between them kept, every other input
+/// external, fed from the log where the logged graph had a writer for it (`feeds`) and
+/// receiving nothing where it had none (`unfed`).
+fn build_graph(
+    registry: &ModuleRegistry,
+    options: &ReplayOptions,
+    config: &Value,
+    targets: &[Target<'_, '_>],
+    logged: &LoggedGraph,
+    warnings: &mut Vec<String>,
+) -> Result<(Graph, Vec<Feed>, Vec<String>), ReplayError> {
+    let LoggedGraph { scope, description } = logged;
     let mut builder = GraphBuilder::new();
-    for (kind, _, module) in &targets {
+    for (kind, _, module) in targets {
         let factory = registry.factories.get(*kind).ok_or_else(|| ReplayError::NoConstructor {
             kind: (*kind).to_owned(),
             known: registry.kinds().map(str::to_owned).collect(),
@@ -433,7 +512,7 @@ pub fn replay(
             kind,
             name: &module.name,
             robot: options.robot.as_deref(),
-            config: &config,
+            config,
             logged: module,
         };
         factory(&mut builder, &spec)
@@ -448,8 +527,7 @@ pub fn replay(
     let names: HashSet<&str> = targets.iter().map(|(_, _, m)| m.name.as_str()).collect();
     let mut feeds: Vec<Feed> = Vec::new();
     let mut unfed: Vec<String> = Vec::new();
-    let mut warnings: Vec<String> = Vec::new();
-    for (_, _, module) in &targets {
+    for (_, _, module) in targets {
         for port in &module.inputs {
             let to = format!("{}.{}", module.name, port.name);
             let graph_error = |e: strata_runtime::GraphError| ReplayError::LoggedGraph {
@@ -499,9 +577,17 @@ pub fn replay(
             }
         }
     }
-    let graph = builder.build()?;
-    let now = graph.describe();
-    for (_, _, logged) in &targets {
+    Ok((builder.build()?, feeds, unfed))
+}
+
+/// Refuses a module whose inputs or outputs differ from the logged ones; warns when its
+/// schedule does.
+fn check_interfaces(
+    now: &GraphDescription,
+    targets: &[Target<'_, '_>],
+    warnings: &mut Vec<String>,
+) -> Result<(), ReplayError> {
+    for (_, _, logged) in targets {
         let Some(current) = now.modules.iter().find(|m| m.name == logged.name) else { continue };
         for (what, a, b) in [
             ("inputs", &logged.inputs, &current.inputs),
@@ -526,20 +612,20 @@ pub fn replay(
             ));
         }
     }
+    Ok(())
+}
 
-    if let Some(stats) = reader.stats() {
-        if stats.dropped > 0 {
-            warnings.push(format!(
-                "the log dropped {} packages while recording: inputs or outputs may be missing",
-                stats.dropped
-            ));
-        }
-    } else {
-        warnings.push("the log was not finished: its last packages may be missing".to_owned());
-    }
+/// A logged package injected into a fed input: the instant, where it falls relative to the
+/// readers' cycles at that instant (see [`replay`]), the package's index and the feed's.
+type Injection = (Time, u8, usize, usize);
 
-    let end = options.until.or(reader.time_range().map(|(_, end)| end)).unwrap_or(Time::ZERO);
-
+/// The logged packages of the fed inputs up to `end`, and every injection of one into an input.
+fn logged_inputs(
+    reader: &LogReader,
+    feeds: &[Feed],
+    end: Time,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<LogMessage>, Vec<Injection>), ReplayError> {
     // The logged input packages, in log-time order (a threaded host's log is only nearly
     // sorted: module threads hand packages to the tap concurrently).
     let topics: Vec<&str> = {
@@ -564,7 +650,7 @@ pub fn replay(
 
     // Every (package, input) injection, ordered by instant, then by where it falls relative
     // to the readers' cycles at that instant, then as logged.
-    let mut injections: Vec<(Time, u8, usize, usize)> = Vec::new();
+    let mut injections: Vec<Injection> = Vec::new();
     for (m, message) in packages.iter().enumerate() {
         for (f, feed) in feeds.iter().enumerate().filter(|(_, f)| *f.topic == *message.topic) {
             let class = match (feed.before_cycle, feed.reader_periodic) {
@@ -576,9 +662,22 @@ pub fn replay(
         }
     }
     injections.sort_unstable();
+    Ok((packages, injections))
+}
 
+/// Runs the modules under test on the lockstep host, injecting the logged packages; the
+/// outputs they sent, by topic.
+fn run_replay(
+    graph: Graph,
+    seed: u64,
+    scope: &str,
+    packages: &[LogMessage],
+    injections: Vec<Injection>,
+    feeds: &mut [Feed],
+    end: Time,
+) -> Result<HashMap<String, Vec<Captured>>, ReplayError> {
     let mut host = LockstepHost::new(graph, HostConfig::with_seed(seed));
-    let capture = Arc::new(Capture { scope: scope.clone(), ..Capture::default() });
+    let capture = Arc::new(Capture { scope: scope.to_owned(), ..Capture::default() });
     host.set_tap(capture.clone());
     for (t, class, m, f) in injections {
         match class {
@@ -605,16 +704,23 @@ pub fn replay(
     }
     host.run_until(end)?;
     host.stop();
+    Ok(std::mem::take(&mut *capture.outputs.lock().unwrap_or_else(PoisonError::into_inner)))
+}
 
-    // Compare. Shared values the log holds are written as its references, so that equal
-    // packages have equal bytes.
-    let recorder = Recorder::knowing(shared::registered_ids()).install();
-    let replayed =
-        std::mem::take(&mut *capture.outputs.lock().unwrap_or_else(PoisonError::into_inner));
+/// Compares the replayed outputs with the logged ones up to `end`: per output, and the
+/// differences (at most `options.max_differences`) and how many there are.
+fn compare(
+    reader: &LogReader,
+    options: &ReplayOptions,
+    targets: &[Target<'_, '_>],
+    scope: &str,
+    replayed: &HashMap<String, Vec<Captured>>,
+    end: Time,
+) -> Result<(Vec<OutputComparison>, Vec<Difference>, usize), ReplayError> {
     let mut outputs = Vec::new();
     let mut differences = Vec::new();
     let mut total = 0usize;
-    for (_, _, module) in &targets {
+    for (_, _, module) in targets {
         for port in &module.outputs {
             let topic = format!("{scope}{}", crate::package_topic(&module.name, &port.name));
             let mut logged = Vec::new();
@@ -628,31 +734,7 @@ pub fn replay(
             let mut equal = 0;
             for index in 0..logged.len().max(ours.len()) {
                 let details = match (logged.get(index), ours.get(index)) {
-                    (Some(a), Some(b)) => {
-                        let mut details = Vec::new();
-                        if !options.ignore_time && a.log_time != b.time {
-                            details.push(format!("time: {} -> {}", a.log_time, b.time));
-                        }
-                        if a.stamp != b.stamp {
-                            details.push(format!("stamp: {} -> {}", a.stamp, b.stamp));
-                        }
-                        if a.seq != b.seq {
-                            details.push(format!("seq: {} -> {}", a.seq, b.seq));
-                        }
-                        let mut ours = Vec::new();
-                        // A value that cannot be encoded stays empty: it differs from the log.
-                        let _ = b.package.encode(a.encoding, &mut ours);
-                        if a.data != ours {
-                            details.extend(value_differences(
-                                a.encoding,
-                                a.format.as_deref(),
-                                &a.data,
-                                &ours,
-                                8,
-                            ));
-                        }
-                        details
-                    }
+                    (Some(a), Some(b)) => package_differences(a, b, options.ignore_time),
                     (Some(_), None) => vec!["missing in the replay".to_owned()],
                     (None, Some(_)) => vec!["sent by the replay, not in the log".to_owned()],
                     (None, None) => Vec::new(),
@@ -681,30 +763,28 @@ pub fn replay(
             });
         }
     }
-    Recorder::uninstall();
-    if let Some(previous) = recorder {
-        previous.install();
+    Ok((outputs, differences, total))
+}
+
+/// How a replayed package differs from the logged one (time, stamp, sequence number, value).
+fn package_differences(a: &LogMessage, b: &Captured, ignore_time: bool) -> Vec<String> {
+    let mut details = Vec::new();
+    if !ignore_time && a.log_time != b.time {
+        details.push(format!("time: {} -> {}", a.log_time, b.time));
     }
-    let mut inputs: Vec<InputFeed> = feeds
-        .iter()
-        .map(|f| InputFeed {
-            input: f.label.clone(),
-            topic: Some(f.topic.clone()),
-            packages: f.packages,
-        })
-        .collect();
-    inputs.extend(unfed.into_iter().map(|input| InputFeed { input, topic: None, packages: 0 }));
-    Ok(ReplayReport {
-        modules: targets.iter().map(|(_, _, m)| format!("{scope}{}", m.name)).collect(),
-        seed,
-        overrides: options.overrides.iter().map(|o| format!("{}={}", o.key, o.raw)).collect(),
-        end,
-        inputs,
-        outputs,
-        differences,
-        total_differences: total,
-        warnings,
-    })
+    if a.stamp != b.stamp {
+        details.push(format!("stamp: {} -> {}", a.stamp, b.stamp));
+    }
+    if a.seq != b.seq {
+        details.push(format!("seq: {} -> {}", a.seq, b.seq));
+    }
+    let mut ours = Vec::new();
+    // A value that cannot be encoded stays empty: it differs from the log.
+    let _ = b.package.encode(a.encoding, &mut ours);
+    if a.data != ours {
+        details.extend(value_differences(a.encoding, a.format.as_deref(), &a.data, &ours, 8));
+    }
+    details
 }
 
 /// Where two encoded values differ, as `path: old -> new` lines (at most `limit`); `format`

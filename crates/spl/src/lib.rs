@@ -5,15 +5,12 @@
 //! - [`objects`]: what a camera can detect, with stable codes shared by simulator and robot.
 //! - [`gamecontroller`]: control packets (`RGme` v18) and return packets (`RGrt` v4).
 //! - [`net`]: UDP sockets for GameController packets and team messages.
-//! - [`budget`]: pacing team messages within the game's message budget.
 
-pub mod budget;
 pub mod field;
 pub mod gamecontroller;
 pub mod net;
 pub mod objects;
 
-pub use budget::{BudgetConfig, MessageBudget};
 pub use field::{Field, FieldDimensions, FieldError, Landmark, Point, Side};
 pub use gamecontroller::{DecodeError, GameControlData, GameState, PacketKind, ReturnData};
 pub use net::{GameControllerSocket, MAX_TEAM_MESSAGE_SIZE, NetError, TeamSocket};

@@ -23,7 +23,7 @@ use strata_robot::control::reactive::ReactiveReport;
 use strata_robot::geometry::{Field as FieldFrame, Point, Pose, normalize_angle};
 use strata_robot::platform::{BodyMotionState, SpecialMotion};
 use strata_runtime::{Package, Tap, TapRecord};
-use strata_sim::{BallScript, EventKind, FallDirection, NoiseLevel};
+use strata_sim::{BallScript, EventKind, FallDirection, NoiseLevel, RobotId};
 use strata_soccer::behaviors::covering_pose;
 use strata_soccer::team::TeamConfig;
 
@@ -360,14 +360,13 @@ fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f64; 2]) -> f64 {
     if hi > lo { rng.random_range(lo..hi) } else { lo }
 }
 
-fn run_one(
+/// The robot of a run and its ball: the walker and its ball path in the walking runs, the
+/// keeper and the ball it covers in the runs with falls.
+fn robot_and_ball(
     scenario: &Scenario,
-    job: &Job,
-    log: Option<ExperimentLog>,
-    tick: &dyn Fn(u64),
-) -> Result<RunResult> {
-    let walking = matches!(job.kind, JobKind::Walking);
-    let (player, team, start, path, speed) = if walking {
+    walking: bool,
+) -> (u8, TeamConfig, [f64; 3], &[[f64; 2]], f64) {
+    if walking {
         let w = &scenario.walking;
         (
             w.player,
@@ -384,7 +383,78 @@ fn run_one(
             &scenario.ball_path,
             scenario.ball_speed,
         )
-    };
+    }
+}
+
+/// The falls of `robot` the simulator recorded: (onset, forced, direction).
+fn fall_events(scene: &Scene, robot: RobotId) -> Vec<(f64, bool, String)> {
+    scene
+        .sim
+        .lock()
+        .events()
+        .iter()
+        .filter_map(|e| match &e.kind {
+            EventKind::Fall { robot: r, onset, direction, cause } if *r == robot => Some((
+                onset.as_secs_f64(),
+                matches!(cause, strata_sim::FallCause::Forced),
+                direction_name(*direction).to_owned(),
+            )),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Each fall with how the robot detected it (reactive and deliberative latency, from sensing
+/// to command) and recovered from it.
+fn fall_records(
+    scenario: &Scenario,
+    events: &[(f64, bool, String)],
+    detections: &[f64],
+    down: &[(f64, f64)],
+    recorded: &Recorded,
+    recoveries: &[(f64, Option<f64>, Option<f64>)],
+) -> Vec<FallRecord> {
+    events
+        .iter()
+        .map(|(onset, forced, direction)| {
+            let latency = detection_after(*onset, detections, scenario.detection_window);
+            let deliberative_latency = latency.and_then(|l| {
+                recorded.deliberative.iter().find(|t| **t >= onset + l).map(|t| t - onset)
+            });
+            let recovery = recoveries.iter().find(|(o, _, _)| (o - onset).abs() < 1e-9);
+            // The report of the cycle that issued the command carries its percepts' stamp.
+            let sensing_to_command = latency.and_then(|l| {
+                let command = onset + l;
+                recorded
+                    .fall_reports
+                    .iter()
+                    .find(|(t, _)| (t - command).abs() < 0.005)
+                    .map(|(t, stamp)| t - stamp)
+            });
+            let while_down = down.iter().any(|(a, b)| *a < *onset - 0.05 && *onset <= *b);
+            FallRecord {
+                onset: *onset,
+                forced: *forced,
+                direction: direction.clone(),
+                latency,
+                deliberative_latency,
+                sensing_to_command,
+                while_down,
+                standing: recovery.and_then(|r| r.1),
+                in_position: recovery.and_then(|r| r.2),
+            }
+        })
+        .collect()
+}
+
+fn run_one(
+    scenario: &Scenario,
+    job: &Job,
+    log: Option<ExperimentLog>,
+    tick: &dyn Fn(u64),
+) -> Result<RunResult> {
+    let walking = matches!(job.kind, JobKind::Walking);
+    let (player, team, start, path, speed) = robot_and_ball(scenario, walking);
     let mut scene = Scene::new(
         &scenario.field,
         scenario.noise_level.unwrap_or_default(),
@@ -504,51 +574,8 @@ fn run_one(
     let recorded = std::mem::take(&mut *tap.recorded.lock().unwrap_or_else(|e| e.into_inner()));
     let detections = rising_edges(&recorded.commands);
     let down = intervals(&down_trace);
-    let events: Vec<(f64, bool, String)> = scene
-        .sim
-        .lock()
-        .events()
-        .iter()
-        .filter_map(|e| match &e.kind {
-            EventKind::Fall { robot: r, onset, direction, cause } if *r == robot => Some((
-                onset.as_secs_f64(),
-                matches!(cause, strata_sim::FallCause::Forced),
-                direction_name(*direction).to_owned(),
-            )),
-            _ => None,
-        })
-        .collect();
-    let falls = events
-        .iter()
-        .map(|(onset, forced, direction)| {
-            let latency = detection_after(*onset, &detections, scenario.detection_window);
-            let deliberative_latency = latency.and_then(|l| {
-                recorded.deliberative.iter().find(|t| **t >= onset + l).map(|t| t - onset)
-            });
-            let recovery = recoveries.iter().find(|(o, _, _)| (o - onset).abs() < 1e-9);
-            // The report of the cycle that issued the command carries its percepts' stamp.
-            let sensing_to_command = latency.and_then(|l| {
-                let command = onset + l;
-                recorded
-                    .fall_reports
-                    .iter()
-                    .find(|(t, _)| (t - command).abs() < 0.005)
-                    .map(|(t, stamp)| t - stamp)
-            });
-            let while_down = down.iter().any(|(a, b)| *a < *onset - 0.05 && *onset <= *b);
-            FallRecord {
-                onset: *onset,
-                forced: *forced,
-                direction: direction.clone(),
-                latency,
-                deliberative_latency,
-                sensing_to_command,
-                while_down,
-                standing: recovery.and_then(|r| r.1),
-                in_position: recovery.and_then(|r| r.2),
-            }
-        })
-        .collect();
+    let events = fall_events(&scene, robot);
+    let falls = fall_records(scenario, &events, &detections, &down, &recorded, &recoveries);
     let reactive = stats.module(&modules.reactive);
     Ok(RunResult {
         falls,
@@ -743,6 +770,7 @@ fn secs(v: f64) -> String {
     if v.is_finite() { format!("{v:.2}") } else { "n/a".to_owned() }
 }
 
+/// Writes every output file: the raw data, the figures and the report.
 fn write_outputs(
     scenario: &Scenario,
     ctx: &mut Ctx<'_>,
@@ -751,6 +779,17 @@ fn write_outputs(
     s: &Summary,
     runs: usize,
 ) -> Result<()> {
+    write_falls_csv(ctx, jobs, results)?;
+    write_runs_csv(ctx, jobs, results)?;
+
+    let (latency_png, cdf_png, recovery_png) = plot_latency_and_recovery(scenario, ctx, results)?;
+    let fig6 = plot_fig6(ctx, results)?;
+    let figures = Figures { latency_png, cdf_png, recovery_png, fig6 };
+    write_report(scenario, ctx, s, runs, figures)
+}
+
+/// `falls.csv`: every fall.
+fn write_falls_csv(ctx: &mut Ctx<'_>, jobs: &[Job], results: &[RunResult]) -> Result<()> {
     let mut rows = Vec::new();
     for (job, r) in jobs.iter().zip(results) {
         for f in &r.falls {
@@ -788,7 +827,11 @@ fn write_outputs(
             "back_in_position_s",
         ],
         &rows,
-    )?;
+    )
+}
+
+/// `runs.csv`: every run.
+fn write_runs_csv(ctx: &mut Ctx<'_>, jobs: &[Job], results: &[RunResult]) -> Result<()> {
     let rows: Vec<Vec<String>> = jobs
         .iter()
         .zip(results)
@@ -825,8 +868,16 @@ fn write_outputs(
             "deliberative_hz",
         ],
         &rows,
-    )?;
+    )
+}
 
+/// The figures of every fall: latency against the paper and the deliberative baseline, its
+/// distribution, and the times to stand and to be back in position.
+fn plot_latency_and_recovery(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    results: &[RunResult],
+) -> Result<(String, String, String)> {
     // Figures: latency distribution against the paper and the deliberative baseline; times to
     // stand and to be back in position; Fig. 6 (the first fall of run 0).
     let all: Vec<&FallRecord> = results.iter().flat_map(|r| &r.falls).collect();
@@ -925,6 +976,11 @@ fn write_outputs(
         },
         "recovery",
     )?;
+    Ok((latency_png, cdf_png, recovery_png))
+}
+
+/// Fig. 6: the first fall of run 0, and the recovery.
+fn plot_fig6(ctx: &mut Ctx<'_>, results: &[RunResult]) -> Result<Option<String>> {
     let mut fig6 = None;
     if let Some(trace) = results.iter().find_map(|r| r.figure.as_ref()) {
         let first = results.iter().find(|r| r.figure.is_some()).and_then(|r| r.falls.first());
@@ -982,6 +1038,26 @@ fn write_outputs(
         )?);
     }
 
+    Ok(fig6)
+}
+
+/// The figures the report shows, as [`Ctx::plot`] names them.
+struct Figures {
+    latency_png: String,
+    cdf_png: String,
+    recovery_png: String,
+    fig6: Option<String>,
+}
+
+/// `report.md`: the setup, the results beside the paper, and the figures.
+fn write_report(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    s: &Summary,
+    runs: usize,
+    figures: Figures,
+) -> Result<()> {
+    let Figures { latency_png, cdf_png, recovery_png, fig6 } = figures;
     let mut md = Markdown::new("Fall detection and recovery (paper 4.3, Fig. 6)");
     ctx.report_head(
         NAME,
@@ -992,6 +1068,27 @@ fn write_outputs(
         &mut md,
         runs,
     );
+    report_setup(scenario, s, runs, &mut md);
+    report_beside_paper(scenario, s, &mut md);
+    report_counts(s, &mut md);
+    md.heading("Figures");
+    md.image("Detection latency", &latency_png);
+    md.image("Detection latency distribution", &cdf_png);
+    md.image("Stand-up and back-in-position times", &recovery_png);
+    if let Some(png) = &fig6 {
+        md.image("A fall and the recovery", png);
+    }
+    ctx.finish_report(
+        md,
+        &[
+            "`falls.csv`: every fall (onset, cause, direction, latency, baseline latency, times to stand and to be back in position)",
+            "`runs.csv`: every run (duration, falls, false positives, time upright and walking, layer rates)",
+        ],
+    )
+}
+
+/// What was run.
+fn report_setup(scenario: &Scenario, s: &Summary, runs: usize, md: &mut Markdown) {
     md.bullets(&[
         format!(
             "Host: `{}` ({})",
@@ -1029,6 +1126,10 @@ fn write_outputs(
         ),
         format!("Machine load: {}", super::describe_load(&s.machine_load_1min)),
     ]);
+}
+
+/// The latencies and times beside the paper's.
+fn report_beside_paper(scenario: &Scenario, s: &Summary, md: &mut Markdown) {
     md.heading("Results beside the paper");
     let d = &s.detection_latency;
     let b = &s.deliberative_latency;
@@ -1091,6 +1192,10 @@ fn write_outputs(
          51 ms (T = 8.52 s to 8.57 s in Fig. 6) is set beside both, as its onset is not defined \
          as precisely.",
     );
+}
+
+/// Falls, detections, recoveries, false positives and the layers' rates.
+fn report_counts(s: &Summary, md: &mut Markdown) {
     md.table(
         &["measure", "value"],
         &[
@@ -1137,20 +1242,6 @@ fn write_outputs(
             s.falls
         ));
     }
-    md.heading("Figures");
-    md.image("Detection latency", &latency_png);
-    md.image("Detection latency distribution", &cdf_png);
-    md.image("Stand-up and back-in-position times", &recovery_png);
-    if let Some(png) = &fig6 {
-        md.image("A fall and the recovery", png);
-    }
-    ctx.finish_report(
-        md,
-        &[
-            "`falls.csv`: every fall (onset, cause, direction, latency, baseline latency, times to stand and to be back in position)",
-            "`runs.csv`: every run (duration, falls, false positives, time upright and walking, layer rates)",
-        ],
-    )
 }
 
 #[cfg(test)]

@@ -624,6 +624,7 @@ fn hz_label(hz: f64) -> String {
     format!("{hz} Hz")
 }
 
+/// Writes every output file: the raw data, the figures and the report.
 #[allow(clippy::too_many_arguments)]
 fn write_outputs(
     scenario: &Scenario,
@@ -634,7 +635,41 @@ fn write_outputs(
     targets: &[Target],
     runs: usize,
 ) -> Result<()> {
-    // Raw data.
+    write_runs_csv(scenario, ctx, jobs, results)?;
+    write_timeseries_csv(scenario, ctx, jobs, results)?;
+    let (unknown_png, observe_png, pose_png, coverage_png) =
+        plot_per_rate(scenario, ctx, conditions)?;
+    let fig5 = plot_fig5(scenario, ctx, jobs, results)?;
+    let confidence_plots = plot_confidence(scenario, ctx, jobs, results)?;
+    let fig4 = plot_fig4(scenario, ctx, jobs, results)?;
+    let figures =
+        Figures { unknown_png, observe_png, pose_png, coverage_png, fig5, confidence_plots, fig4 };
+    write_report(scenario, ctx, conditions, targets, runs, figures)
+}
+
+/// The figures the report shows, as [`Ctx::plot`] names them.
+struct Figures {
+    unknown_png: String,
+    observe_png: String,
+    pose_png: String,
+    coverage_png: String,
+    fig5: Vec<(f64, String)>,
+    confidence_plots: Vec<String>,
+    fig4: String,
+}
+
+/// The index of the reference method (the first when it is not among the methods).
+fn reference_index(scenario: &Scenario) -> usize {
+    scenario.methods.iter().position(|m| m.name == scenario.reference).unwrap_or(0)
+}
+
+/// `runs.csv`: one row per run with every metric.
+fn write_runs_csv(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    jobs: &[Job],
+    results: &[RunResult],
+) -> Result<()> {
     let rows: Vec<Vec<String>> = jobs
         .iter()
         .zip(results)
@@ -684,7 +719,16 @@ fn write_outputs(
             "deliberative_hz_measured",
         ],
         &rows,
-    )?;
+    )
+}
+
+/// `timeseries.csv`: every traced sample, with the head multiplexer's scores per object.
+fn write_timeseries_csv(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    jobs: &[Job],
+    results: &[RunResult],
+) -> Result<()> {
     let mut ts_rows = Vec::new();
     for (j, r) in jobs.iter().zip(results) {
         let Some(trace) = &r.trace else { continue };
@@ -744,9 +788,15 @@ fn write_outputs(
             "head_scores (object:S_d/S_r/final)",
         ],
         &ts_rows,
-    )?;
+    )
+}
 
-    // Figures.
+/// The bar charts per rate and method: ball unknown, observe ball, pose error, coverage.
+fn plot_per_rate(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    conditions: &[Condition],
+) -> Result<(String, String, String, String)> {
     let groups: Vec<String> = scenario.deliberative_hz.iter().map(|h| hz_label(*h)).collect();
     let series = |f: &dyn Fn(&Condition) -> Estimate, scale: f64| -> Vec<(String, Vec<Estimate>)> {
         scenario
@@ -830,10 +880,17 @@ fn write_outputs(
         },
         "coverage",
     )?;
+    Ok((unknown_png, observe_png, pose_png, coverage_png))
+}
 
-    // Fig. 5: the reference method's scores and ball confidence over time, per rate.
-    let reference_index =
-        scenario.methods.iter().position(|m| m.name == scenario.reference).unwrap_or(0);
+/// Fig. 5: the reference method's scores and ball confidence over time, per rate.
+fn plot_fig5(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    jobs: &[Job],
+    results: &[RunResult],
+) -> Result<Vec<(f64, String)>> {
+    let reference_index = reference_index(scenario);
     let mut fig5 = Vec::new();
     for (r, hz) in scenario.deliberative_hz.iter().enumerate() {
         let Some(trace) = jobs
@@ -903,8 +960,16 @@ fn write_outputs(
         let stem = format!("fig5_{}hz", hz).replace('.', "_");
         fig5.push((*hz, ctx.plot(&stack, &stem)?));
     }
+    Ok(fig5)
+}
 
-    // Ball confidence of every method at each rate (same seed, first trajectory).
+/// Ball confidence of every method at each rate (same seed, first trajectory).
+fn plot_confidence(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    jobs: &[Job],
+    results: &[RunResult],
+) -> Result<Vec<String>> {
     let mut confidence_plots = Vec::new();
     for (r, hz) in scenario.deliberative_hz.iter().enumerate() {
         let series: Vec<Series> = scenario
@@ -937,8 +1002,17 @@ fn write_outputs(
         let stem = format!("confidence_{}hz", hz).replace('.', "_");
         confidence_plots.push(ctx.plot(&stack, &stem)?);
     }
+    Ok(confidence_plots)
+}
 
-    // Fig. 4: the trajectories, and where the keeper went.
+/// Fig. 4: the trajectories, and where the keeper went.
+fn plot_fig4(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    jobs: &[Job],
+    results: &[RunResult],
+) -> Result<String> {
+    let reference_index = reference_index(scenario);
     let field = TeamField::new(
         strata_spl::Field::preset(&scenario.field)
             .or_else(|_| strata_spl::Field::load(&scenario.field))
@@ -971,7 +1045,7 @@ fn write_outputs(
             });
         }
     }
-    let fig4 = ctx.plot(
+    ctx.plot(
         &FieldPaths {
             title: "Ball trajectories (Fig. 4) and the keeper's true path".into(),
             outline: field_outline(&field),
@@ -979,9 +1053,19 @@ fn write_outputs(
             half_extent: (field.half_length + 0.8, field.half_width + 0.8),
         },
         "fig4_trajectories",
-    )?;
+    )
+}
 
-    // The report.
+/// `report.md`: what was run, Table 5 beside the paper's, every method, the targets and the
+/// figures.
+fn write_report(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    conditions: &[Condition],
+    targets: &[Target],
+    runs: usize,
+    figures: Figures,
+) -> Result<()> {
     let mut md =
         Markdown::new("Goal covering with active vision (paper 4.2, Table 5, Fig. 4, Fig. 5)");
     ctx.report_head(
@@ -993,6 +1077,22 @@ fn write_outputs(
         &mut md,
         runs,
     );
+    report_setup(scenario, runs, &mut md);
+    report_table5(scenario, conditions, &mut md);
+    report_methods(conditions, &mut md);
+    report_targets(targets, &mut md);
+    report_figures(figures, &mut md);
+    ctx.finish_report(
+        md,
+        &[
+            "`runs.csv`: one row per run (method, rate, trajectory, seed) with every metric",
+            "`timeseries.csv`: every sample of run 0 of each (method, rate, trajectory), with the head multiplexer's S_d / S_r / final score per object",
+        ],
+    )
+}
+
+/// The report's setup and definitions.
+fn report_setup(scenario: &Scenario, runs: usize, md: &mut Markdown) {
     md.bullets(&[
         format!("Field `{}`, noise `{}`, lockstep host (deterministic)", scenario.field, scenario.noise),
         format!(
@@ -1034,7 +1134,10 @@ fn write_outputs(
         "goal coverage: the fraction of the goal's angle, seen from the true ball, that the keeper (true position, half-width `keeper_reach`) covers; ideal: the same for the covering pose the behavior aims at",
         "time in cover behavior: the deliberative layer's behavior path ends in `cover` (the goal-covering tree's branch with the value function), not `searching for object` or `localizing`",
     ]);
+}
 
+/// Table 5: the reference method per rate, beside the paper's.
+fn report_table5(scenario: &Scenario, conditions: &[Condition], md: &mut Markdown) {
     md.heading("Table 5, beside the paper's");
     let mut rows = Vec::new();
     for hz in &scenario.deliberative_hz {
@@ -1065,7 +1168,10 @@ fn write_outputs(
         ],
         &rows,
     );
+}
 
+/// Every method at every rate.
+fn report_methods(conditions: &[Condition], md: &mut Markdown) {
     md.heading("Every method");
     let rows: Vec<Vec<String>> = conditions
         .iter()
@@ -1105,7 +1211,10 @@ fn write_outputs(
         ],
         &rows,
     );
+}
 
+/// The targets, and which are missed.
+fn report_targets(targets: &[Target], md: &mut Markdown) {
     md.heading("Targets");
     let rows: Vec<Vec<String>> = targets
         .iter()
@@ -1125,7 +1234,12 @@ fn write_outputs(
             targets.len()
         ));
     }
+}
 
+/// The figures.
+fn report_figures(figures: Figures, md: &mut Markdown) {
+    let Figures { unknown_png, observe_png, pose_png, coverage_png, fig5, confidence_plots, fig4 } =
+        figures;
     md.heading("Figures");
     md.image("Ball unknown per rate and method, with the paper's Table 5", &unknown_png);
     md.image("Observe ball per rate and method, with the paper's Table 5", &observe_png);
@@ -1143,13 +1257,6 @@ fn write_outputs(
     }
     md.subheading("Fig. 4, ours");
     md.image("Ball trajectories and the keeper's path", &fig4);
-    ctx.finish_report(
-        md,
-        &[
-            "`runs.csv`: one row per run (method, rate, trajectory, seed) with every metric",
-            "`timeseries.csv`: every sample of run 0 of each (method, rate, trajectory), with the head multiplexer's S_d / S_r / final score per object",
-        ],
-    )
 }
 
 /// The objects of Fig. 5: the ball and the two landmarks the head multiplexer ranked highest

@@ -673,6 +673,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
     Ok(summary)
 }
 
+/// Writes every output file: the raw data, the figures and the report.
 fn write_outputs(
     scenario: &Scenario,
     ctx: &mut Ctx<'_>,
@@ -680,6 +681,18 @@ fn write_outputs(
     s: &Summary,
     runs: usize,
 ) -> Result<()> {
+    write_runs_csv(scenario, ctx, results)?;
+    let (reactive_png, deliberative_png) = plot_rates(scenario, ctx, s)?;
+    write_report(scenario, ctx, s, runs, reactive_png, deliberative_png)
+}
+
+/// How a load per deliberative cycle is named in figures and tables.
+fn load_label(l: f64) -> String {
+    if l == 0.0 { "no load".to_owned() } else { format!("+{:.0} ms load", l * 1000.0) }
+}
+
+/// `runs.csv`: one row per run, load, robot and layer.
+fn write_runs_csv(scenario: &Scenario, ctx: &mut Ctx<'_>, results: &[RunResult]) -> Result<()> {
     let mut rows = Vec::new();
     for r in results {
         for (i, robot) in r.robots.iter().enumerate() {
@@ -731,11 +744,11 @@ fn write_outputs(
             "machine_load_1min",
         ],
         &rows,
-    )?;
+    )
+}
 
-    let load_label = |l: f64| {
-        if l == 0.0 { "no load".to_owned() } else { format!("+{:.0} ms load", l * 1000.0) }
-    };
+/// The figures: each layer's mean rate per robot and load, beside the paper's.
+fn plot_rates(scenario: &Scenario, ctx: &mut Ctx<'_>, s: &Summary) -> Result<(String, String)> {
     let mut groups = Vec::new();
     let mut reactive = Vec::new();
     let mut deliberative = Vec::new();
@@ -799,7 +812,19 @@ fn write_outputs(
         },
         "deliberative_rate",
     )?;
+    Ok((reactive_png, deliberative_png))
+}
 
+/// `report.md`: the setup, Table 6 beside the paper's, every layer, the claim and the
+/// figures.
+fn write_report(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    s: &Summary,
+    runs: usize,
+    reactive_png: String,
+    deliberative_png: String,
+) -> Result<()> {
     let mut md = Markdown::new("Layer frequencies in real time (paper 4.3, Table 6)");
     ctx.report_head(
         NAME,
@@ -810,6 +835,23 @@ fn write_outputs(
         &mut md,
         runs,
     );
+    report_setup(scenario, s, runs, &mut md);
+    report_table6(scenario, s, &mut md);
+    report_layers(s, &mut md);
+    report_claim(scenario, s, &mut md);
+    md.heading("Figures");
+    md.image("Reactive rate", &reactive_png);
+    md.image("Deliberative rate", &deliberative_png);
+    ctx.finish_report(
+        md,
+        &[
+            "`runs.csv`: one row per run, load, robot and layer (rates, compute-time and period percentiles)",
+        ],
+    )
+}
+
+/// What was run.
+fn report_setup(scenario: &Scenario, s: &Summary, runs: usize, md: &mut Markdown) {
     md.bullets(&[
         match scenario.transport {
             Transport::Tcp => "Transport: the simulator server (real time, in the experiment's process) and one `strata robot` process per robot over TCP, as HL-SIM in the paper".to_owned(),
@@ -833,6 +875,10 @@ fn write_outputs(
         ),
         "Min and max frequencies are over 1 s windows; jitter is the cycle period's 99th percentile minus its median".to_owned(),
     ]);
+}
+
+/// Table 6: each robot's layers without load, beside the paper's.
+fn report_table6(scenario: &Scenario, s: &Summary, md: &mut Markdown) {
     md.heading("Table 6, beside the paper's");
     let mut rows = Vec::new();
     for robot in &scenario.robots {
@@ -868,6 +914,10 @@ fn write_outputs(
         ],
         &rows,
     );
+}
+
+/// Every layer under every load.
+fn report_layers(s: &Summary, md: &mut Markdown) {
     md.heading("Every layer");
     let rows: Vec<Vec<String>> = s
         .layers
@@ -904,6 +954,10 @@ fn write_outputs(
         ],
         &rows,
     );
+}
+
+/// The claim: the reactive rate does not drop under deliberative load.
+fn report_claim(scenario: &Scenario, s: &Summary, md: &mut Markdown) {
     md.heading("The claim: the reactive rate does not drop under deliberative load");
     let rows: Vec<Vec<String>> = s
         .claims
@@ -937,15 +991,6 @@ fn write_outputs(
         scenario.tolerance * 100.0,
         if s.reactive_rate_kept { "It is, for every role and load." } else { "**It is not for every role and load: see the table.**" }
     ));
-    md.heading("Figures");
-    md.image("Reactive rate", &reactive_png);
-    md.image("Deliberative rate", &deliberative_png);
-    ctx.finish_report(
-        md,
-        &[
-            "`runs.csv`: one row per run, load, robot and layer (rates, compute-time and period percentiles)",
-        ],
-    )
 }
 
 #[cfg(test)]

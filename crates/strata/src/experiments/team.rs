@@ -388,6 +388,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
     Ok(summary)
 }
 
+/// Writes every output file: the raw data, the figures and the report.
 #[allow(clippy::too_many_arguments)]
 fn write_outputs(
     scenario: &Scenario,
@@ -397,6 +398,19 @@ fn write_outputs(
     s: &Summary,
     runs: usize,
     loss_runs: usize,
+) -> Result<()> {
+    write_matches_csv(scenario, ctx, jobs, results)?;
+    let (gd_png, hist_png, conflicts_png, budget_png) = plot_figures(scenario, ctx, s)?;
+    let figures = Figures { gd_png, hist_png, conflicts_png, budget_png };
+    write_report(scenario, ctx, s, runs, loss_runs, figures)
+}
+
+/// `matches.csv`: one row per team per match.
+fn write_matches_csv(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    jobs: &[Job],
+    results: &[RunResult],
 ) -> Result<()> {
     let mut rows = Vec::new();
     for (job, r) in jobs.iter().zip(results) {
@@ -474,8 +488,15 @@ fn write_outputs(
             "real_time_factor",
         ],
         &rows,
-    )?;
+    )
+}
 
+/// The figures: goals against the baselines; strikers, conflicts and messages by loss.
+fn plot_figures(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    s: &Summary,
+) -> Result<(String, String, String, String)> {
     // Figures.
     let versus_groups: Vec<String> = s
         .versus
@@ -569,7 +590,28 @@ fn write_outputs(
         },
         "budget",
     )?;
+    Ok((gd_png, hist_png, conflicts_png, budget_png))
+}
 
+/// The figures the report shows, as [`Ctx::plot`] names them.
+struct Figures {
+    gd_png: String,
+    hist_png: String,
+    conflicts_png: String,
+    budget_png: String,
+}
+
+/// `report.md`: the setup, the matches against the baselines, the role statistics under
+/// message loss, and the figures.
+fn write_report(
+    scenario: &Scenario,
+    ctx: &mut Ctx<'_>,
+    s: &Summary,
+    runs: usize,
+    loss_runs: usize,
+    figures: Figures,
+) -> Result<()> {
+    let Figures { gd_png, hist_png, conflicts_png, budget_png } = figures;
     let mut md = Markdown::new("Group behaviors in games (paper 4.4)");
     ctx.report_head(
         NAME,
@@ -580,6 +622,24 @@ fn write_outputs(
         &mut md,
         runs,
     );
+    report_setup(scenario, runs, loss_runs, &mut md);
+    report_versus(s, &mut md);
+    report_loss(s, &mut md);
+    md.heading("Figures");
+    md.image("Goals for and against", &gd_png);
+    md.image("Strikers per team", &hist_png);
+    md.image("Double-striker time and role switches", &conflicts_png);
+    md.image("Team messages against the budget", &budget_png);
+    ctx.finish_report(
+        md,
+        &[
+            "`matches.csv`: one row per team per match (score, falls, penalties, strikers histogram, conflicts, role switches, messages)",
+        ],
+    )
+}
+
+/// What was run.
+fn report_setup(scenario: &Scenario, runs: usize, loss_runs: usize, md: &mut Markdown) {
     md.bullets(&[
         format!(
             "Field `{}`, noise `{}`, halves of {} s, lockstep host (deterministic), automatic referee",
@@ -601,6 +661,10 @@ fn write_outputs(
         ),
         "Roles are sampled once per simulated second of play; a striker is the robot going to the ball (striker, or active defender when defending); penalized and fallen robots play no role".to_owned(),
     ]);
+}
+
+/// The matches against the baselines.
+fn report_versus(s: &Summary, md: &mut Markdown) {
     md.heading("Matches against the baselines");
     let rows: Vec<Vec<String>> = s
         .versus
@@ -640,6 +704,10 @@ fn write_outputs(
         &rows,
     );
     md.paragraph("W / D / L and goals are from the full architecture's side; ± is the 95% confidence interval over matches.");
+}
+
+/// The role statistics under team-message loss.
+fn report_loss(s: &Summary, md: &mut Markdown) {
     md.heading("Role statistics under team-message loss");
     let rows: Vec<Vec<String>> = s
         .loss
@@ -682,17 +750,6 @@ fn write_outputs(
          messages (100% loss) every field player falls back to the default mission (attack, \
          striker), so the histogram's weight moves to two or more strikers.",
     );
-    md.heading("Figures");
-    md.image("Goals for and against", &gd_png);
-    md.image("Strikers per team", &hist_png);
-    md.image("Double-striker time and role switches", &conflicts_png);
-    md.image("Team messages against the budget", &budget_png);
-    ctx.finish_report(
-        md,
-        &[
-            "`matches.csv`: one row per team per match (score, falls, penalties, strikers histogram, conflicts, role switches, messages)",
-        ],
-    )
 }
 
 #[cfg(test)]
