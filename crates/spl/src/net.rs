@@ -186,8 +186,9 @@ impl TeamSocket {
         &self.destinations
     }
 
-    /// Sends one team message to every destination. Check the [`crate::MessageBudget`] first:
-    /// the socket does not count.
+    /// Sends one team message to every destination. The socket does not count messages: the
+    /// robot's planning layer keeps within the game's budget (`MessageBudget` in
+    /// `strata_robot::control::planning`).
     pub fn send(&self, payload: &[u8]) -> Result<(), NetError> {
         if payload.len() > MAX_TEAM_MESSAGE_SIZE {
             return Err(NetError::TooLarge { size: payload.len(), from: None });
