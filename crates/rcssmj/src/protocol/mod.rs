@@ -1,6 +1,6 @@
 //! The agent and monitor protocols of rcssservermj (PyPI `rcsssmj` 0.2.1), the RoboCup soccer
 //! simulation league's MuJoCo server: framing, S-expressions, perceptions in SI units, effector
-//! and trainer-command encoding. `PROTOCOL-NOTES.md` at the crate root describes the protocol.
+//! and trainer-command encoding. docs/rcssservermj-protocol.md describes the protocol.
 
 mod base64;
 mod effector;
