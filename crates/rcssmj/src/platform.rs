@@ -19,8 +19,8 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 use strata_robot::platform::{
-    ActuatorOrders, CameraFrame, FootContact, HeadAngles, InertialData, MotionFeedback, Platform,
-    PlatformError, PlatformInfo, SensorFrame,
+    ActuatorOrders, BodyOrder, CameraFrame, FootContact, HeadAngles, InertialData, MotionFeedback,
+    Platform, PlatformError, PlatformInfo, SensorFrame, SpecialMotion,
 };
 use strata_runtime::Time;
 
@@ -176,9 +176,36 @@ impl TruthSource {
     }
 }
 
+/// Torso tilt from which a fall counts as begun, for [`FallRecord`], rad (20 degrees: beyond
+/// what standing and walking sway reach).
+pub const FALL_ONSET_TILT: f64 = 0.35;
+
+/// One fall as the platform saw it: the perception in which the torso's tilt first passed
+/// [`FALL_ONSET_TILT`] (the ground truth of the onset), and the robot's protective-fall order
+/// reaching the platform. The time between them is the architecture's fall detection latency,
+/// the paper's 51 ms figure: measured on this machine's clock from the perception's arrival
+/// (the server's own clock only counts 20 ms cycles).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FallRecord {
+    /// The server's time of the onset, s.
+    pub onset: f64,
+    /// The server's time of the newest perception when the order came, s; `None` if no
+    /// protective-fall order came (yet).
+    pub ordered: Option<f64>,
+    /// From the onset perception's arrival to the order, s.
+    pub latency: Option<f64>,
+    #[serde(skip)]
+    onset_at: Option<Instant>,
+}
+
 #[derive(Debug)]
 struct Shared {
     controller: T1Controller,
+    /// The server's time of the newest perception.
+    sim_time: Option<f64>,
+    /// Whether the torso is tilted beyond the onset angle now.
+    tilted: bool,
+    falls: Vec<FallRecord>,
     unread: Option<SensorFrame>,
     last_at: Option<Instant>,
     pending: Vec<String>,
@@ -294,6 +321,9 @@ impl RcssPlatform {
         let shared: SharedState = Arc::new((
             Mutex::new(Shared {
                 controller,
+                sim_time: None,
+                tilted: false,
+                falls: Vec::new(),
                 unread: None,
                 last_at: None,
                 pending: Vec::new(),
@@ -407,6 +437,11 @@ impl RcssPlatform {
         lock(&self.shared).stats
     }
 
+    /// Every fall since `connect`, with the protective-fall order's latency.
+    pub fn falls(&self) -> Vec<FallRecord> {
+        lock(&self.shared).falls.clone()
+    }
+
     pub fn address(&self) -> &str {
         &self.address
     }
@@ -490,6 +525,16 @@ impl Platform for RcssPlatform {
         let mut shared = lock(&self.shared);
         if let Some(reason) = &shared.disconnected {
             return Err(PlatformError::Disconnected(reason.clone()));
+        }
+        let fall_ordered =
+            matches!(orders.body, Some(BodyOrder::Special { motion: SpecialMotion::Fall(_) }));
+        let time = shared.sim_time;
+        if fall_ordered
+            && let Some(fall) = shared.falls.last_mut()
+            && fall.ordered.is_none()
+        {
+            fall.ordered = time;
+            fall.latency = fall.onset_at.map(|at| at.elapsed().as_secs_f64());
         }
         shared.controller.apply(orders)
     }
@@ -654,7 +699,21 @@ fn cycle(
     if let Some(game) = &perception.game {
         *session.game.lock().unwrap_or_else(PoisonError::into_inner) = Some(game.clone());
     }
+    let [roll, pitch] = orientation.roll_pitch();
+    let tilted = roll.hypot(pitch) > FALL_ONSET_TILT;
     let mut guard = lock(shared);
+    if let Some(time) = perception.time {
+        guard.sim_time = Some(time);
+        if tilted && !guard.tilted {
+            guard.falls.push(FallRecord {
+                onset: time,
+                ordered: None,
+                latency: None,
+                onset_at: Some(arrived),
+            });
+        }
+    }
+    guard.tilted = tilted;
     let commands = guard.controller.step(measured);
     guard.stats.perceptions += 1;
     if frame.camera.is_some() {

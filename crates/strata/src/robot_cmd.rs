@@ -31,7 +31,7 @@ use strata::logging::{RobotRunConfig, open_run_log};
 use strata::matches::LayerRate;
 use strata_log::{ConfigFormat, LogCompression, McapTap, McapTapOptions, RunInfo, WhenFull};
 use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
-use strata_rcssmj::platform::{RcssConfig, RcssPlatform, TruthSource};
+use strata_rcssmj::platform::{FALL_ONSET_TILT, FallRecord, RcssConfig, RcssPlatform, TruthSource};
 use strata_rcssmj::referee::TeamNumbers;
 use strata_robot::assembly::RobotModules;
 use strata_robot::geometry::normalize_angle;
@@ -467,7 +467,12 @@ pub fn run(args: RobotArgs) -> Result<()> {
         &modules,
         stats,
     );
-    let report = Report { localization: accuracy.and_then(|a| a.snapshot()), ..report };
+    let falls = platform
+        .t1
+        .as_ref()
+        .map(|t1| t1.lock().unwrap_or_else(PoisonError::into_inner).inner.falls())
+        .unwrap_or_default();
+    let report = Report { localization: accuracy.and_then(|a| a.snapshot()), falls, ..report };
     out.report(&report);
     match failure {
         Some(error) => Err(error).context("a module of the robot failed"),
@@ -702,6 +707,7 @@ struct OpenPlatform {
     nao: Option<Arc<Mutex<Observed<LolaPlatform>>>>,
     /// Where the robot really is, on platforms that know it (for the accuracy report only).
     truth: Option<TruthSource>,
+    t1: Option<Arc<Mutex<Observed<RcssPlatform>>>>,
 }
 
 fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
@@ -732,6 +738,7 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
                 }),
                 nao: None,
                 truth: None,
+                t1: None,
             })
         }
         PlatformKind::Nao => {
@@ -758,6 +765,7 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
                 links: None,
                 nao: Some(nao),
                 truth: None,
+                t1: None,
             })
         }
         PlatformKind::Rcssservermj => {
@@ -784,8 +792,8 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
             let info = t1.info();
             let referee = t1.referee_link(TeamNumbers::new(args.team), MAX_NUM_PLAYERS as u8);
             let truth = t1.truth_source();
-            let shared: SharedPlatform =
-                Arc::new(Mutex::new(Observed { inner: t1, counters: Arc::clone(&counters) }));
+            let t1 = Arc::new(Mutex::new(Observed { inner: t1, counters: Arc::clone(&counters) }));
+            let shared: SharedPlatform = t1.clone();
             Ok(OpenPlatform {
                 shared,
                 info,
@@ -794,6 +802,7 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
                 links: Some(PlatformLinks { team_link: None, game_controller: Box::new(referee) }),
                 nao: None,
                 truth: Some(truth),
+                t1: Some(t1),
             })
         }
     }
@@ -1103,6 +1112,10 @@ struct Report {
     /// Self-localization against the platform's ground truth (rcssservermj only).
     #[serde(skip_serializing_if = "Option::is_none")]
     localization: Option<LocalizationAccuracy>,
+    /// Falls in the server's time: the ground-truth onset and the protective-fall order
+    /// (rcssservermj only).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    falls: Vec<FallRecord>,
 }
 
 impl Report {
@@ -1152,6 +1165,7 @@ impl Report {
                 .collect(),
             host,
             localization: None,
+            falls: Vec::new(),
         }
     }
 }
@@ -1283,6 +1297,22 @@ impl Output {
                 l.estimate[0],
                 l.estimate[1]
             );
+        }
+        for fall in &report.falls {
+            match fall.latency {
+                Some(latency) => println!(
+                    "{}: fall at {:.2} s (server time): protective fall ordered {:.0} ms after the onset",
+                    self.name,
+                    fall.onset,
+                    latency * 1e3
+                ),
+                None => println!(
+                    "{}: tilt past {:.0} degrees at {:.2} s (server time): no protective fall ordered",
+                    self.name,
+                    FALL_ONSET_TILT.to_degrees(),
+                    fall.onset
+                ),
+            }
         }
         println!(
             "{}: game states followed: {}",
