@@ -665,86 +665,9 @@ impl Body {
                     Activity::Walking { stage: CycleStage::End, elapsed }
                 };
             }
-            Activity::Special(mut run) => {
-                self.velocity = Velocity::ZERO;
-                let before = run.elapsed;
-                run.elapsed += dt;
-                let progress = (run.elapsed / run.duration).clamp(0.0, 1.0);
-                match &mut run.kind {
-                    SpecialKind::Kick { index, contacted } => {
-                        let contact = config.kicks.get(*index).map_or(0.5, |k| k.contact_time);
-                        if !*contacted && before < contact && run.elapsed >= contact {
-                            *contacted = true;
-                            events.kick_contact = Some(*index);
-                        }
-                        // The kicking leg swings the torso forward and back.
-                        self.posture_direction = FallDirection::Front;
-                        self.posture_tilt = 0.06 * (PI * progress).sin();
-                    }
-                    SpecialKind::StandUp { succeeds, direction, start_tilt } => {
-                        self.posture_direction = *direction;
-                        self.posture_tilt = if *succeeds || progress < 0.6 {
-                            *start_tilt * (1.0 - smoothstep(progress))
-                        } else {
-                            // It gets halfway up and falls back.
-                            let at_failure = *start_tilt * (1.0 - smoothstep(0.6));
-                            let back = smoothstep((progress - 0.6) / 0.2);
-                            at_failure + (config.fall.lying_tilt - at_failure) * back
-                        };
-                    }
-                    SpecialKind::ProtectiveFall { direction, start_tilt } => {
-                        self.posture_direction = *direction;
-                        let s = progress * progress;
-                        self.posture_tilt =
-                            *start_tilt + (config.fall.lying_tilt - *start_tilt) * s;
-                        self.accel_scale = 1.0 - 0.5 * s;
-                    }
-                    SpecialKind::Dive { index } => {
-                        if let Some(dive) = config.dives.get(*index) {
-                            let down = (run.elapsed / (dive.block_time * 1.5)).min(1.0);
-                            match dive.side {
-                                DiveSide::Left | DiveSide::Right => {
-                                    self.posture_direction = if dive.side == DiveSide::Left {
-                                        FallDirection::Left
-                                    } else {
-                                        FallDirection::Right
-                                    };
-                                    self.posture_tilt = config.fall.lying_tilt * smoothstep(down);
-                                }
-                                DiveSide::Both => {
-                                    // Sits down into a wide stance and gets up again.
-                                    self.posture_direction = FallDirection::Back;
-                                    self.posture_tilt = 0.35 * (PI * progress).sin();
-                                }
-                            }
-                            if run.elapsed >= dive.block_time {
-                                events.dive_block = Some((dive.side, dive.reach));
-                            }
-                        }
-                    }
-                }
-                if run.elapsed >= run.duration {
-                    self.finish_special(run, config, noise, rng, events);
-                } else {
-                    self.activity = Activity::Special(run);
-                }
-            }
+            Activity::Special(run) => self.update_special(run, dt, config, noise, rng, events),
             Activity::Falling { direction, elapsed, tilt0 } => {
-                self.velocity = Velocity::ZERO;
-                let elapsed = elapsed + dt;
-                let lying = config.fall.lying_tilt;
-                let duration = config.fall.duration;
-                let tau = duration / (lying / tilt0).max(1.0 + 1e-9).acosh();
-                let progress = (elapsed / duration).min(1.0);
-                self.posture_direction = direction;
-                self.posture_tilt = (tilt0 * (elapsed / tau).cosh()).min(lying);
-                // Falling is partly free fall: the accelerometer sees less than gravity.
-                self.accel_scale = 1.0 - 0.6 * progress * progress;
-                if elapsed >= duration {
-                    self.land(direction, config, events, elapsed);
-                } else {
-                    self.activity = Activity::Falling { direction, elapsed, tilt0 };
-                }
+                self.update_falling(direction, elapsed, tilt0, dt, config, events);
             }
             Activity::Fallen { direction } => {
                 self.velocity = Velocity::ZERO;
@@ -754,6 +677,106 @@ impl Body {
                     self.start_special(motion, config, Some((rng, noise.falls.stand_up_failure)));
                 }
             }
+        }
+    }
+
+    /// A special motion's step: its posture, its kick contact or dive block, its end.
+    fn update_special(
+        &mut self,
+        mut run: SpecialRun,
+        dt: f64,
+        config: &RobotConfig,
+        noise: &NoiseParams,
+        rng: &mut Stream,
+        events: &mut BodyEvents,
+    ) {
+        self.velocity = Velocity::ZERO;
+        let before = run.elapsed;
+        run.elapsed += dt;
+        let progress = (run.elapsed / run.duration).clamp(0.0, 1.0);
+        match &mut run.kind {
+            SpecialKind::Kick { index, contacted } => {
+                let contact = config.kicks.get(*index).map_or(0.5, |k| k.contact_time);
+                if !*contacted && before < contact && run.elapsed >= contact {
+                    *contacted = true;
+                    events.kick_contact = Some(*index);
+                }
+                // The kicking leg swings the torso forward and back.
+                self.posture_direction = FallDirection::Front;
+                self.posture_tilt = 0.06 * (PI * progress).sin();
+            }
+            SpecialKind::StandUp { succeeds, direction, start_tilt } => {
+                self.posture_direction = *direction;
+                self.posture_tilt = if *succeeds || progress < 0.6 {
+                    *start_tilt * (1.0 - smoothstep(progress))
+                } else {
+                    // It gets halfway up and falls back.
+                    let at_failure = *start_tilt * (1.0 - smoothstep(0.6));
+                    let back = smoothstep((progress - 0.6) / 0.2);
+                    at_failure + (config.fall.lying_tilt - at_failure) * back
+                };
+            }
+            SpecialKind::ProtectiveFall { direction, start_tilt } => {
+                self.posture_direction = *direction;
+                let s = progress * progress;
+                self.posture_tilt = *start_tilt + (config.fall.lying_tilt - *start_tilt) * s;
+                self.accel_scale = 1.0 - 0.5 * s;
+            }
+            SpecialKind::Dive { index } => {
+                if let Some(dive) = config.dives.get(*index) {
+                    let down = (run.elapsed / (dive.block_time * 1.5)).min(1.0);
+                    match dive.side {
+                        DiveSide::Left | DiveSide::Right => {
+                            self.posture_direction = if dive.side == DiveSide::Left {
+                                FallDirection::Left
+                            } else {
+                                FallDirection::Right
+                            };
+                            self.posture_tilt = config.fall.lying_tilt * smoothstep(down);
+                        }
+                        DiveSide::Both => {
+                            // Sits down into a wide stance and gets up again.
+                            self.posture_direction = FallDirection::Back;
+                            self.posture_tilt = 0.35 * (PI * progress).sin();
+                        }
+                    }
+                    if run.elapsed >= dive.block_time {
+                        events.dive_block = Some((dive.side, dive.reach));
+                    }
+                }
+            }
+        }
+        if run.elapsed >= run.duration {
+            self.finish_special(run, config, noise, rng, events);
+        } else {
+            self.activity = Activity::Special(run);
+        }
+    }
+
+    /// An unprotected fall's step, until the body lands.
+    fn update_falling(
+        &mut self,
+        direction: FallDirection,
+        elapsed: f64,
+        tilt0: f64,
+        dt: f64,
+        config: &RobotConfig,
+        events: &mut BodyEvents,
+    ) {
+        self.velocity = Velocity::ZERO;
+        let elapsed = elapsed + dt;
+        let lying = config.fall.lying_tilt;
+        let duration = config.fall.duration;
+        let tau = duration / (lying / tilt0).max(1.0 + 1e-9).acosh();
+        let progress = (elapsed / duration).min(1.0);
+        self.posture_direction = direction;
+        self.posture_tilt = (tilt0 * (elapsed / tau).cosh()).min(lying);
+        // Falling is partly free fall: the accelerometer sees less than gravity.
+        self.accel_scale = 1.0 - 0.6 * progress * progress;
+        if elapsed >= duration {
+            self.land(direction, config, events, elapsed);
+        } else {
+            self.activity = Activity::Falling { direction, elapsed, tilt0 };
         }
     }
 

@@ -583,6 +583,12 @@ impl Camera<'_> {
             }
         }
 
+        self.false_positive(rng, out);
+    }
+
+    /// Now and then an object that is not there.
+    fn false_positive(&self, rng: &mut Stream, out: &mut Vec<Detection>) {
+        let config = self.config;
         if rng.chance(self.noise.false_positive_rate) {
             const GHOSTS: [ObjectKind; 6] = [
                 ObjectKind::Ball,

@@ -566,12 +566,27 @@ impl SimConfig {
     /// Checks every value; the error names the key.
     pub fn validate(&self, source_name: &str) -> Result<(), ConfigError> {
         let v = Validator { source_name };
+        self.validate_timing(&v)?;
+        self.validate_robot(&v)?;
+        self.validate_ball(&v)?;
+        self.validate_noise(&v)?;
+        self.validate_referee(&v)?;
+        self.validate_broadcast(&v)?;
+        Ok(())
+    }
+
+    /// The periods of the simulation loop.
+    fn validate_timing(&self, v: &Validator<'_>) -> Result<(), ConfigError> {
         let t = &self.timing;
         v.positive("timing.sensor_period", t.sensor_period)?;
         v.positive("timing.camera_period", t.camera_period)?;
         v.positive("timing.max_substep", t.max_substep)?;
         v.positive("timing.ground_truth_period", t.ground_truth_period)?;
+        Ok(())
+    }
 
+    /// The robot's body, camera and motion catalogue.
+    fn validate_robot(&self, v: &Validator<'_>) -> Result<(), ConfigError> {
         let r = &self.robot;
         v.positive("robot.radius", r.radius)?;
         v.positive("robot.mass", r.mass)?;
@@ -632,7 +647,11 @@ impl SimConfig {
         if catalogue_len.iter().chain([&r.dives.len()]).any(|&n| n > 256) {
             return Err(v.invalid("robot motions", "at most 256 of each kind", "more"));
         }
+        Ok(())
+    }
 
+    /// The ball's physics.
+    fn validate_ball(&self, v: &Validator<'_>) -> Result<(), ConfigError> {
         let b = &self.ball;
         v.positive("ball.radius", b.radius)?;
         v.non_negative("ball.friction", b.friction)?;
@@ -640,7 +659,11 @@ impl SimConfig {
         v.range("ball.restitution_posts", b.restitution_posts, 0.0, 1.0)?;
         v.range("ball.restitution_robots", b.restitution_robots, 0.0, 1.0)?;
         v.positive("ball.max_speed", b.max_speed)?;
+        Ok(())
+    }
 
+    /// The noise parameters, as resolved.
+    fn validate_noise(&self, v: &Validator<'_>) -> Result<(), ConfigError> {
         let noise = self.noise.resolve();
         for (name, value) in noise.values() {
             let key = format!("noise.{name}");
@@ -657,7 +680,11 @@ impl SimConfig {
                 v.non_negative(&key, value)?;
             }
         }
+        Ok(())
+    }
 
+    /// The referee: teams, players, durations, formation, packets.
+    fn validate_referee(&self, v: &Validator<'_>) -> Result<(), ConfigError> {
         let f = &self.referee;
         if f.players_per_team == 0
             || usize::from(f.players_per_team) > strata_spl::gamecontroller::MAX_NUM_PLAYERS
@@ -719,7 +746,11 @@ impl SimConfig {
         }
         v.positive("referee.packet_rate", f.packet_rate)?;
         v.range("referee.packet_loss", f.packet_loss, 0.0, 1.0)?;
+        Ok(())
+    }
 
+    /// The team-message broadcast.
+    fn validate_broadcast(&self, v: &Validator<'_>) -> Result<(), ConfigError> {
         let c = &self.broadcast;
         v.range("broadcast.loss", c.loss, 0.0, 1.0)?;
         v.non_negative("broadcast.delay", c.delay)?;

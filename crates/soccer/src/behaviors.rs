@@ -26,7 +26,7 @@ use strata_robot::control::bt::{
 use strata_robot::control::deliberative::{
     DeliberativeInput, DeliberativeOutput, DeliberativePolicy,
 };
-use strata_robot::control::hsm::{BuildError, State, StateMachine};
+use strata_robot::control::hsm::{BuildError, Builder, State, StateMachine};
 use strata_robot::control::planning_module::PlanningDecision;
 use strata_robot::control::reactive::Stability;
 use strata_robot::control::scores::{GoalScore, ScoreVector};
@@ -592,8 +592,15 @@ fn should_clear(ctx: &Ctx) -> bool {
 // The machine.
 
 fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
-    let mut builder = StateMachine::builder().initial(S::Initial);
-    // Top level: follow the game state.
+    let builder = StateMachine::builder().initial(S::Initial);
+    let builder = game_states(builder, goalie);
+    let builder = goalie_states(builder);
+    let builder = field_player_states(builder);
+    builder.build()
+}
+
+/// The top level, which follows the game state.
+fn game_states(mut builder: Builder<S, Ctx>, goalie: bool) -> Builder<S, Ctx> {
     let top_names = [
         (S::Initial, "Initial"),
         (S::Ready, "Ready"),
@@ -633,8 +640,12 @@ fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
         };
         builder = builder.state(s);
     }
-    // Goalie playing.
-    builder = builder
+    builder
+}
+
+/// Playing as the goalie: goal covering and clearing.
+fn goalie_states(builder: Builder<S, Ctx>) -> Builder<S, Ctx> {
+    builder
         .state(
             State::new(S::GoaliePlaying)
                 .name("Goalie playing")
@@ -688,8 +699,11 @@ fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
                 .parent(S::GoaliePlaying)
                 .transition(|ctx: &Ctx, _| !should_clear(ctx), S::GoalCovering)
                 .behavior(|ctx: &mut Ctx, _| go_to_ball(ctx)),
-        );
-    // Field playing.
+        )
+}
+
+/// Playing as a field player: one state per field role.
+fn field_player_states(mut builder: Builder<S, Ctx>) -> Builder<S, Ctx> {
     let mut field_playing = State::new(S::FieldPlaying)
         .name("Field playing")
         .parent(S::Playing)
@@ -752,7 +766,7 @@ fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
         };
         builder = builder.state(s);
     }
-    builder.build()
+    builder
 }
 
 /// Soccer's deliberative layer.

@@ -2,7 +2,17 @@
 //! robot-pose filter fed by the landmark filters. Plain data and methods, no threads: the
 //! world-modeling module is a thin shell around it.
 
+mod association;
+mod confidence;
+mod localization;
+mod publication;
+mod team_objects;
+
 use std::ops::Range;
+
+use association::{Assignment, Gaussian2, Measured, Pending};
+use confidence::bayes_detect;
+use localization::KidnapDetector;
 
 use nalgebra::{Matrix2, Matrix3, Vector2};
 use serde::{Deserialize, Serialize};
@@ -13,27 +23,19 @@ use super::config::{
     validate_hint, validate_pose_prior,
 };
 use super::expected::{BeliefView, ExpectedBelief, ObjectPrior, SensingCandidate};
-use super::math::{
-    BearingBound, RangeBearing, chi2_2dof_quantile, major_sigma, polar, sigma_radius,
-};
+use super::math::{chi2_2dof_quantile, major_sigma};
 use super::object::{GainedInformation, MotionModel, ObjectFilter, innovation_at};
 use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
 use super::pose::PoseFilter;
-use super::published::{
-    Estimate, PoseFrame, Track as PublishedTrack, UNKNOWN_VARIANCE, derive, field_estimate_with,
-    map_prediction_from,
-};
-use super::recovery::{MapInstance, RecoveryInput, RecoveryOutcome, Sighting, TeamCue, recover};
+use super::published::{UNKNOWN_VARIANCE, field_estimate_with, map_prediction_from};
 use super::state::{
-    LostReason, MapAccuracy, ObjectCategory, ObjectEstimate, ObjectId, ObjectInfo, ObjectName,
-    PoseEstimate, WorldDiagnostics, WorldLayout, WorldState,
+    LostReason, ObjectCategory, ObjectEstimate, ObjectId, ObjectInfo, ObjectName, WorldDiagnostics,
+    WorldLayout,
 };
-use super::team::{
-    FusionCandidate, Source, TeamError, TeamFusion, TeamObject, TeammateEstimate, fuse,
-};
-use crate::geometry::{Field, Odometry, Point, Pose, Vector};
-use crate::percept::{CameraPercepts, Observation, Percepts, ViewCone};
-use crate::platform::{FootContact, ObjectClass};
+use super::team::{FusionCandidate, TeamFusion, TeamObject};
+use crate::geometry::{Field, Odometry, Point, Pose};
+use crate::percept::{CameraPercepts, Observation, Percepts};
+use crate::platform::ObjectClass;
 
 /// What the application can tell world modeling at run time.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -51,9 +53,6 @@ pub enum WorldCommand {
 
 /// Innovations of a moving object above this (chi-square, 2 dof, 97.5%) suggest a maneuver.
 const MANEUVER_GATE: f64 = 7.38;
-/// Objects closer than this are not expected to be seen (below the camera), m.
-const MIN_VISIBLE_RANGE: f64 = 0.2;
-
 #[derive(Clone, Debug)]
 struct Group {
     name: ObjectName,
@@ -73,13 +72,6 @@ impl Group {
     fn accepts(&self, obs: &Observation) -> bool {
         obs.class == self.class && (self.variant.is_none() || obs.variant == self.variant)
     }
-}
-
-/// A rejected observation kept for a while: several consistent ones restart a track.
-#[derive(Clone, Copy, Debug)]
-struct Pending {
-    position: Vector2<f64>,
-    stamp: Time,
 }
 
 #[derive(Clone, Debug)]
@@ -110,34 +102,6 @@ struct FrameGain {
     prior: Option<LandmarkShift>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Assignment {
-    Open,
-    Taken,
-    /// Fits several instances of this group about equally well.
-    Ambiguous(usize),
-}
-
-/// A position estimate (robot frame) and its covariance.
-type Gaussian2 = (Vector2<f64>, Matrix2<f64>);
-
-/// One observation of an image, ready for association: the group that accepts it, and the
-/// measured point with its noise in the robot frame. Converted from range and bearing once per
-/// image: gating, the update, a new track and the pose filter all use the same conversion
-/// (each costs a sine and cosine of the bearing).
-#[derive(Clone, Copy, Debug)]
-struct Measured {
-    group: usize,
-    position: Vector2<f64>,
-    noise: Matrix2<f64>,
-}
-
-impl Measured {
-    fn gained(&self) -> GainedInformation {
-        GainedInformation { position: self.position, covariance: self.noise }
-    }
-}
-
 /// Buffers reused from frame to frame (no allocation in the steady state).
 #[derive(Clone, Debug, Default)]
 struct Scratch {
@@ -151,34 +115,6 @@ struct Scratch {
     priors: Vec<Option<Option<Gaussian2>>>,
     /// Team fusion's candidates.
     candidates: Vec<FusionCandidate>,
-}
-
-#[derive(Clone, Debug, Default)]
-struct KidnapDetector {
-    consecutive: usize,
-    slots: Vec<usize>,
-    /// When the current run of disagreements started.
-    since: Option<Time>,
-}
-
-impl KidnapDetector {
-    fn accept(&mut self) {
-        self.consecutive = 0;
-        self.slots.clear();
-        self.since = None;
-    }
-
-    fn reject(&mut self, slot: usize, now: Time) {
-        self.consecutive += 1;
-        self.since.get_or_insert(now);
-        if !self.slots.contains(&slot) {
-            self.slots.push(slot);
-        }
-    }
-
-    fn triggered(&self, needed: usize) -> bool {
-        self.consecutive >= needed && self.slots.len() >= 2
-    }
 }
 
 /// The world model: object filters, the robot-pose filter, confidence, map accuracy, the
@@ -214,27 +150,6 @@ pub struct WorldModel {
     /// Object lists this model published, newest last: one no reader holds any more is
     /// written over by the next publication instead of allocating another.
     published: Vec<std::sync::Arc<[ObjectEstimate]>>,
-}
-
-/// How many published object lists [`WorldModel::publish`] keeps for reuse: readers hold the
-/// newest (Latest) and sometimes the one before for a while, and a log's writer those it has
-/// not written yet (a match's lockstep log holds up to about half a simulated second).
-const PUBLISHED_LISTS: usize = 32;
-
-/// What every object of one publication shares.
-#[derive(Clone, Copy, Debug)]
-struct PublicationFrame {
-    stamp: Time,
-    pose: PoseFrame,
-    max_age: f64,
-}
-
-fn bayes_detect(e: f64, pd: f64, pf: f64) -> f64 {
-    e * pd / (e * pd + (1.0 - e) * pf)
-}
-
-fn bayes_miss(e: f64, pd: f64) -> f64 {
-    e * (1.0 - pd) / (e * (1.0 - pd) + (1.0 - e))
 }
 
 impl WorldModel {
@@ -513,16 +428,6 @@ impl WorldModel {
         self.check_lift(&percepts.foot_contact);
     }
 
-    fn check_lift(&mut self, contact: &FootContact) {
-        let Some(threshold) = self.config.pose.kidnap_on_lift else { return };
-        if !contact.on_ground(threshold) {
-            self.lifted = true;
-        } else if self.lifted {
-            self.lifted = false;
-            self.declare_kidnapped();
-        }
-    }
-
     // ----- correction -------------------------------------------------------------------
 
     /// Corrects the filters with one camera image's observations (paper 3.1): each object
@@ -550,125 +455,10 @@ impl WorldModel {
         self.finish_frame(true);
     }
 
-    fn measurement(&self, obs: &Observation) -> Option<RangeBearing> {
-        let camera = &self.config.camera;
-        let (range_sigma, bearing_sigma) = camera.sigmas(obs.range);
-        let usable = |s: f64| s.is_finite() && s > 0.0;
-        let z = if camera.use_percept_sigmas && usable(obs.range_sigma) && usable(obs.bearing_sigma)
-        {
-            RangeBearing {
-                range: obs.range,
-                bearing: obs.bearing,
-                range_sigma: obs.range_sigma,
-                bearing_sigma: obs.bearing_sigma,
-            }
-        } else {
-            RangeBearing { range: obs.range, bearing: obs.bearing, range_sigma, bearing_sigma }
-        };
-        z.is_valid().then_some(z)
-    }
-
     /// Where the pose and the map put a landmark instance (robot frame), with covariance.
     fn map_prediction(&self, slot: usize) -> Option<(Vector2<f64>, Matrix2<f64>)> {
         let pose = self.pose_usable()?;
         Some(map_prediction_at(pose, pose.heading_sin_cos(), self.slots[slot].map_position?))
-    }
-
-    /// What association compares an observation with: the filter's position estimate, or
-    /// where the pose and the map put an untracked landmark instance.
-    fn association_prior(
-        &self,
-        slot: usize,
-        pose: Option<&(PoseFilter, (f64, f64))>,
-    ) -> Option<(Vector2<f64>, Matrix2<f64>)> {
-        let slot = &self.slots[slot];
-        match &slot.track {
-            Some(track) => {
-                Some((track.filter.position_vector(), track.filter.position_covariance()))
-            }
-            None => {
-                let (pose, heading) = pose?;
-                Some(map_prediction_at(pose, *heading, slot.map_position?))
-            }
-        }
-    }
-
-    /// Associates one image's observations with the object filters (global nearest neighbour:
-    /// each filter takes at most one observation per image, best fits first, so a false
-    /// positive next to the real object does not also correct it), then corrects them.
-    fn associate_frame(&mut self, observations: &[Observation], now: Time) {
-        let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.measurements.clear();
-        scratch.pairs.clear();
-        // Nothing changes until every candidate pair is scored: each filter's prior (or map
-        // prediction) is worked out once per image, each observation converted once.
-        scratch.priors.clear();
-        scratch.priors.resize(self.slots.len(), None);
-        let pose = self.pose_usable().map(|p| (p.clone(), p.heading_sin_cos()));
-        for (i, obs) in observations.iter().enumerate() {
-            self.diagnostics.observations += 1;
-            let z = self.measurement(obs);
-            let group = self.groups.iter().position(|g| g.accepts(obs));
-            let (Some(z), Some(group)) = (z, group) else {
-                self.diagnostics.ignored += 1;
-                scratch.measurements.push(None);
-                continue;
-            };
-            let (measured, noise) = (z.cartesian(), z.cartesian_noise());
-            scratch.measurements.push(Some(Measured { group, position: measured, noise }));
-            for g in self.groups.iter().filter(|g| g.accepts(obs)) {
-                for slot in g.slots.clone() {
-                    let prior = *scratch.priors[slot]
-                        .get_or_insert_with(|| self.association_prior(slot, pose.as_ref()));
-                    if let Some((position, covariance)) = prior
-                        && let Some(innovation) =
-                            innovation_at(position, &covariance, measured, &noise)
-                        && innovation.nis <= self.gate
-                    {
-                        scratch.pairs.push((innovation.cost(), i, slot));
-                    }
-                }
-            }
-        }
-        scratch.pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-        scratch.observation_done.clear();
-        scratch.observation_done.resize(observations.len(), Assignment::Open);
-        scratch.slot_taken.clear();
-        scratch.slot_taken.resize(self.slots.len(), false);
-        let margin = self.config.association.ambiguity_margin;
-        for k in 0..scratch.pairs.len() {
-            let (cost, i, slot) = scratch.pairs[k];
-            if scratch.observation_done[i] != Assignment::Open || scratch.slot_taken[slot] {
-                continue;
-            }
-            let second = scratch
-                .pairs
-                .iter()
-                .filter(|&&(_, j, s)| j == i && s != slot && !scratch.slot_taken[s])
-                .map(|p| p.0)
-                .fold(f64::INFINITY, f64::min);
-            if second - cost < margin {
-                scratch.observation_done[i] = Assignment::Ambiguous(self.slots[slot].group);
-                continue;
-            }
-            scratch.observation_done[i] = Assignment::Taken;
-            scratch.slot_taken[slot] = true;
-            if let Some(m) = scratch.measurements[i] {
-                self.associate(slot, &m, now);
-            }
-        }
-        for (i, m) in scratch.measurements.iter().enumerate() {
-            let Some(m) = m else { continue };
-            match scratch.observation_done[i] {
-                Assignment::Taken => {}
-                Assignment::Ambiguous(g) => {
-                    self.diagnostics.ambiguous += 1;
-                    self.reject(g, m, now);
-                }
-                Assignment::Open => self.reject(m.group, m, now),
-            }
-        }
-        self.scratch = scratch;
     }
 
     fn associate(&mut self, slot: usize, m: &Measured, now: Time) {
@@ -731,237 +521,11 @@ impl WorldModel {
         self.diagnostics.associated += 1;
     }
 
-    fn start_track(
-        &mut self,
-        slot: usize,
-        m: &Measured,
-        now: Time,
-        model: MotionModel,
-        velocity_sigma: f64,
-    ) {
-        self.slots[slot].track = Some(Track {
-            filter: ObjectFilter::from_converted(m.position, m.noise, velocity_sigma, model),
-            lag: Lag::default(),
-            existence: self.config.confidence.initial_existence,
-            last_seen: now,
-            updated: true,
-        });
-    }
-
-    fn is_stale(&self, slot: usize, now: Time) -> bool {
-        self.slots[slot].track.as_ref().is_none_or(|t| {
-            (now - t.last_seen).as_secs_f64() > self.config.association.reinit_window
-        })
-    }
-
-    fn reject(&mut self, g: usize, m: &Measured, now: Time) {
-        self.diagnostics.rejected += 1;
-        let position = m.position;
-        let group = &self.groups[g];
-        let (model, velocity_sigma, category) = (group.model, group.velocity_sigma, group.category);
-        // A mobile object or obstacle nobody follows starts at once (a false positive dies of
-        // negative information); a free landmark instance waits for consistent observations,
-        // which keeps false positives out of recovery.
-        if category != ObjectCategory::Landmark
-            && let Some(free) = group.slots.clone().find(|&s| self.slots[s].track.is_none())
-        {
-            self.start_track(free, m, now, model, velocity_sigma);
-            self.diagnostics.reinitialized += 1;
-            return;
-        }
-        let radius = self.config.association.reinit_radius;
-        let group = &mut self.groups[g];
-        group.pending.push(Pending { position, stamp: now });
-        let (consistent, since) = group
-            .pending
-            .iter()
-            .filter(|p| (p.position - position).norm() <= radius)
-            .fold((0, now), |(n, t), p| (n + 1, t.min(p.stamp)));
-        if consistent < self.config.association.reinit_observations {
-            return;
-        }
-        group.pending.retain(|p| (p.position - position).norm() > radius);
-        let Some(slot) = self.reinit_slot(g, m, now, since) else {
-            if category == ObjectCategory::Landmark && self.pose_usable().is_some() {
-                // Consistent observations of a landmark where the map and the pose put none:
-                // a persistent false positive, or the robot is not where it believes.
-                self.kidnap.reject(usize::MAX - g, now);
-                if self.kidnap.triggered(self.config.pose.kidnap_rejections) {
-                    self.declare_kidnapped();
-                }
-            }
-            return;
-        };
-        self.slots[slot].track = None;
-        self.diagnostics.reinitialized += 1;
-        self.diagnostics.associated += 1;
-        self.start_track(slot, m, now, model, velocity_sigma);
-        if category == ObjectCategory::Landmark {
-            self.frame_gains.push(FrameGain { slot, gained: m.gained(), prior: None });
-        }
-    }
-
-    /// Which filter a cluster of consistent rejected observations, the oldest made at `since`,
-    /// restarts. A mobile object or obstacle confirmed since then is really elsewhere: the
-    /// cluster was clutter.
-    fn reinit_slot(&self, g: usize, m: &Measured, now: Time, since: Time) -> Option<usize> {
-        let group = &self.groups[g];
-        let unconfirmed =
-            |s: usize| self.slots[s].track.as_ref().is_none_or(|t| t.last_seen < since);
-        match group.category {
-            ObjectCategory::Mobile => Some(group.slots.start).filter(|&s| unconfirmed(s)),
-            ObjectCategory::Obstacle => group
-                .slots
-                .clone()
-                .filter(|&s| unconfirmed(s))
-                .min_by(|&a, &b| self.confidence(a).total_cmp(&self.confidence(b))),
-            ObjectCategory::Landmark => {
-                let eligible = group.slots.clone().filter(|&s| self.is_stale(s, now));
-                if self.pose_usable().is_some() {
-                    // The instance the pose and the map make most likely, if any fits.
-                    eligible
-                        .filter_map(|s| {
-                            let (l, cov) = self.map_prediction(s)?;
-                            let i = innovation_at(l, &cov, m.position, &m.noise)?;
-                            (i.nis <= self.gate).then_some((s, i.cost()))
-                        })
-                        .min_by(|a, b| a.1.total_cmp(&b.1))
-                        .map(|(s, _)| s)
-                } else {
-                    // Lost: any label will do, recovery relabels the instances.
-                    eligible.min_by_key(|&s| {
-                        self.slots[s]
-                            .track
-                            .as_ref()
-                            .map_or(0, |t| t.last_seen.as_nanos().saturating_add(1))
-                    })
-                }
-            }
-        }
-    }
-
-    /// Objects predicted well inside the view that were not seen: less likely to be there,
-    /// and a little less certain where they are.
-    fn negative_information(&mut self, view: &ViewCone) {
-        let k = self.config.confidence;
-        let bearing_bound = BearingBound::new(view, k.view_margin);
-        for slot in &mut self.slots {
-            let Some(track) = &mut slot.track else { continue };
-            if track.updated {
-                continue;
-            }
-            // Too close, beyond the camera's range or outside its bearings whatever the
-            // uncertainty (the tests below only get stricter): no need for the bearing's
-            // trigonometry.
-            let position = track.filter.position_vector();
-            let range = position.norm();
-            if range < MIN_VISIBLE_RANGE
-                || range > view.range
-                || bearing_bound.certainly_outside(position, range)
-            {
-                continue;
-            }
-            let (z, h) = polar(position);
-            let s = h * track.filter.position_covariance() * h.transpose();
-            let (sr, sb) = (s[(0, 0)].max(0.0).sqrt(), s[(1, 1)].max(0.0).sqrt());
-            if z.x < MIN_VISIBLE_RANGE || z.x + 2.0 * sr > view.range {
-                continue;
-            }
-            let margin = k.view_margin + 2.0 * sb;
-            if !view.contains_polar(track.filter.position().range(), z.y, margin) {
-                continue;
-            }
-            track.existence = bayes_miss(track.existence, k.detection_probability)
-                .clamp(k.min_existence, k.max_existence);
-            track.filter.inflate(k.miss_inflation);
-        }
-    }
-
     fn estimate_odometry_error(&mut self) {
         let shifts = &mut self.scratch.shifts;
         shifts.clear();
         shifts.extend(self.frame_gains.iter().filter_map(|g| g.prior));
         self.odometry_error.observe(shifts);
-    }
-
-    /// The pose filter's correction: the landmark filters' estimates as observations (only
-    /// what each gained in this frame, so no observation counts twice).
-    fn correct_pose(&mut self, now: Time) {
-        if self.pose_usable().is_none() {
-            return;
-        }
-        let gains = std::mem::take(&mut self.frame_gains);
-        for gain in &gains {
-            let Some(map) = self.slots[gain.slot].map_position else { continue };
-            let Some(pose) = self.pose.as_ref() else { break };
-            let fits =
-                pose.landmark_innovation(map, &gain.gained).is_some_and(|i| i.nis <= self.gate);
-            if fits {
-                if let Some(pose) = self.pose.as_mut()
-                    && pose.update_landmark(map, &gain.gained).is_some()
-                {
-                    self.last_pose_correction = Some(now);
-                }
-                self.kidnap.accept();
-                continue;
-            }
-            // The track may carry the wrong label (started while lost, or ambiguous): another
-            // free instance of the same landmark that fits takes it over.
-            if let Some(other) = self.relabel_candidate(gain, now) {
-                swap_tracks(&mut self.slots, gain.slot, other);
-                self.diagnostics.relabels += 1;
-                if let (Some(map), Some(pose)) =
-                    (self.slots[other].map_position, self.pose.as_mut())
-                    && pose.update_landmark(map, &gain.gained).is_some()
-                {
-                    self.last_pose_correction = Some(now);
-                }
-                self.kidnap.accept();
-                continue;
-            }
-            self.diagnostics.pose_rejections += 1;
-            self.kidnap.reject(gain.slot, now);
-        }
-        self.frame_gains = gains;
-        if self.kidnap.triggered(self.config.pose.kidnap_rejections) {
-            self.declare_kidnapped();
-        }
-    }
-
-    fn relabel_candidate(&self, gain: &FrameGain, now: Time) -> Option<usize> {
-        let pose = self.pose.as_ref()?;
-        let group = &self.groups[self.slots[gain.slot].group];
-        group
-            .slots
-            .clone()
-            .filter(|&s| s != gain.slot && self.is_stale(s, now))
-            .filter_map(|s| {
-                let i = pose.landmark_innovation(self.slots[s].map_position?, &gain.gained)?;
-                (i.nis <= self.gate).then_some((s, i.cost()))
-            })
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(s, _)| s)
-    }
-
-    fn declare_kidnapped(&mut self) {
-        self.confidence_changes();
-        let now = self.time.unwrap_or(Time::ZERO);
-        // The robot was carried: landmark tracks not confirmed since the landmarks started
-        // to disagree (or within the last moment, when told) are wrong.
-        let window = std::time::Duration::from_secs_f64(self.config.association.reinit_window);
-        let since = self.kidnap.since.unwrap_or(Time::from_nanos(
-            now.as_nanos().saturating_sub(u64::try_from(window.as_nanos()).unwrap_or(u64::MAX)),
-        ));
-        self.lost = Some(LostReason::Kidnapped);
-        self.diagnostics.kidnaps += 1;
-        self.kidnap.accept();
-        for slot in &mut self.slots {
-            if slot.map_position.is_some()
-                && slot.track.as_ref().is_some_and(|t| t.last_seen < since)
-            {
-                slot.track = None;
-            }
-        }
     }
 
     /// End of a frame: forget what is no longer believed, check the pose, try to recover it,
@@ -1008,169 +572,6 @@ impl WorldModel {
         self.fuse_team(now);
     }
 
-    fn try_recover(&mut self, now: Time) {
-        let max_age = self.config.pose.recovery_max_age;
-        let mut sightings = Vec::new();
-        let mut map = Vec::new();
-        for (i, slot) in self.slots.iter().enumerate() {
-            let Some(position) = slot.map_position else { continue };
-            map.push(MapInstance { group: slot.group, slot: i, position });
-            if let Some(t) = &slot.track
-                && (now - t.last_seen).as_secs_f64() <= max_age
-            {
-                sightings.push(Sighting {
-                    group: slot.group,
-                    slot: i,
-                    position: t.filter.position_vector(),
-                    covariance: t.filter.position_covariance(),
-                });
-            }
-        }
-        if sightings.len() < self.config.pose.recovery_min_landmarks {
-            return;
-        }
-        let prior = match (self.lost, &self.pose) {
-            (Some(LostReason::Uncertain), Some(p)) => Some((p.pose(), p.covariance())),
-            _ => None,
-        };
-        let team = self.team_cues(now);
-        let input = RecoveryInput {
-            sightings: &sightings,
-            map: &map,
-            bounds: self.config.pose.field_bounds,
-            hints: &self.hints,
-            prior,
-            team: &team,
-            gate: self.gate,
-            min_landmarks: self.config.pose.recovery_min_landmarks,
-            margin: self.config.pose.recovery_margin,
-            max_hypotheses: self.config.pose.recovery_max_hypotheses,
-        };
-        let h = match recover(&input) {
-            RecoveryOutcome::Found(h) => h,
-            RecoveryOutcome::Ambiguous { best, competitor } => {
-                tracing::debug!(
-                    best = ?best.pose,
-                    competitor = ?competitor.pose,
-                    "pose recovery ambiguous: waiting for more landmarks or a hint"
-                );
-                return;
-            }
-            RecoveryOutcome::Insufficient => return,
-        };
-        // Relabel: each sighting's track moves to the map instance it was matched with.
-        self.confidence_changes();
-        let mut moved: Vec<(usize, Option<Track>)> = Vec::new();
-        for &(i, to) in &h.assignment {
-            let from = sightings[i].slot;
-            moved.push((to, self.slots[from].track.take()));
-            if from != to {
-                self.diagnostics.relabels += 1;
-            }
-        }
-        for (to, track) in moved {
-            self.slots[to].track = track;
-        }
-        self.pose = Some(PoseFilter::new(h.pose, h.covariance));
-        self.lost = None;
-        self.kidnap.accept();
-        self.last_pose_correction = Some(now);
-        self.diagnostics.recoveries += 1;
-    }
-
-    /// Mobile objects this robot tracks that the teammates also report, for recovery.
-    fn team_cues(&self, now: Time) -> Vec<TeamCue> {
-        let mut cues = Vec::new();
-        for group in self.groups.iter().filter(|g| g.category == ObjectCategory::Mobile) {
-            let slot = group.slots.start;
-            let Some(track) = &self.slots[slot].track else { continue };
-            if self.frame_confidence(slot) < self.config.confidence.unknown_threshold {
-                continue;
-            }
-            let candidates = self.team.candidates(now, group.class, group.variant, group.friction);
-            if let Some(f) = fuse(&candidates, self.team.gate()) {
-                cues.push(TeamCue {
-                    own_position: track.filter.position_vector(),
-                    own_covariance: track.filter.position_covariance(),
-                    team_position: f.position,
-                    team_covariance: f.covariance,
-                });
-            }
-        }
-        cues
-    }
-
-    fn fuse_team(&mut self, now: Time) {
-        self.team_objects.clear();
-        if self.team.teammates().next().is_none() {
-            return;
-        }
-        let pose = self.pose_usable().map(|p| (p.pose(), p.covariance()));
-        let mut candidates = std::mem::take(&mut self.scratch.candidates);
-        for group in &self.groups {
-            if group.category != ObjectCategory::Mobile {
-                continue;
-            }
-            let slot = group.slots.start;
-            self.team.candidates_into(
-                now,
-                group.class,
-                group.variant,
-                group.friction,
-                &mut candidates,
-            );
-            if let (Some((pose, pose_cov)), Some(track)) = (pose, &self.slots[slot].track)
-                && self.frame_confidence(slot) >= self.config.confidence.unknown_threshold
-            {
-                let (position, covariance) = field_estimate(
-                    &pose,
-                    &pose_cov,
-                    track.filter.position_vector(),
-                    &track.filter.position_covariance(),
-                );
-                let v = track.filter.velocity();
-                let fv = pose.vector_to_field(v);
-                candidates.push(FusionCandidate {
-                    source: Source::Own,
-                    position,
-                    covariance,
-                    velocity: Some(Vector2::new(fv.x, fv.y)),
-                });
-            }
-            let Some(f) = fuse(&candidates, self.team.gate()) else { continue };
-            let teammates = |sources: &[Source]| {
-                sources
-                    .iter()
-                    .filter_map(|s| match s {
-                        Source::Teammate(p) => Some(*p),
-                        Source::Own => None,
-                    })
-                    .collect::<Vec<u8>>()
-            };
-            self.team_objects.push(TeamObject {
-                id: ObjectId(u16::try_from(slot).unwrap_or(u16::MAX)),
-                name: group.name.clone(),
-                class: group.class,
-                position: Point::new(f.position.x, f.position.y),
-                velocity: f.velocity.map(|v| Vector::new(v.x, v.y)),
-                covariance: f.covariance,
-                includes_own: f.members.contains(&Source::Own),
-                teammates: teammates(&f.members),
-                rejected: teammates(&f.rejected),
-            });
-        }
-        self.scratch.candidates = candidates;
-    }
-
-    /// Stores a teammate's estimate for team fusion (MAWM); malformed ones are refused.
-    pub fn add_teammate_estimate(&mut self, estimate: TeammateEstimate) -> Result<(), TeamError> {
-        let result = self.team.insert(estimate);
-        if result.is_err() {
-            self.diagnostics.team_rejected += 1;
-        }
-        result
-    }
-
     /// Applies a command from the application.
     pub fn command(&mut self, command: WorldCommand) -> Result<(), ConfigError> {
         self.confidence_changes();
@@ -1203,200 +604,7 @@ impl WorldModel {
         Ok(())
     }
 
-    // ----- confidence and state ---------------------------------------------------------
-
-    /// Confidence of an object filter, in [0, 1]:
-    /// `existence * 2^(-age / half_life) / (1 + (sigma / sigma_half)^2)`.
-    fn confidence(&self, slot: usize) -> f64 {
-        let Some(track) = &self.slots[slot].track else { return 0.0 };
-        let c = self.groups[self.slots[slot].group].confidence;
-        let now = self.time.unwrap_or(track.last_seen);
-        let age = (now - track.last_seen).as_secs_f64();
-        let sigma = sigma_radius(&track.filter.position_covariance());
-        // An object seen in this very frame has not aged: exp(-0) is exactly 1, without the
-        // call (most of the filters a frame updates are asked right after).
-        let decay =
-            if age == 0.0 { 1.0 } else { (-age / c.half_life * std::f64::consts::LN_2).exp() };
-        let value = track.existence * decay / (1.0 + (sigma / c.sigma_half).powi(2));
-        if value.is_finite() { value.clamp(0.0, 1.0) } else { 0.0 }
-    }
-
-    /// [`WorldModel::confidence`], from the end of the frame when nothing changed since.
-    fn frame_confidence(&self, slot: usize) -> f64 {
-        if !self.confidences_current {
-            return self.confidence(slot);
-        }
-        let c = self.confidences[slot];
-        debug_assert_eq!(c.to_bits(), self.confidence(slot).to_bits(), "slot {slot}");
-        c
-    }
-
-    /// Something that a confidence depends on may change: the end-of-frame confidences are
-    /// no longer those of the model.
-    fn confidence_changes(&mut self) {
-        self.confidences_current = false;
-    }
-
-    /// The confidence of an object, in [0, 1] (0 when not tracked).
-    pub fn object_confidence(&self, id: ObjectId) -> f64 {
-        if id.index() < self.slots.len() { self.confidence(id.index()) } else { 0.0 }
-    }
-
-    fn pose_confidence(&self) -> f64 {
-        let Some(pose) = self.pose_usable() else { return 0.0 };
-        let p = pose.covariance();
-        let k = &self.config.confidence;
-        let xy = major_sigma(&p.fixed_view::<2, 2>(0, 0).into_owned());
-        let th = p[(2, 2)].max(0.0).sqrt();
-        let c = 1.0
-            / (1.0 + (xy / k.pose_sigma_half).powi(2))
-            / (1.0 + (th / k.pose_heading_sigma_half).powi(2));
-        if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 }
-    }
-
-    /// The world state to publish.
-    pub fn state(&self) -> WorldState {
-        let frame = self.publication_frame();
-        let mut errors = MapErrors::default();
-        let mut unknown = None;
-        // Collected straight into the shared list (exact size): no intermediate `Vec` to copy.
-        let objects: std::sync::Arc<[ObjectEstimate]> = self
-            .layout
-            .objects
-            .iter()
-            .enumerate()
-            .map(|(i, info)| self.estimate(i, &frame, &mut unknown, &mut errors).object(i, info))
-            .collect();
-        self.world_state(&frame, objects, &errors)
-    }
-
-    /// [`WorldModel::state`], writing the objects into a list published before when no reader
-    /// holds it any more (no allocation, and the fields fixed by the layout — id, names, class,
-    /// category, map position — are already there). The same state, bit for bit.
-    pub fn publish(&mut self) -> WorldState {
-        let reusable = self.published.iter_mut().position(|list| {
-            std::sync::Arc::get_mut(list).is_some_and(|objects| objects.len() == self.slots.len())
-        });
-        let Some(k) = reusable else {
-            let state = self.state();
-            if self.published.len() >= PUBLISHED_LISTS {
-                self.published.remove(0);
-            }
-            self.published.push(state.objects.clone());
-            return state;
-        };
-        let mut list = self.published.remove(k);
-        let frame = self.publication_frame();
-        let mut errors = MapErrors::default();
-        let mut unknown = None;
-        if let Some(objects) = std::sync::Arc::get_mut(&mut list) {
-            for (i, o) in objects.iter_mut().enumerate() {
-                self.estimate(i, &frame, &mut unknown, &mut errors).write_into(o);
-            }
-        }
-        let state = self.world_state(&frame, list.clone(), &errors);
-        self.published.push(list);
-        state
-    }
-
-    /// What every object's estimate of a publication shares.
-    fn publication_frame(&self) -> PublicationFrame {
-        let unknown_pose = Matrix3::from_diagonal(&nalgebra::Vector3::new(
-            UNKNOWN_VARIANCE,
-            UNKNOWN_VARIANCE,
-            std::f64::consts::PI.powi(2),
-        ));
-        let (pose, pose_cov) = self
-            .pose
-            .as_ref()
-            .map_or((Pose::default(), unknown_pose), |p| (p.pose(), p.covariance()));
-        // The heading's trigonometry once per publication rather than once per object, and
-        // once for both frames when the published heading is the filter's (normalized already).
-        let heading = pose.theta.sin_cos();
-        let filter_heading = |p: &PoseFilter| {
-            if p.heading().to_bits() == pose.theta.to_bits() {
-                heading
-            } else {
-                p.heading_sin_cos()
-            }
-        };
-        PublicationFrame {
-            stamp: self.time.unwrap_or(Time::ZERO),
-            pose: PoseFrame {
-                pose,
-                pose_cov,
-                map_frame: self.pose_usable().map(|p| (p.state(), filter_heading(p))),
-                heading,
-                threshold: self.config.confidence.unknown_threshold,
-            },
-            max_age: self.config.pose.map_accuracy_max_age,
-        }
-    }
-
-    /// The parts of slot `i`'s published estimate that change from one publication to the
-    /// next (see [`derive`]); adds what the map accuracy needs to `errors`.
-    // Inlined into the publication loops: the estimate goes straight into the published
-    // object's fields instead of through a returned copy.
-    #[inline(always)]
-    fn estimate(
-        &self,
-        i: usize,
-        frame: &PublicationFrame,
-        unknown: &mut Option<(Point<Field>, Matrix2<f64>)>,
-        errors: &mut MapErrors,
-    ) -> Estimate {
-        let slot = &self.slots[i];
-        let moving = self.groups[slot.group].category != ObjectCategory::Landmark;
-        let track = slot.track.as_ref().map(|t| PublishedTrack {
-            position: t.filter.position_vector(),
-            covariance: t.filter.position_covariance(),
-            velocity: moving.then(|| (t.filter.velocity(), t.filter.velocity_covariance())),
-            last_seen: t.last_seen,
-        });
-        let e = derive(&frame.pose, slot.map_position, self.frame_confidence(i), track, unknown);
-        // The age of the last sighting only for the landmarks that may take part.
-        let recent =
-            || e.last_seen.is_some_and(|t| (frame.stamp - t).as_secs_f64() <= frame.max_age);
-        if e.known
-            && frame.pose.map_frame.is_some()
-            && let Some(map) = slot.map_position
-            && recent()
-        {
-            errors.add(e.field_position.distance(map));
-        }
-        e
-    }
-
-    fn world_state(
-        &self,
-        frame: &PublicationFrame,
-        objects: std::sync::Arc<[ObjectEstimate]>,
-        errors: &MapErrors,
-    ) -> WorldState {
-        WorldState {
-            stamp: frame.stamp,
-            pose: PoseEstimate {
-                pose: frame.pose.pose,
-                covariance: frame.pose.pose_cov,
-                confidence: self.pose_confidence(),
-                lost: self.lost.is_some(),
-                lost_reason: self.lost,
-                last_correction: self.last_pose_correction,
-            },
-            objects,
-            map_accuracy: errors.accuracy(),
-            odometry_error: self.odometry_error.estimate(),
-            team: self.team_objects.clone(),
-            camera: self.config.camera,
-            detection_probability: self.config.confidence.detection_probability,
-            view_margin: self.config.confidence.view_margin,
-            unknown_threshold: frame.pose.threshold,
-            diagnostics: self.diagnostics,
-            layout: self.layout.clone(),
-            filter_heading: frame.pose.map_frame.map(|(state, _)| state[2]),
-            index: self.layout.index().clone(),
-        }
-    }
+    // ----- expected update (active vision) ----------------------------------------------
 
     /// The posterior covariances if `candidate` were executed (paper 3.6 (c)); changes nothing.
     pub fn expected_update(&self, candidate: &SensingCandidate) -> ExpectedBelief {
@@ -1469,50 +677,6 @@ fn map_prediction_at(
     map: Point<Field>,
 ) -> (Vector2<f64>, Matrix2<f64>) {
     map_prediction_from(&pose.state(), &pose.covariance(), heading, map)
-}
-
-/// The map accuracy's statistics, accumulated without storing the errors (same order and
-/// starting values as summing a list of them).
-#[derive(Clone, Copy, Debug)]
-struct MapErrors {
-    sum: f64,
-    sum_squares: f64,
-    max: f64,
-    count: usize,
-}
-
-impl Default for MapErrors {
-    fn default() -> Self {
-        // `Sum for f64` starts from -0.0.
-        MapErrors { sum: -0.0, sum_squares: -0.0, max: 0.0, count: 0 }
-    }
-}
-
-impl MapErrors {
-    fn add(&mut self, error: f64) {
-        self.sum += error;
-        self.sum_squares += error * error;
-        self.max = self.max.max(error);
-        self.count += 1;
-    }
-
-    fn accuracy(&self) -> Option<MapAccuracy> {
-        (self.count > 0).then(|| {
-            let n = self.count as f64;
-            MapAccuracy {
-                mean_error: self.sum / n,
-                rms_error: (self.sum_squares / n).sqrt(),
-                max_error: self.max,
-                landmarks: self.count,
-            }
-        })
-    }
-}
-
-fn swap_tracks(slots: &mut [Slot], a: usize, b: usize) {
-    let ta = slots[a].track.take();
-    slots[a].track = slots[b].track.take();
-    slots[b].track = ta;
 }
 
 #[cfg(test)]

@@ -1,0 +1,206 @@
+//! The robot's pose: its correction with what the landmark filters gained, kidnap detection
+//! and relabelling, and recovery when lost.
+
+use strata_runtime::Time;
+
+use super::{FrameGain, Slot, Track, WorldModel};
+use crate::platform::FootContact;
+use crate::world::pose::PoseFilter;
+use crate::world::recovery::{MapInstance, RecoveryInput, RecoveryOutcome, Sighting, recover};
+use crate::world::state::LostReason;
+
+#[derive(Clone, Debug, Default)]
+pub(super) struct KidnapDetector {
+    consecutive: usize,
+    slots: Vec<usize>,
+    /// When the current run of disagreements started.
+    since: Option<Time>,
+}
+
+impl KidnapDetector {
+    pub(super) fn accept(&mut self) {
+        self.consecutive = 0;
+        self.slots.clear();
+        self.since = None;
+    }
+
+    pub(super) fn reject(&mut self, slot: usize, now: Time) {
+        self.consecutive += 1;
+        self.since.get_or_insert(now);
+        if !self.slots.contains(&slot) {
+            self.slots.push(slot);
+        }
+    }
+
+    pub(super) fn triggered(&self, needed: usize) -> bool {
+        self.consecutive >= needed && self.slots.len() >= 2
+    }
+}
+
+impl WorldModel {
+    pub(super) fn check_lift(&mut self, contact: &FootContact) {
+        let Some(threshold) = self.config.pose.kidnap_on_lift else { return };
+        if !contact.on_ground(threshold) {
+            self.lifted = true;
+        } else if self.lifted {
+            self.lifted = false;
+            self.declare_kidnapped();
+        }
+    }
+
+    /// The pose filter's correction: the landmark filters' estimates as observations (only
+    /// what each gained in this frame, so no observation counts twice).
+    pub(super) fn correct_pose(&mut self, now: Time) {
+        if self.pose_usable().is_none() {
+            return;
+        }
+        let gains = std::mem::take(&mut self.frame_gains);
+        for gain in &gains {
+            let Some(map) = self.slots[gain.slot].map_position else { continue };
+            let Some(pose) = self.pose.as_ref() else { break };
+            let fits =
+                pose.landmark_innovation(map, &gain.gained).is_some_and(|i| i.nis <= self.gate);
+            if fits {
+                if let Some(pose) = self.pose.as_mut()
+                    && pose.update_landmark(map, &gain.gained).is_some()
+                {
+                    self.last_pose_correction = Some(now);
+                }
+                self.kidnap.accept();
+                continue;
+            }
+            // The track may carry the wrong label (started while lost, or ambiguous): another
+            // free instance of the same landmark that fits takes it over.
+            if let Some(other) = self.relabel_candidate(gain, now) {
+                swap_tracks(&mut self.slots, gain.slot, other);
+                self.diagnostics.relabels += 1;
+                if let (Some(map), Some(pose)) =
+                    (self.slots[other].map_position, self.pose.as_mut())
+                    && pose.update_landmark(map, &gain.gained).is_some()
+                {
+                    self.last_pose_correction = Some(now);
+                }
+                self.kidnap.accept();
+                continue;
+            }
+            self.diagnostics.pose_rejections += 1;
+            self.kidnap.reject(gain.slot, now);
+        }
+        self.frame_gains = gains;
+        if self.kidnap.triggered(self.config.pose.kidnap_rejections) {
+            self.declare_kidnapped();
+        }
+    }
+
+    fn relabel_candidate(&self, gain: &FrameGain, now: Time) -> Option<usize> {
+        let pose = self.pose.as_ref()?;
+        let group = &self.groups[self.slots[gain.slot].group];
+        group
+            .slots
+            .clone()
+            .filter(|&s| s != gain.slot && self.is_stale(s, now))
+            .filter_map(|s| {
+                let i = pose.landmark_innovation(self.slots[s].map_position?, &gain.gained)?;
+                (i.nis <= self.gate).then_some((s, i.cost()))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(s, _)| s)
+    }
+
+    pub(super) fn declare_kidnapped(&mut self) {
+        self.confidence_changes();
+        let now = self.time.unwrap_or(Time::ZERO);
+        // The robot was carried: landmark tracks not confirmed since the landmarks started
+        // to disagree (or within the last moment, when told) are wrong.
+        let window = std::time::Duration::from_secs_f64(self.config.association.reinit_window);
+        let since = self.kidnap.since.unwrap_or(Time::from_nanos(
+            now.as_nanos().saturating_sub(u64::try_from(window.as_nanos()).unwrap_or(u64::MAX)),
+        ));
+        self.lost = Some(LostReason::Kidnapped);
+        self.diagnostics.kidnaps += 1;
+        self.kidnap.accept();
+        for slot in &mut self.slots {
+            if slot.map_position.is_some()
+                && slot.track.as_ref().is_some_and(|t| t.last_seen < since)
+            {
+                slot.track = None;
+            }
+        }
+    }
+
+    pub(super) fn try_recover(&mut self, now: Time) {
+        let max_age = self.config.pose.recovery_max_age;
+        let mut sightings = Vec::new();
+        let mut map = Vec::new();
+        for (i, slot) in self.slots.iter().enumerate() {
+            let Some(position) = slot.map_position else { continue };
+            map.push(MapInstance { group: slot.group, slot: i, position });
+            if let Some(t) = &slot.track
+                && (now - t.last_seen).as_secs_f64() <= max_age
+            {
+                sightings.push(Sighting {
+                    group: slot.group,
+                    slot: i,
+                    position: t.filter.position_vector(),
+                    covariance: t.filter.position_covariance(),
+                });
+            }
+        }
+        if sightings.len() < self.config.pose.recovery_min_landmarks {
+            return;
+        }
+        let prior = match (self.lost, &self.pose) {
+            (Some(LostReason::Uncertain), Some(p)) => Some((p.pose(), p.covariance())),
+            _ => None,
+        };
+        let team = self.team_cues(now);
+        let input = RecoveryInput {
+            sightings: &sightings,
+            map: &map,
+            bounds: self.config.pose.field_bounds,
+            hints: &self.hints,
+            prior,
+            team: &team,
+            gate: self.gate,
+            min_landmarks: self.config.pose.recovery_min_landmarks,
+            margin: self.config.pose.recovery_margin,
+            max_hypotheses: self.config.pose.recovery_max_hypotheses,
+        };
+        let h = match recover(&input) {
+            RecoveryOutcome::Found(h) => h,
+            RecoveryOutcome::Ambiguous { best, competitor } => {
+                tracing::debug!(
+                    best = ?best.pose,
+                    competitor = ?competitor.pose,
+                    "pose recovery ambiguous: waiting for more landmarks or a hint"
+                );
+                return;
+            }
+            RecoveryOutcome::Insufficient => return,
+        };
+        // Relabel: each sighting's track moves to the map instance it was matched with.
+        self.confidence_changes();
+        let mut moved: Vec<(usize, Option<Track>)> = Vec::new();
+        for &(i, to) in &h.assignment {
+            let from = sightings[i].slot;
+            moved.push((to, self.slots[from].track.take()));
+            if from != to {
+                self.diagnostics.relabels += 1;
+            }
+        }
+        for (to, track) in moved {
+            self.slots[to].track = track;
+        }
+        self.pose = Some(PoseFilter::new(h.pose, h.covariance));
+        self.lost = None;
+        self.kidnap.accept();
+        self.last_pose_correction = Some(now);
+        self.diagnostics.recoveries += 1;
+    }
+}
+
+fn swap_tracks(slots: &mut [Slot], a: usize, b: usize) {
+    let ta = slots[a].track.take();
+    slots[a].track = slots[b].track.take();
+    slots[b].track = ta;
+}
