@@ -51,7 +51,7 @@ pub struct RcssConfig {
     /// How long `connect` waits for the first perception, s.
     #[serde(with = "strata_runtime::serde_duration")]
     pub first_perception_timeout: Duration,
-    /// Silence after which the server counts as stalled (reported, not fatal), s.
+    /// Silence after which the server counts as stalled (a warning, not an error), s.
     #[serde(with = "strata_runtime::serde_duration")]
     pub stall_timeout: Duration,
     /// Longest a write of one cycle's answer may block, s.
@@ -245,6 +245,7 @@ pub struct RcssPlatform {
     socket: TcpStream,
     thread: Option<JoinHandle<()>>,
     stall_timeout: Duration,
+    stall_reported: bool,
 }
 
 /// What the connection thread needs besides the socket.
@@ -378,6 +379,7 @@ impl RcssPlatform {
             socket,
             thread: Some(thread),
             stall_timeout,
+            stall_reported: false,
         };
         platform.wait_for_first_perception(first_timeout)?;
         tracing::info!(address, team, player, "connected to rcssservermj");
@@ -489,19 +491,23 @@ impl Platform for RcssPlatform {
             if let Some(camera) = &mut frame.camera {
                 camera.stamp = frame.stamp;
             }
+            self.stall_reported = false;
             return Ok(Some(frame));
         }
         if let Some(reason) = &shared.disconnected {
             return Err(PlatformError::Disconnected(reason.clone()));
         }
-        if let Some(at) = shared.last_at
-            && at.elapsed() > self.stall_timeout
-        {
-            return Err(PlatformError::Io(format!(
-                "no perception from rcssservermj for {:.1} s",
-                at.elapsed().as_secs_f64()
-            )));
+        // A silent server is not fatal (in sync mode it waits for its slowest agent): said
+        // once per silence, and the robot goes on when the server does.
+        let silent = shared.last_at.is_some_and(|at| at.elapsed() > self.stall_timeout);
+        if silent && !self.stall_reported {
+            tracing::warn!(
+                address = %self.address,
+                seconds = self.stall_timeout.as_secs_f64(),
+                "no perception from rcssservermj for longer than the stall timeout"
+            );
         }
+        self.stall_reported = silent;
         Ok(None)
     }
 

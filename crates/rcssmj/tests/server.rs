@@ -186,3 +186,80 @@ fn a_lost_server_ends_the_robot_with_a_clear_error() {
     }
     assert!(matches!(robot.read_motion(Time::ZERO), Err(PlatformError::Disconnected(_))));
 }
+
+/// A fake server on loopback that answers `init` with a script of frames: what a broken or
+/// hostile server can send.
+fn fake_server(script: Vec<Vec<u8>>) -> (String, std::thread::JoinHandle<()>) {
+    use std::io::{Read, Write};
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("a loopback port");
+    let address = listener.local_addr().expect("bound").to_string();
+    let thread = std::thread::spawn(move || {
+        let Ok((mut stream, _)) = listener.accept() else { return };
+        let mut length = [0u8; 4];
+        if stream.read_exact(&mut length).is_err() {
+            return;
+        }
+        let mut init = vec![0u8; u32::from_be_bytes(length) as usize];
+        if stream.read_exact(&mut init).is_err() {
+            return;
+        }
+        for frame in script {
+            if stream.write_all(&frame).is_err() {
+                return;
+            }
+            // The robot answers each perception; read what it sends so it never blocks.
+            let mut answer = [0u8; 65536];
+            let _ = stream.set_read_timeout(Some(Duration::from_millis(200)));
+            let _ = stream.read(&mut answer);
+        }
+    });
+    (address, thread)
+}
+
+fn framed(payload: &[u8]) -> Vec<u8> {
+    let mut frame = (payload.len() as u32).to_be_bytes().to_vec();
+    frame.extend_from_slice(payload);
+    frame
+}
+
+#[test]
+fn garbage_from_the_server_is_an_error_named_and_never_a_panic() {
+    let good = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/perception_first_cycle_see.sexp"
+    ))
+    .expect("fixture");
+    let script = vec![
+        framed(&good),
+        framed(b"(time (now 1.0))(quat (n torso_quat) (q nonsense"),
+        framed(&[0xff, 0xfe, 0x00, 0x28]),
+        framed(&good),
+        // A length prefix announcing 3 GB: the link cannot be trusted after that.
+        vec![0xb0, 0, 0, 0, b'('],
+    ];
+    let (address, server) = fake_server(script);
+    let config = RcssConfig { pace: 0.0, ..RcssConfig::default() };
+    let mut robot = RcssPlatform::connect(&address, "Fake", 1, config).expect("a first perception");
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut frames = 0;
+    let mut malformed = Vec::new();
+    let disconnected = loop {
+        assert!(Instant::now() < deadline, "the broken server went unnoticed");
+        match robot.read_sensors(Time::ZERO) {
+            Ok(Some(_)) => frames += 1,
+            Ok(None) => std::thread::sleep(Duration::from_millis(5)),
+            Err(PlatformError::Malformed(reason)) => malformed.push(reason),
+            Err(PlatformError::Disconnected(reason)) => break reason,
+            Err(other) => panic!("unexpected error: {other}"),
+        }
+    };
+    println!("frames {frames}, malformed {malformed:?}, then: {disconnected}");
+    assert!(frames >= 1, "the valid perceptions were lost");
+    assert!(
+        malformed.iter().any(|m| m.contains("quat") || m.contains("S-expression")),
+        "{malformed:?}"
+    );
+    assert!(disconnected.contains("bytes"), "the oversized frame is named: {disconnected}");
+    assert_eq!(robot.stats().malformed, 2);
+    server.join().expect("the fake server ends");
+}

@@ -535,9 +535,8 @@ fn handshake(
             format!("another process already drives team {team} player {player}"),
         )));
     }
-    registry.clients[slot] = Some(Client { connection, robot, sender: sender.clone() });
-    drop(registry);
-    let _ = sim.add_robot(robot);
+    // The welcome is queued before the client is registered: once registered, the simulation
+    // loop may queue sensor frames for it, and the robot must see the welcome first.
     let welcome = ServerMessage::Welcome {
         version: VERSION,
         team,
@@ -547,8 +546,11 @@ fn handshake(
         max_team_message: sim.config().broadcast.max_message_size,
         time: sim.time(),
     };
-    drop(sim);
     let _ = sender.send(Outgoing::Message(welcome));
+    registry.clients[slot] = Some(Client { connection, robot, sender: sender.clone() });
+    drop(registry);
+    let _ = sim.add_robot(robot);
+    drop(sim);
     Ok(robot)
 }
 
