@@ -29,7 +29,10 @@ mod view_cmd;
 const AFTER_HELP: &str = "\
 Diagnostics go to stderr: warnings and errors by default, -v adds information, -vv
 debugging details, -q leaves errors only. RUST_LOG, when set, decides instead (for example
-RUST_LOG=strata_nao=debug). Output (text or --json) goes to stdout, never mixed with them.";
+RUST_LOG=strata_nao=debug). Output (text or --json) goes to stdout, never mixed with them.
+
+Exit codes: 0 success; 1 an error (bad arguments, a file that cannot be read, a failed run);
+2 `strata replay` ran and the outputs differ from the log.";
 
 #[derive(Debug, Parser)]
 #[command(
@@ -103,10 +106,23 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => {
+            let _ = error.print();
+            // Help and version are no errors; a usage error is exit code 1, as any other error
+            // (clap's own 2 means "the outputs differ" here).
+            return if error.use_stderr() { ExitCode::FAILURE } else { ExitCode::SUCCESS };
+        }
+    };
     install_diagnostics(cli.level());
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(error) if error.is::<replay_cmd::OutputsDiffer>() => {
+            // Not an error: the replay ran and answered the question.
+            eprintln!("{error}");
+            ExitCode::from(replay_cmd::OUTPUTS_DIFFER_EXIT_CODE)
+        }
         Err(error) => {
             // The message and its causes only: returning the error from `main` would print
             // anyhow's backtrace too whenever RUST_BACKTRACE is set (as many set it for panics),
