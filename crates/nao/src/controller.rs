@@ -18,6 +18,13 @@ use crate::gait::{GaitEngine, GaitStep};
 use crate::joints::{JOINT_COUNT, Joint, JointArray, head_pitch_limits};
 use crate::keyframe::{MotionLibrary, Player, SIT, STAND};
 
+/// The stand-up numbering is the architecture's (`strata_robot::control::primitives::StandUp`,
+/// the simulator's catalogue): 0 from the front or a side, 1 from the back. 0 plays the front or
+/// the back sequence by the torso pitch (the NAO has no side stand-up: a robot on its side rolls
+/// onto the side its pitch leans to); 2 is the front sequence itself.
+const STAND_UP_BACK: u8 = 1;
+const STAND_UP_FRONT: u8 = 2;
+
 /// LoLA's cycle, s: every sensor packet advances motions by this much.
 pub const CYCLE: f64 = 0.012;
 
@@ -128,8 +135,8 @@ impl MotionController {
     /// (front or back chosen by how the robot lies) when both stand-ups exist.
     pub fn catalogue(&self) -> Vec<MotionSpec> {
         let mut specs = self.library.catalogue();
-        let front = self.library.for_motion(SpecialMotion::StandUp(1));
-        let back = self.library.for_motion(SpecialMotion::StandUp(2));
+        let front = self.library.for_motion(SpecialMotion::StandUp(STAND_UP_FRONT));
+        let back = self.library.for_motion(SpecialMotion::StandUp(STAND_UP_BACK));
         if let (Some(front), Some(back), None) =
             (front, back, self.library.for_motion(SpecialMotion::StandUp(0)))
         {
@@ -233,8 +240,8 @@ impl MotionController {
         let lying = pitch.abs() > self.config.fallen_angle || roll.abs() > self.config.fallen_angle;
         let motion = match (lying, pitch >= 0.0) {
             (false, _) => return Ok(STAND.to_owned()),
-            (true, true) => SpecialMotion::StandUp(1),
-            (true, false) => SpecialMotion::StandUp(2),
+            (true, true) => SpecialMotion::StandUp(STAND_UP_FRONT),
+            (true, false) => SpecialMotion::StandUp(STAND_UP_BACK),
         };
         self.library
             .for_motion(motion)
@@ -701,6 +708,28 @@ mod tests {
     }
 
     #[test]
+    fn the_architectures_stand_up_plays_the_sequence_for_how_the_robot_lies() {
+        use strata_robot::control::primitives::StandUp;
+        let cases = [
+            (FallDirection::Back, [0.0, -1.4], "stand_up_back"),
+            (FallDirection::Front, [0.0, 1.4], "stand_up_front"),
+            (FallDirection::Left, [-1.5, 0.3], "stand_up_front"),
+            (FallDirection::Right, [1.5, -0.3], "stand_up_back"),
+        ];
+        for (direction, angles, expected) in cases {
+            let mut c = controller();
+            let mut packet = standing_packet();
+            packet.angles = angles;
+            run(&mut c, &packet, 6);
+            let motion = SpecialMotion::StandUp(StandUp::sequence_for(direction));
+            c.apply(&ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion }) })
+                .unwrap();
+            let BodyMode::Playing { player, .. } = &c.body else { panic!("{direction:?}") };
+            assert_eq!(player.sequence().name, expected, "lying {direction:?}");
+        }
+    }
+
+    #[test]
     fn a_protective_fall_preempts_a_stand_up() {
         let mut c = controller();
         let mut packet = standing_packet();
@@ -708,12 +737,12 @@ mod tests {
         run(&mut c, &packet, 6);
         let special =
             |motion| ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion }) };
-        c.apply(&special(SpecialMotion::StandUp(1))).unwrap();
+        c.apply(&special(SpecialMotion::StandUp(STAND_UP_FRONT))).unwrap();
         c.step(&packet);
-        c.apply(&special(SpecialMotion::StandUp(2))).unwrap();
+        c.apply(&special(SpecialMotion::StandUp(STAND_UP_BACK))).unwrap();
         assert!(matches!(
             c.body_state(),
-            BodyMotionState::Special { motion: SpecialMotion::StandUp(1), .. }
+            BodyMotionState::Special { motion: SpecialMotion::StandUp(STAND_UP_FRONT), .. }
         ));
         c.apply(&special(SpecialMotion::Fall(0))).unwrap();
         let out = c.step(&packet);

@@ -214,6 +214,22 @@ fn role_state(role: Role) -> S {
     FIELD_ROLES.iter().find(|(_, r)| *r == role).map_or(S::Striker, |(s, _)| *s)
 }
 
+/// Where playing starts for `role`: the goalie's state, or the field role's own leaf. Entering
+/// `Playing` (or `Field playing`) itself would run its initial child, the striker, for a tick.
+fn playing_state(role: Role) -> S {
+    if role == Role::Goalie { S::GoaliePlaying } else { role_state(role) }
+}
+
+/// The states `playing_state` can give.
+const PLAYING_ENTRIES: [S; 6] = [
+    S::GoaliePlaying,
+    S::Striker,
+    S::StrikerCover,
+    S::PassReceiver,
+    S::ActiveDefender,
+    S::DefenderPositioning,
+];
+
 // ---------------------------------------------------------------------------------------------
 // The head: gaze strategies.
 
@@ -612,7 +628,18 @@ fn game_states(mut builder: Builder<S, Ctx>, goalie: bool) -> Builder<S, Ctx> {
     for (state, name) in top_names {
         let mut s = State::new(state).name(name);
         for other in TOP.iter().copied().filter(|o| *o != state) {
-            s = s.transition(move |ctx: &Ctx, _| phase(ctx) == other, other);
+            if other == S::Playing {
+                for entry in PLAYING_ENTRIES {
+                    s = s.transition(
+                        move |ctx: &Ctx, _| {
+                            phase(ctx) == S::Playing && playing_state(ctx.role()) == entry
+                        },
+                        entry,
+                    );
+                }
+            } else {
+                s = s.transition(move |ctx: &Ctx, _| phase(ctx) == other, other);
+            }
         }
         s = match state {
             S::Initial => s.behavior(|ctx: &mut Ctx, _| {
@@ -643,16 +670,21 @@ fn game_states(mut builder: Builder<S, Ctx>, goalie: bool) -> Builder<S, Ctx> {
     builder
 }
 
-/// Playing as the goalie: goal covering and clearing.
+/// Playing as the goalie: goal covering and clearing. A keeper given a field role goes
+/// straight to that role's state.
 fn goalie_states(builder: Builder<S, Ctx>) -> Builder<S, Ctx> {
+    let mut goalie_playing = State::new(S::GoaliePlaying)
+        .name("Goalie playing")
+        .parent(S::Playing)
+        .initial_child(S::GoalCovering);
+    for (state, _) in FIELD_ROLES {
+        goalie_playing = goalie_playing.transition(
+            move |ctx: &Ctx, _| ctx.role() != Role::Goalie && role_state(ctx.role()) == state,
+            state,
+        );
+    }
     builder
-        .state(
-            State::new(S::GoaliePlaying)
-                .name("Goalie playing")
-                .parent(S::Playing)
-                .initial_child(S::GoalCovering)
-                .transition(|ctx: &Ctx, _| ctx.role() != Role::Goalie, S::FieldPlaying),
-        )
+        .state(goalie_playing)
         .state(
             State::new(S::GoalCovering)
                 .name("Goal covering")
@@ -860,6 +892,66 @@ mod tests {
     fn the_machine_builds_for_goalie_and_field_players() {
         assert!(build_machine(true).is_ok());
         assert!(build_machine(false).is_ok());
+    }
+
+    /// A field player's behavior, told its role and the game state as planning would.
+    fn decide(behavior: &mut SoccerBehavior, role: Role, state: GameState, at: f64) {
+        let mission = if role == Role::Goalie { Mission::DefendTheGoal } else { Mission::Defend };
+        behavior.ctx.decision = Some(Decision {
+            assignment: strata_robot::control::planning::Assignment { mission, role, alone: false },
+            directive: GameDirective { state, ..GameDirective::default() },
+            teammates: Vec::new(),
+            stats: Default::default(),
+        });
+        behavior.machine.tick(&mut behavior.ctx, Time::from_secs_f64(at));
+    }
+
+    fn behavior(player: u8) -> SoccerBehavior {
+        let field =
+            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
+        SoccerBehavior::new(player, field, BehaviorConfig::default(), ActiveVisionConfig::default())
+            .expect("behavior")
+    }
+
+    #[test]
+    fn entering_playing_starts_the_roles_own_behavior_at_once() {
+        let roles = [
+            (Role::StrikerCover, S::StrikerCover),
+            (Role::PassReceiver, S::PassReceiver),
+            (Role::ActiveDefender, S::ActiveDefender),
+            (Role::DefenderGoingToPosition, S::DefenderPositioning),
+            (Role::Striker, S::Striker),
+            (Role::Goalie, S::GoalCovering),
+        ];
+        for (role, leaf) in roles {
+            for previous in [GameState::Set, GameState::Ready] {
+                let mut b = behavior(3);
+                decide(&mut b, role, previous, 0.0);
+                decide(&mut b, role, previous, 0.1);
+                decide(&mut b, role, GameState::Playing, 0.2);
+                assert_eq!(b.machine.active_leaf(), Some(leaf), "{role:?} after {previous:?}");
+            }
+            // Back from a penalty, too.
+            let mut b = behavior(4);
+            decide(&mut b, role, GameState::Playing, 0.0);
+            let mut penalized = b.ctx.decision.clone().expect("decided");
+            penalized.directive.penalized = true;
+            b.ctx.decision = Some(penalized);
+            b.machine.tick(&mut b.ctx, Time::from_secs_f64(0.1));
+            assert_eq!(b.machine.active_leaf(), Some(S::Penalized));
+            decide(&mut b, role, GameState::Playing, 0.2);
+            assert_eq!(b.machine.active_leaf(), Some(leaf), "{role:?} after a penalty");
+        }
+    }
+
+    #[test]
+    fn a_keeper_given_a_field_role_starts_that_roles_behavior_at_once() {
+        let mut b = behavior(GOALKEEPER_NUMBER);
+        decide(&mut b, Role::Goalie, GameState::Playing, 0.0);
+        decide(&mut b, Role::Goalie, GameState::Playing, 0.1);
+        assert_eq!(b.machine.active_leaf(), Some(S::GoalCovering));
+        decide(&mut b, Role::ActiveDefender, GameState::Playing, 0.2);
+        assert_eq!(b.machine.active_leaf(), Some(S::ActiveDefender));
     }
 
     #[test]

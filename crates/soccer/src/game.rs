@@ -79,6 +79,10 @@ pub struct GameControllerReferee {
     pub rejected: u64,
 }
 
+/// The time left the message budget is paced over once the GameController's clock has run out
+/// outside the first half, s.
+const CLOCK_OUT_PACING_SECS: f64 = 60.0;
+
 impl GameControllerReferee {
     pub fn new(
         team_number: u8,
@@ -159,8 +163,16 @@ impl GameControllerReferee {
         }
         let players = data.players_per_team.max(1);
         let half = self.half_duration.max(1.0);
-        let time_left =
-            f64::from(data.secs_remaining.max(0)) + if data.first_half { half } else { 0.0 };
+        let time_left = if data.first_half {
+            f64::from(data.secs_remaining.max(0)) + half
+        } else if data.secs_remaining > 0 {
+            f64::from(data.secs_remaining)
+        } else {
+            // The clock at zero or below does not end the play (a half the referee has not
+            // ended yet, stoppage, a penalty shoot-out): pacing over no time at all would lift
+            // the rate limit and let the team spend its whole budget at once.
+            CLOCK_OUT_PACING_SECS
+        };
         self.budget = Some(MessageBudget {
             team_remaining: u32::from(team.message_budget),
             robots: u32::from(players),
@@ -280,6 +292,33 @@ mod tests {
         assert!(!r.penalized());
         // Back from a penalty: world modeling is told where the robot was placed.
         assert!(matches!(r.world_commands().as_slice(), [WorldCommand::SetHints { .. }]));
+    }
+
+    #[test]
+    fn message_pacing_stays_bounded_when_the_clock_has_run_out() {
+        let mut r = referee();
+        let mut data = GameControlData::decode(&packet(GameState::Playing, false)).expect("valid");
+        data.first_half = false;
+        data.secs_remaining = 120;
+        r.receive(Time::ZERO, &data.encode()).expect("valid");
+        let running = r.budget().expect("budget").sustainable_rate();
+        assert!((running - 1000.0 / 5.0 / 120.0).abs() < 1e-9, "{running}");
+        // A half's clock at zero or below (the referee has not ended it yet, a penalty
+        // shoot-out, stoppage) does not end the play: the robots must not spend their budget
+        // as fast as they can.
+        for secs in [0, -1, -30, i16::MIN] {
+            data.secs_remaining = secs;
+            r.receive(Time::ZERO, &data.encode()).expect("valid");
+            let rate = r.budget().expect("budget").sustainable_rate();
+            // Paced as if a minute were left.
+            assert!((rate - 1000.0 / 5.0 / 60.0).abs() < 1e-9, "{secs} s left: {rate} messages/s");
+        }
+        // In the first half the second is still to come, as before.
+        data.first_half = true;
+        data.secs_remaining = -5;
+        r.receive(Time::ZERO, &data.encode()).expect("valid");
+        let first = r.budget().expect("budget").sustainable_rate();
+        assert!((first - 1000.0 / 5.0 / 600.0).abs() < 1e-9, "{first}");
     }
 
     #[test]

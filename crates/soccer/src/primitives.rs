@@ -488,10 +488,18 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribblin
         // Aim a little behind the ball on the line to the target: walking there pushes it.
         let aim = ball.robot + through * 0.1;
         let velocity = walk_velocity(&self.model, aim, through.angle());
-        let head = head_command(&self.model, gaze_at(&self.model, ball.robot));
-        let body = self.walk.send(input.now, velocity, self.model.walk_command_duration)?;
-        let _ = self.head.send(gaze_at(&self.model, ball.robot), self.model.head_speed);
-        Some(WholeBodyCommand::Coordinated { head, body })
+        let duration = self.model.walk_command_duration;
+        let gaze = gaze_at(&self.model, ball.robot);
+        let head_moved = self.head.send(gaze, self.model.head_speed).is_some();
+        // A coordinated command carries both resources: when only the head has to move, the
+        // walk goes with it unchanged (within the walk sender's tolerance) rather than the
+        // head waiting for the walk to change.
+        let body = match self.walk.send(input.now, velocity, duration) {
+            Some(body) => body,
+            None if head_moved => BodyCommand::NonQueue(BodyMotion::Walk { velocity, duration }),
+            None => return None,
+        };
+        Some(WholeBodyCommand::Coordinated { head: head_command(&self.model, gaze), body })
     }
 }
 
@@ -551,4 +559,69 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dive {
 /// Pose helper for behaviors: facing a point from a position.
 pub fn facing(from: Point<strata_robot::Field>, toward: Point<strata_robot::Field>) -> Pose {
     Pose::new(from.x, from.y, (toward - from).angle())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_robot::control::reactive::{ActuationStatus, Stability};
+    use strata_robot::percept::Percepts;
+    use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+    use strata_runtime::Time;
+
+    use crate::world_config::{BALL, world_config};
+
+    /// A robot at the centre facing +x that knows the ball at `ball` (robot frame).
+    fn world_with_ball(ball: Point<Robot>) -> WorldState {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let mut model = WorldModel::new(world_config(&field)).expect("valid config");
+        let prior = PosePrior { pose: Pose::new(0.0, 0.0, 0.0), sigma: [0.1, 0.1, 0.05] };
+        model.command(WorldCommand::SetPose { prior }).expect("pose set");
+        let mut world = model.state();
+        let mut objects = world.objects.to_vec();
+        let estimate = objects.iter_mut().find(|o| o.name.as_str() == BALL).expect("a ball");
+        estimate.known = true;
+        estimate.position = ball;
+        estimate.field_position = world.pose.pose.to_field(ball);
+        world.objects = objects.into();
+        world
+    }
+
+    fn dribble(dribbling: &mut Dribbling, world: &WorldState, at: f64) -> Option<WholeBodyCommand> {
+        let percepts = Percepts::default();
+        let actuation = ActuationStatus::default();
+        let input = Input {
+            now: Time::from_secs_f64(at),
+            percepts: &percepts,
+            world: Some(world),
+            actuation: &actuation,
+            stability: Stability::Stable,
+        };
+        let goal = WholeBodyGoal::GoToBallAndDribble { target: Point::new(4.5, 0.0) };
+        dribbling.step(&goal, &input)
+    }
+
+    fn head_target(command: Option<WholeBodyCommand>) -> Option<HeadAngles> {
+        match command {
+            Some(WholeBodyCommand::Coordinated {
+                head: HeadCommand::NonQueue(HeadMotion { target, .. }),
+                ..
+            }) => Some(target),
+            _ => None,
+        }
+    }
+
+    #[test]
+    fn dribbling_follows_the_ball_with_the_head_while_the_walk_repeats() {
+        let mut dribbling = Dribbling::new(Arc::new(MotionModel::default()));
+        let first = world_with_ball(Point::new(0.3, 0.15));
+        let first_head = head_target(dribble(&mut dribbling, &first, 0.0)).expect("a command");
+        // The ball moved sideways in the image: the walk toward it is the same (both
+        // saturated), the head must turn to keep it in view.
+        let moved = world_with_ball(Point::new(0.3, 0.2));
+        let head = head_target(dribble(&mut dribbling, &moved, 0.01)).expect("the head follows");
+        assert!(head.yaw - first_head.yaw > 0.1, "{first_head:?} -> {head:?}");
+        // Neither moved: nothing to say.
+        assert_eq!(dribble(&mut dribbling, &moved, 0.02), None);
+    }
 }

@@ -27,10 +27,12 @@ use strata_spl::net::{
 };
 use strata_spl::{GameControllerSocket, TeamSocket};
 
-/// Datagrams one `receive` call drains at most: a flood on the port (a misconfigured robot, a
-/// replayed capture) must not keep the planning layer in one cycle forever. What is left waits
-/// for the next cycle, in the kernel's buffer.
-const MAX_PACKETS_PER_RECEIVE: usize = 256;
+/// Datagrams one `receive` call reads at most, whatever becomes of them (handed over, or dropped
+/// as garbage, oversized or another game's): a flood on the port (a misconfigured robot, a
+/// replayed capture, an attacker) must not keep the planning layer in one cycle forever. What
+/// is left waits for the next cycle in the kernel's buffer, which drops the excess of a flood
+/// that outlasts it. The default of both links; `set_receive_limit` changes it.
+pub const MAX_PACKETS_PER_RECEIVE: usize = 256;
 
 /// Counters of one link, shared between the link (inside the planning module's thread) and
 /// whoever reports on it.
@@ -169,6 +171,7 @@ pub fn directed_broadcast(interface: &str) -> Result<Ipv4Addr, String> {
 pub struct UdpTeamLink {
     socket: TeamSocket,
     counters: Arc<LinkCounters>,
+    receive_limit: usize,
 }
 
 impl UdpTeamLink {
@@ -177,7 +180,17 @@ impl UdpTeamLink {
     pub fn bind(port: u16, broadcast: Ipv4Addr) -> Result<UdpTeamLink, NetError> {
         let any = SocketAddr::new(IpAddr::V4(Ipv4Addr::UNSPECIFIED), port);
         let socket = TeamSocket::bind(any, vec![SocketAddr::new(IpAddr::V4(broadcast), port)])?;
-        Ok(UdpTeamLink { socket, counters: Arc::default() })
+        Ok(UdpTeamLink { socket, counters: Arc::default(), receive_limit: MAX_PACKETS_PER_RECEIVE })
+    }
+
+    /// Datagrams one `receive` reads at most ([`MAX_PACKETS_PER_RECEIVE`] by default).
+    pub fn receive_limit(&self) -> usize {
+        self.receive_limit
+    }
+
+    /// Sets how many datagrams one `receive` reads at most (at least one).
+    pub fn set_receive_limit(&mut self, limit: usize) {
+        self.receive_limit = limit.max(1);
     }
 
     pub fn counters(&self) -> Arc<LinkCounters> {
@@ -214,7 +227,9 @@ impl TeamLink for UdpTeamLink {
 
     fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
         let mut packets = Vec::new();
-        while packets.len() < MAX_PACKETS_PER_RECEIVE {
+        // Counts datagrams read, not packets kept: a flood of rejected ones must end the call
+        // as surely as a flood of good ones.
+        for _ in 0..self.receive_limit {
             match self.socket.receive() {
                 Ok(Some(received)) => {
                     self.counters.received(received.data.len());
@@ -252,6 +267,7 @@ pub struct UdpGameControllerLink {
     /// may switch to a backup GameController during a game).
     game_controller: Option<IpAddr>,
     counters: Arc<LinkCounters>,
+    receive_limit: usize,
 }
 
 impl UdpGameControllerLink {
@@ -270,7 +286,18 @@ impl UdpGameControllerLink {
             return_port,
             game_controller: None,
             counters: Arc::default(),
+            receive_limit: MAX_PACKETS_PER_RECEIVE,
         })
+    }
+
+    /// Datagrams one `receive` reads at most ([`MAX_PACKETS_PER_RECEIVE`] by default).
+    pub fn receive_limit(&self) -> usize {
+        self.receive_limit
+    }
+
+    /// Sets how many datagrams one `receive` reads at most (at least one).
+    pub fn set_receive_limit(&mut self, limit: usize) {
+        self.receive_limit = limit.max(1);
     }
 
     pub fn counters(&self) -> Arc<LinkCounters> {
@@ -290,7 +317,8 @@ impl UdpGameControllerLink {
 impl ExternalLink for UdpGameControllerLink {
     fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
         let mut packets = Vec::new();
-        while packets.len() < MAX_PACKETS_PER_RECEIVE {
+        // Every datagram read counts, whatever its fate (see the team link).
+        for _ in 0..self.receive_limit {
             match self.socket.receive() {
                 // Another field's GameController on a shared network: neither its game nor
                 // its address are ours.
@@ -606,6 +634,55 @@ mod tests {
         assert_eq!(size, RETURN_PACKET_SIZE);
         assert_eq!(ReturnData::decode(&buffer[..size]), Ok(reply));
         assert!(matches!(robot.send(now(), b"RGrt nonsense"), Err(LinkError::Io(_))));
+        Ok(())
+    }
+
+    /// Sends `count` datagrams of `payload` to `port` on loopback.
+    fn flood(port: u16, payload: &[u8], count: usize) -> Result<(), String> {
+        let raw = std::net::UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).map_err(|e| e.to_string())?;
+        for _ in 0..count {
+            raw.send_to(payload, (Ipv4Addr::LOCALHOST, port)).map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn a_flood_of_garbage_on_the_game_controller_port_is_read_a_capped_batch_per_receive()
+    -> Result<(), String> {
+        let port = free_udp_port()?;
+        let mut robot = UdpGameControllerLink::bind(7, port, 0).map_err(|e| e.to_string())?;
+        assert_eq!(robot.receive_limit(), MAX_PACKETS_PER_RECEIVE);
+        robot.set_receive_limit(8);
+        // Garbage and another game's valid packets: neither is handed over, both count.
+        flood(port, b"RGme, but not really", 12)?;
+        flood(port, &GameControlData::default().encode(), 8)?;
+        // Loopback queues a datagram before `send_to` returns: all 20 wait in the buffer.
+        assert_eq!(robot.receive(now()), Ok(Vec::new()));
+        let stats = robot.counters().snapshot();
+        assert_eq!(stats.rejected + stats.ignored, 8, "one receive reads at most the cap");
+        assert_eq!(robot.receive(now()), Ok(Vec::new()));
+        assert_eq!(robot.receive(now()), Ok(Vec::new()));
+        let stats = robot.counters().snapshot();
+        assert_eq!((stats.rejected, stats.ignored, stats.received), (12, 8, 0));
+        Ok(())
+    }
+
+    #[test]
+    fn a_flood_of_oversized_team_messages_is_read_a_capped_batch_per_receive() -> Result<(), String>
+    {
+        let port = free_udp_port()?;
+        let mut link = UdpTeamLink::bind(port, LOOPBACK_BROADCAST).map_err(|e| e.to_string())?;
+        assert_eq!(link.receive_limit(), MAX_PACKETS_PER_RECEIVE);
+        link.set_receive_limit(5);
+        flood(port, &[7; MAX_TEAM_MESSAGE_SIZE + 1], 12)?;
+        assert_eq!(link.receive(now()), Ok(Vec::new()));
+        assert_eq!(link.counters().snapshot().rejected, 5, "one receive reads at most the cap");
+        // Valid messages behind the flood arrive in later cycles.
+        flood(port, b"ours", 1)?;
+        assert_eq!(link.receive(now()), Ok(Vec::new()));
+        let packets = link.receive(now()).map_err(|e| e.to_string())?;
+        assert_eq!(packets.iter().map(|p| p.bytes.as_slice()).collect::<Vec<_>>(), [b"ours"]);
+        assert_eq!(link.counters().snapshot().rejected, 12);
         Ok(())
     }
 

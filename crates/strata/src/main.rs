@@ -1,10 +1,13 @@
 //! `strata`: run simulated matches, experiments, the simulator server, robots, the viewer and
 //! replays of the Strata architecture.
 
+use std::io::IsTerminal as _;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::{Parser, Subcommand};
+use clap::{ArgAction, Parser, Subcommand};
+use tracing_subscriber::EnvFilter;
+use tracing_subscriber::filter::LevelFilter;
 
 /// A match allocates and frees small packages tens of thousands of times per simulated second
 /// (world states, score vectors, reports); mimalloc's thread-local free lists cost a fraction
@@ -22,11 +25,57 @@ mod sim_cmd;
 mod spl_cmd;
 mod view_cmd;
 
+/// What `strata --help` ends with.
+const AFTER_HELP: &str = "\
+Diagnostics go to stderr: warnings and errors by default, -v adds information, -vv
+debugging details, -q leaves errors only. RUST_LOG, when set, decides instead (for example
+RUST_LOG=strata_nao=debug). Output (text or --json) goes to stdout, never mixed with them.
+
+Exit codes: 0 success; 1 an error (bad arguments, a file that cannot be read, a failed run);
+2 `strata replay` ran and the outputs differ from the log.";
+
 #[derive(Debug, Parser)]
-#[command(name = "strata", version, about = "A real-time hybrid control architecture for humanoid robots", long_about = None)]
+#[command(
+    name = "strata",
+    version,
+    about = "A real-time hybrid control architecture for humanoid robots",
+    long_about = None,
+    after_help = AFTER_HELP
+)]
 struct Cli {
+    /// More diagnostics on stderr: -v information, -vv debugging details, -vvv everything.
+    #[arg(short, long, action = ArgAction::Count, global = true)]
+    verbose: u8,
+    /// Errors only on stderr, no warnings.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
     #[command(subcommand)]
     command: Command,
+}
+
+impl Cli {
+    /// The most detailed diagnostics shown unless RUST_LOG says otherwise.
+    fn level(&self) -> LevelFilter {
+        match (self.quiet, self.verbose) {
+            (true, _) => LevelFilter::ERROR,
+            (false, 0) => LevelFilter::WARN,
+            (false, 1) => LevelFilter::INFO,
+            (false, 2) => LevelFilter::DEBUG,
+            (false, _) => LevelFilter::TRACE,
+        }
+    }
+}
+
+/// Sends the libraries' diagnostics (a lost LoLA link, a refused simulator client, a team
+/// message not sent) to stderr, filtered by RUST_LOG when it is set and by `level` otherwise.
+fn install_diagnostics(level: LevelFilter) {
+    let filter = EnvFilter::builder().with_default_directive(level.into()).from_env_lossy();
+    // Fails only when a global subscriber exists already, and nothing else installs one.
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .try_init();
 }
 
 #[derive(Debug, Subcommand)]
@@ -57,8 +106,23 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => {
+            let _ = error.print();
+            // Help and version are no errors; a usage error is exit code 1, as any other error
+            // (clap's own 2 means "the outputs differ" here).
+            return if error.use_stderr() { ExitCode::FAILURE } else { ExitCode::SUCCESS };
+        }
+    };
+    install_diagnostics(cli.level());
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(error) if error.is::<replay_cmd::OutputsDiffer>() => {
+            // Not an error: the replay ran and answered the question.
+            eprintln!("{error}");
+            ExitCode::from(replay_cmd::OUTPUTS_DIFFER_EXIT_CODE)
+        }
         Err(error) => {
             // The message and its causes only: returning the error from `main` would print
             // anyhow's backtrace too whenever RUST_BACKTRACE is set (as many set it for panics),
@@ -89,5 +153,17 @@ fn run(cli: Cli) -> Result<()> {
         Command::Experiment(args) => experiment_cmd::run(args),
         Command::View(args) => view_cmd::run(args),
         Command::Replay(args) => replay_cmd::run(args, &strata::replay_registry::soccer()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory as _;
+
+    /// The global -v/-q flags clash with no subcommand's own flags.
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
     }
 }

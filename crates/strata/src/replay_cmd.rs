@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::Args;
 use strata_log::LogReader;
 use strata_log::overrides::Override;
@@ -43,12 +43,36 @@ pub struct ReplayArgs {
     pub json: bool,
 }
 
+/// The exit code of a replay whose outputs differ from the log (1 is any error).
+pub const OUTPUTS_DIFFER_EXIT_CODE: u8 = 2;
+
+/// The replay ran, and its outputs differ from the logged ones: the answer scripts check for,
+/// told apart from errors by its exit code.
+#[derive(Debug)]
+pub struct OutputsDiffer {
+    pub modules: String,
+    pub differences: usize,
+}
+
+impl std::fmt::Display for OutputsDiffer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the replay of {} differs from the log in {} packages",
+            self.modules, self.differences
+        )
+    }
+}
+
+impl std::error::Error for OutputsDiffer {}
+
 fn parse_override(text: &str) -> Result<Override, String> {
     Override::parse(text).map_err(|e| e.to_string())
 }
 
-/// Replays with the module constructors of `registry` (the application's). Fails (non-zero
-/// exit) when the outputs differ from the log, so scripts can check determinism.
+/// Replays with the module constructors of `registry` (the application's). Fails with
+/// [`OutputsDiffer`] (exit code 2) when the outputs differ from the log, so scripts can check
+/// determinism.
 pub fn run(args: ReplayArgs, registry: &ModuleRegistry) -> Result<()> {
     let reader = LogReader::open(&args.file)?;
     if let Some(recovery) = reader.recovery() {
@@ -85,11 +109,11 @@ pub fn run(args: ReplayArgs, registry: &ModuleRegistry) -> Result<()> {
         print!("{report}");
     }
     if !report.identical() {
-        bail!(
-            "the replay of {} differs from the log in {} packages",
-            report.modules.join(", "),
-            report.total_differences
-        );
+        return Err(OutputsDiffer {
+            modules: report.modules.join(", "),
+            differences: report.total_differences,
+        }
+        .into());
     }
     Ok(())
 }

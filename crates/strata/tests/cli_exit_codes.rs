@@ -1,0 +1,66 @@
+//! Exit codes: 0 success, 1 an error (usage errors included), 2 a replay whose outputs differ
+//! from the log — so a script can tell "not deterministic" from "could not check".
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("strata-exit-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("a temporary directory");
+    dir
+}
+
+fn strata(args: &[&str]) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_strata"));
+    command.args(args).env_remove("RUST_LOG");
+    command
+}
+
+fn run(command: &mut Command) -> Output {
+    command.output().expect("strata runs")
+}
+
+fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+#[test]
+fn exit_codes_tell_errors_from_differing_replays() {
+    let dir = temp_dir("replay");
+    let log = dir.join("match.mcap");
+    let log_arg = log.to_string_lossy().into_owned();
+    let output = run(&mut strata(&[
+        "match",
+        "--players",
+        "2",
+        "--duration",
+        "4",
+        "--seed",
+        "5",
+        "--log",
+        &log_arg,
+    ]));
+    assert!(output.status.success(), "{}", stderr(&output));
+
+    let replay = ["replay", log_arg.as_str(), "--robot", "home/2", "--module", "world"];
+    let same = run(&mut strata(&replay));
+    assert_eq!(same.status.code(), Some(0), "{}", stderr(&same));
+
+    let noisier = "world.home.odometry.translation_variance_per_metre=0.5";
+    let differs = run(strata(&replay).args(["--set", noisier]));
+    assert_eq!(differs.status.code(), Some(2), "{}", stderr(&differs));
+    assert!(stderr(&differs).contains("differs from the log"), "{}", stderr(&differs));
+    assert!(!stderr(&differs).starts_with("error"), "{}", stderr(&differs));
+
+    let missing = dir.join("missing.mcap");
+    let missing = run(strata(&["replay", "--module", "world"]).arg(&missing));
+    assert_eq!(missing.status.code(), Some(1), "{}", stderr(&missing));
+    let unknown = run(&mut strata(&["replay", "--no-such-flag"]));
+    assert_eq!(unknown.status.code(), Some(1), "a usage error is an error: {}", stderr(&unknown));
+    let help = run(&mut strata(&["--help"]));
+    assert_eq!(help.status.code(), Some(0));
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains("Exit codes") && help.contains("outputs differ"), "{help}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
