@@ -580,8 +580,7 @@ fn io_loop(mut stream: TcpStream, mut session: Session, shared: &SharedState, st
     let mut buffer = Vec::with_capacity(16 * 1024);
     let mut answer = Vec::with_capacity(4 * 1024);
     let mut beamed = session.config.beam.is_none();
-    let mut start: Option<Instant> = None;
-    let mut cycles: u64 = 0;
+    let mut last_answer: Option<Instant> = None;
     let reason = loop {
         if stop.load(Ordering::Acquire) {
             break None;
@@ -594,7 +593,6 @@ fn io_loop(mut stream: TcpStream, mut session: Session, shared: &SharedState, st
             Err(error) => break Some(format!("reading from rcssservermj failed: {error}")),
         };
         let arrived = Instant::now();
-        let start = *start.get_or_insert(arrived);
         let mut effectors: Vec<Effector> = Vec::with_capacity(JOINTS.len() + 2);
         match protocol::decode_perception(message) {
             Ok(perception) => {
@@ -636,13 +634,16 @@ fn io_loop(mut stream: TcpStream, mut session: Session, shared: &SharedState, st
                 break Some(format!("encoding (syn) failed: {error}"));
             }
         }
-        cycles += 1;
         if session.config.pace > 0.0 {
-            let due = start + Duration::from_secs_f64(cycles as f64 * CYCLE / session.config.pace);
+            // One cycle's time after the previous answer; a server that fell behind is not
+            // made to catch up in a burst (the schedule restarts from now).
+            let period = Duration::from_secs_f64(CYCLE / session.config.pace);
+            let due = last_answer.map_or(arrived, |at| at + period);
             let now = Instant::now();
             if due > now {
                 std::thread::sleep(due - now);
             }
+            last_answer = Some(due.max(now));
         }
         if let Err(error) = protocol::write_frame(&mut stream, &answer) {
             break Some(format!("sending to rcssservermj failed: {error}"));

@@ -250,7 +250,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
         if let Some(links) = platform.links {
             // The server still forwards its referee's packets and teammates' messages; drain
             // them so they do not pile up in the client.
-            let PlatformLinks { mut team_link, mut game_controller } = links;
+            let PlatformLinks { mut team_link, mut game_controller, .. } = links;
             let clock = early_clock;
             unused_sim_links.push(Box::new(move || {
                 if let Some(team_link) = &mut team_link {
@@ -263,7 +263,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
         let gc: Box<dyn ExternalLink> = Box::new(gc);
         (Some(team), gc, team_counters, gc_counters, endpoints)
     } else {
-        let Some(PlatformLinks { team_link, game_controller }) = platform.links else {
+        let Some(PlatformLinks { team_link, game_controller, label }) = platform.links else {
             bail!("without --net the simulator server must carry team messages and game state");
         };
         let (team_counters, gc_counters) = (Arc::<LinkCounters>::default(), Arc::default());
@@ -273,9 +273,9 @@ pub fn run(args: RobotArgs) -> Result<()> {
         let gc: Box<dyn ExternalLink> =
             Box::new(Counted::new(game_controller, Arc::clone(&gc_counters)));
         let endpoints = Endpoints {
-            game_controller: platform.source.clone(),
+            game_controller: label.to_owned(),
             team: match team {
-                Some(_) => platform.source.clone(),
+                Some(_) => label.to_owned(),
                 None => "none (the platform carries no team messages; --net for UDP)".to_owned(),
             },
         };
@@ -695,6 +695,8 @@ impl<P: Platform> Platform for Observed<P> {
 struct PlatformLinks {
     team_link: Option<Box<dyn TeamLink>>,
     game_controller: Box<dyn ExternalLink>,
+    /// Where the links lead, for the start line.
+    label: &'static str,
 }
 
 struct OpenPlatform {
@@ -735,6 +737,7 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
                 links: Some(PlatformLinks {
                     team_link: Some(Box::new(robot.team_link)),
                     game_controller: Box::new(robot.game_controller),
+                    label: "simulator server",
                 }),
                 nao: None,
                 truth: None,
@@ -799,7 +802,11 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
                 info,
                 counters,
                 source: format!("rcssservermj {server} as {team_name} #{}", args.player),
-                links: Some(PlatformLinks { team_link: None, game_controller: Box::new(referee) }),
+                links: Some(PlatformLinks {
+                    team_link: None,
+                    game_controller: Box::new(referee),
+                    label: "rcssservermj's referee",
+                }),
                 nao: None,
                 truth: Some(truth),
                 t1: Some(t1),
