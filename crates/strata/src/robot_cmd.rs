@@ -976,6 +976,21 @@ struct LocalizationAccuracy {
     truth: [f64; 2],
     /// Where the world model put it.
     estimate: [f64; 2],
+    /// The same after the pose first converged (first not lost after a landmark correction):
+    /// the error of a robot that knows where it is, without the search before.
+    converged: Option<ConvergedAccuracy>,
+}
+
+/// Position error over the world states since the pose first converged.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+struct ConvergedAccuracy {
+    /// World states before the first converged one.
+    after_samples: u64,
+    samples: u64,
+    /// Of these, how many said the pose was lost.
+    lost_samples: u64,
+    mean_error_m: f64,
+    max_error_m: f64,
 }
 
 /// Compares each of the world module's states with the platform's ground truth.
@@ -1002,7 +1017,8 @@ impl Tap for Accuracy {
             return;
         };
         let Some(truth) = self.truth.get() else { return };
-        let pose = package.value.pose.pose;
+        let estimate = &package.value.pose;
+        let pose = estimate.pose;
         // The team frame is the server's world frame turned half a circle for a team that
         // attacks towards -x.
         let s = self.attack_sign;
@@ -1019,6 +1035,17 @@ impl Tap for Accuracy {
         accuracy.mean_heading_error_deg = *heading_sum / n;
         accuracy.max_error_m = accuracy.max_error_m.max(error);
         accuracy.last_error_m = error;
+        if accuracy.converged.is_none() && !estimate.lost && estimate.last_correction.is_some() {
+            accuracy.converged =
+                Some(ConvergedAccuracy { after_samples: n as u64 - 1, ..Default::default() });
+        }
+        if let Some(converged) = &mut accuracy.converged {
+            converged.samples += 1;
+            converged.lost_samples += u64::from(estimate.lost);
+            let m = converged.samples as f64;
+            converged.mean_error_m += (error - converged.mean_error_m) / m;
+            converged.max_error_m = converged.max_error_m.max(error);
+        }
         accuracy.truth = [tx, ty];
         accuracy.estimate = [pose.x, pose.y];
     }
@@ -1304,6 +1331,17 @@ impl Output {
                 l.estimate[0],
                 l.estimate[1]
             );
+            if let Some(c) = &l.converged {
+                println!(
+                    "{}: after the pose first converged ({} world states in): mean error {:.2} m (max {:.2}) over {} world states, {} of them lost",
+                    self.name,
+                    c.after_samples,
+                    c.mean_error_m,
+                    c.max_error_m,
+                    c.samples,
+                    c.lost_samples
+                );
+            }
         }
         for fall in &report.falls {
             match fall.latency {
