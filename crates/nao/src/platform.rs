@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use strata_robot::geometry::Velocity;
 use strata_robot::platform::{
     ActuatorOrders, Buttons, FootContact, HeadAngles, InertialData, MotionFeedback, Platform,
-    PlatformError, PlatformInfo, SensorFrame,
+    PlatformError, PlatformInfo, SensorFrame, stamp_at,
 };
 use strata_runtime::Time;
 
@@ -328,13 +328,6 @@ impl Drop for LolaPlatform {
             tracing::error!("the LoLA thread panicked");
         }
     }
-}
-
-/// Maps an instant on this machine to the host's clock: `now` is the host's present, so a
-/// packet received `age` ago was measured at `now - age`.
-fn stamp_at(now: Time, at: Instant) -> Time {
-    let age = u64::try_from(at.elapsed().as_nanos()).unwrap_or(u64::MAX);
-    Time::from_nanos(now.as_nanos().saturating_sub(age))
 }
 
 impl Platform for LolaPlatform {

@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 use strata_robot::platform::{
     ActuatorOrders, BodyOrder, CameraFrame, FootContact, HeadAngles, InertialData, MotionFeedback,
-    Platform, PlatformError, PlatformInfo, SensorFrame, SpecialMotion,
+    Platform, PlatformError, PlatformInfo, SensorFrame, SpecialMotion, stamp_at,
 };
 use strata_runtime::Time;
 
@@ -460,13 +460,6 @@ impl Drop for RcssPlatform {
             tracing::error!("the rcssservermj connection thread panicked");
         }
     }
-}
-
-/// Maps an instant on this machine to the host's clock: `now` is the host's present, so data
-/// received `age` ago was measured at `now - age`.
-fn stamp_at(now: Time, at: Instant) -> Time {
-    let age = u64::try_from(at.elapsed().as_nanos()).unwrap_or(u64::MAX);
-    Time::from_nanos(now.as_nanos().saturating_sub(age))
 }
 
 impl Platform for RcssPlatform {

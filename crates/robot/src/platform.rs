@@ -271,6 +271,14 @@ pub trait Platform: Send {
     fn write(&mut self, now: Time, orders: &ActuatorOrders) -> Result<(), PlatformError>;
 }
 
+/// Maps an instant on this machine to the host's clock, for platforms that stamp data on
+/// arrival: `now` is the host's present, so data received `age` ago was measured at
+/// `now - age`.
+pub fn stamp_at(now: Time, at: std::time::Instant) -> Time {
+    let age = u64::try_from(at.elapsed().as_nanos()).unwrap_or(u64::MAX);
+    Time::from_nanos(now.as_nanos().saturating_sub(age))
+}
+
 /// A platform shared by the perception and actuation modules of one robot.
 pub type SharedPlatform = Arc<Mutex<dyn Platform>>;
 
