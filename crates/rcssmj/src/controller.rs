@@ -25,6 +25,10 @@ use crate::policy::{LegState, WalkCommand, WalkPolicy};
 /// The server's agent cycle, s: every perception advances the controller by this much.
 pub const CYCLE: f64 = 0.02;
 
+/// A heading change between two perceptions beyond this is a placement, not a turn, rad
+/// (15 rad/s; the policy turns at 1 rad/s at most).
+const MAX_TURN_PER_CYCLE: f64 = 0.3;
+
 /// How long a protective fall keeps the joints soft, s.
 const FALL_DURATION: f64 = 0.6;
 
@@ -308,9 +312,16 @@ impl T1Controller {
         let v = self.policy.smoothed_command();
         // Turning comes from the IMU's heading (what a real T1 integrates from its gyro); a
         // first cycle has no previous heading and contributes only the commanded turn.
+        let commanded = st * v.yaw_rate * CYCLE;
         let dtheta = match previous_yaw {
-            Some(yaw) => strata_robot::geometry::normalize_angle(measured.orientation.yaw() - yaw),
-            None => st * v.yaw_rate * CYCLE,
+            Some(yaw) => {
+                let turned =
+                    strata_robot::geometry::normalize_angle(measured.orientation.yaw() - yaw);
+                // No step turns the body this fast: the server placed the robot (a beam, or a
+                // referee's move, whose perception can arrive a cycle after the restart).
+                if turned.abs() > MAX_TURN_PER_CYCLE { commanded } else { turned }
+            }
+            None => commanded,
         };
         let step = Odometry { dx: sx * v.vx * CYCLE, dy: sy * v.vy * CYCLE, dtheta };
         self.odometry = self.odometry.then(step);
@@ -579,5 +590,12 @@ mod tests {
         };
         c.step(yawed);
         assert!((c.take_odometry().dtheta - 0.1).abs() < 1e-9);
+        // Placed facing elsewhere by the server: no turn.
+        let placed = MeasuredBody {
+            orientation: Quaternion { w: (1.0f64).cos(), x: 0.0, y: 0.0, z: (1.0f64).sin() },
+            ..upright()
+        };
+        c.step(placed);
+        assert!(c.take_odometry().dtheta.abs() < 1e-12);
     }
 }

@@ -12,8 +12,11 @@ use strata_spl::ObjectKind;
 use crate::camera::DetectorKind;
 
 /// The class and detector of a world marker, or `None` for a name this platform does not
-/// know (a newer server's marker is ignored, not an error).
+/// know (a newer server's marker is ignored, not an error) or does not trust.
 pub fn classify(name: &str) -> Option<(ObjectClass, DetectorKind)> {
+    if is_misplaced(name) {
+        return None;
+    }
     let kind = match name {
         "B" => return Some((class(ObjectKind::Ball), DetectorKind::Ball)),
         _ if name.starts_with("g_") => {
@@ -26,6 +29,16 @@ pub fn classify(name: &str) -> Option<(ObjectClass, DetectorKind)> {
         _ => return None,
     };
     Some((class(kind), DetectorKind::FieldFeature))
+}
+
+/// rcsssmj 0.2.1 puts the markers of its goal areas (`l_luga`, `t_llga`, ...) and penalty
+/// areas (`l_lupa`, `t_rlpa`, ...) at the area's full width from the centre line instead of
+/// half of it: y = +-7.3 m and +-16.5 m where its drawn lines meet at +-3.65 m and +-8.25 m.
+/// No camera would see a crossing there, and taken for the real corners they shift the
+/// robot's pose by 3.65 m (seen near the goal), so they are not detections.
+fn is_misplaced(name: &str) -> bool {
+    (name.starts_with("l_") || name.starts_with("t_"))
+        && (name.ends_with("ga") || name.ends_with("pa"))
 }
 
 /// The class of a robot.
@@ -46,10 +59,13 @@ mod tests {
         let code = |name| classify(name).map(|(c, _)| c.0);
         assert_eq!(code("B"), Some(ObjectKind::Ball.code()));
         assert_eq!(code("g_rlp"), Some(ObjectKind::GoalPost.code()));
-        assert_eq!(code("l_luga"), Some(ObjectKind::LCrossing.code()));
+        assert_eq!(code("l_luf"), Some(ObjectKind::LCrossing.code()));
         assert_eq!(code("t_cuf"), Some(ObjectKind::TCrossing.code()));
         assert_eq!(code("x_clc"), Some(ObjectKind::XCrossing.code()));
         assert_eq!(code("p_lpm"), Some(ObjectKind::PenaltyMark.code()));
         assert_eq!(code("flag"), None);
+        for misplaced in ["l_lupa", "l_rlpa", "t_llpa", "t_rupa", "l_luga", "t_rlga"] {
+            assert_eq!(code(misplaced), None, "{misplaced}");
+        }
     }
 }

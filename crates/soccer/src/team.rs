@@ -17,7 +17,7 @@ use strata_robot::control::reactive::{
 use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::perception::PerceptionConfig;
 use strata_robot::platform::{ExternalLink, PlatformInfo, SharedPlatform, TeamLink, lock_platform};
-use strata_robot::world::WorldState;
+use strata_robot::world::{PosePrior, WorldModelConfig, WorldState};
 use strata_runtime::GraphBuilder;
 
 use crate::activation::{BodyActivation, HeadActivation, WholeBodyActivation};
@@ -193,6 +193,9 @@ pub struct SoccerRobotSpec {
     pub team_link: Option<Box<dyn TeamLink>>,
     pub game_controller: Option<Box<dyn ExternalLink>>,
     pub half_duration: f64,
+    /// Where the robot knows it starts (a platform that places it), in the team frame; `None`:
+    /// the pose is lost until landmarks fix it.
+    pub initial_pose: Option<PosePrior>,
 }
 
 impl std::fmt::Debug for SoccerRobotSpec {
@@ -202,6 +205,13 @@ impl std::fmt::Debug for SoccerRobotSpec {
             .field("player", &self.player)
             .finish_non_exhaustive()
     }
+}
+
+/// The world model's configuration for one robot: the field's, with where it starts if known.
+pub fn robot_world_config(field: &TeamField, initial_pose: Option<PosePrior>) -> WorldModelConfig {
+    let mut config = world_config(field);
+    config.pose.initial = initial_pose;
+    config
 }
 
 /// Soccer's reactive layer: the three multiplexers of Table 4 with their primitive behaviors,
@@ -288,7 +298,7 @@ pub fn add_soccer_robot(
         player: spec.player,
         platform: spec.platform,
         perception: config.perception.clone(),
-        world: world_config(&field),
+        world: robot_world_config(&field, spec.initial_pose),
         reactive,
         deliberative,
         planner,

@@ -234,6 +234,7 @@ impl Match {
                     team_link: Some(Box::new(sim.team_link(id)?)),
                     game_controller: Some(Box::new(sim.game_controller_link(id)?)),
                     half_duration: config.half_duration,
+                    initial_pose: None,
                 };
                 let modules = add_soccer_robot(&mut graph, spec, team_config)
                     .map_err(|e| anyhow::anyhow!("robot {}: {e}", robot_name(id)))?;

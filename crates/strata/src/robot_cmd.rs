@@ -34,12 +34,12 @@ use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
 use strata_rcssmj::platform::{FALL_ONSET_TILT, FallRecord, RcssConfig, RcssPlatform, TruthSource};
 use strata_rcssmj::referee::TeamNumbers;
 use strata_robot::assembly::RobotModules;
-use strata_robot::geometry::normalize_angle;
+use strata_robot::geometry::{Pose, normalize_angle};
 use strata_robot::platform::{
     ActuatorOrders, ExternalLink, MotionFeedback, Platform, PlatformError, PlatformInfo,
     ReceivedPacket, SensorFrame, SharedPlatform, TeamLink,
 };
-use strata_robot::world::WorldState;
+use strata_robot::world::{PosePrior, WorldState};
 use strata_runtime::{
     Clock, Encoding, GraphBuilder, HostConfig, HostError, HostStats, MonotonicClock, Package, Tap,
     TapRecord, ThreadedHost, Time,
@@ -47,8 +47,7 @@ use strata_runtime::{
 use strata_soccer::behaviors::Decision;
 use strata_soccer::field::TeamField;
 use strata_soccer::game::GameDirective;
-use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
-use strata_soccer::world_config::world_config;
+use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot, robot_world_config};
 use strata_spl::Field;
 use strata_spl::gamecontroller::{GameControlData, MAX_NUM_PLAYERS};
 
@@ -183,6 +182,17 @@ pub struct RobotArgs {
     pub log_encoding: Encoding,
 }
 
+/// Where a beam puts the robot, in its team's frame: rcssservermj moves `x` into the own half
+/// and turns the right team's heading by half a circle but leaves `y` in the world's frame
+/// (docs/rcssservermj-protocol.md), which is the team's frame turned for a team attacking -x.
+/// `beam` is as parsed from `--beam`: metres and radians.
+fn beam_prior([x, y, theta]: [f64; 3], attack_sign: f64) -> PosePrior {
+    PosePrior {
+        pose: Pose::new(-x.abs(), attack_sign.signum() * y, theta),
+        sigma: [0.1, 0.1, 0.05],
+    }
+}
+
 fn parse_beam(text: &str) -> Result<[f64; 3], String> {
     let values: Vec<f64> = text
         .split(',')
@@ -287,6 +297,11 @@ pub fn run(args: RobotArgs) -> Result<()> {
         learn_attack_sign(gc_link, args.team, args.attack_sign, args.gc_wait, &early_clock);
     let team_field = Arc::new(TeamField::new(field, attack_sign));
 
+    // A robot that beams itself knows where it starts, as the league's agents do.
+    let initial_pose = match args.platform {
+        PlatformKind::Rcssservermj => args.beam.map(|beam| beam_prior(beam, attack_sign)),
+        _ => None,
+    };
     // The robot: all four modules, all three layers.
     let mut graph = GraphBuilder::new();
     let spec = SoccerRobotSpec {
@@ -299,6 +314,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
         team_link,
         game_controller: Some(gc_link),
         half_duration: args.half_duration,
+        initial_pose,
     };
     let modules = add_soccer_robot(&mut graph, spec, &config)
         .map_err(|e| anyhow::anyhow!("building robot {}/{}: {e}", args.team, args.player))?;
@@ -314,7 +330,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
             let run_config = RobotRunConfig {
                 robot: format!("t{}/{}", args.team, args.player),
                 team: config.clone(),
-                world: world_config(&team_field),
+                world: robot_world_config(&team_field, initial_pose),
                 field: team_field.field.dimensions().clone(),
                 attack_sign,
                 platform: info.clone(),
@@ -378,6 +394,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
             (Arc::clone(&done), Arc::clone(&end), Arc::clone(&watch), out.clone());
         let counters = Arc::clone(&platform.counters);
         let (team_counters, gc_counters) = (Arc::clone(&team_counters), Arc::clone(&gc_counters));
+        let accuracy = accuracy.clone();
         let duration = args.duration.map(|d| Duration::from_secs_f64(d.max(0.0)));
         let status_every = Duration::from_secs_f64(args.status_interval.max(0.1));
         std::thread::Builder::new()
@@ -401,6 +418,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
                             &watch,
                             &team_counters,
                             &gc_counters,
+                            accuracy.as_deref().and_then(Accuracy::snapshot),
                         ));
                     }
                     let reason = if duration.is_some_and(|d| elapsed >= d) {
@@ -976,6 +994,12 @@ struct LocalizationAccuracy {
     truth: [f64; 2],
     /// Where the world model put it.
     estimate: [f64; 2],
+    /// Whether the world model said its pose was lost, last.
+    #[serde(skip)]
+    last_lost: bool,
+    /// Headings last, degrees (estimate, truth).
+    #[serde(skip)]
+    last_headings_deg: [f64; 2],
     /// The same after the pose first converged (first not lost after a landmark correction):
     /// the error of a robot that knows where it is, without the search before.
     converged: Option<ConvergedAccuracy>,
@@ -1048,6 +1072,9 @@ impl Tap for Accuracy {
         }
         accuracy.truth = [tx, ty];
         accuracy.estimate = [pose.x, pose.y];
+        accuracy.last_lost = estimate.lost;
+        accuracy.last_headings_deg =
+            [pose.theta.to_degrees(), normalize_angle(heading).to_degrees()];
     }
 }
 
@@ -1090,6 +1117,19 @@ struct Status {
     messages_sent: u64,
     messages_received: u64,
     gc_packets: u64,
+    /// The newest self-localization against the ground truth (platforms that have one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pose: Option<PoseStatus>,
+}
+
+/// Where the world model puts the robot and where it is, in the team frame, m.
+#[derive(Debug, Serialize)]
+struct PoseStatus {
+    /// x, y (m) and heading (degrees).
+    estimate: [f64; 3],
+    truth: [f64; 3],
+    error_m: f64,
+    lost: bool,
 }
 
 impl Status {
@@ -1099,6 +1139,7 @@ impl Status {
         watch: &Watch,
         team: &LinkCounters,
         gc: &LinkCounters,
+        accuracy: Option<LocalizationAccuracy>,
     ) -> Status {
         let decision = watch.latest();
         let connected = decision.as_ref().filter(|d| d.directive.connected);
@@ -1115,6 +1156,12 @@ impl Status {
             messages_sent: team.snapshot().sent,
             messages_received: planning.received,
             gc_packets: gc.snapshot().received,
+            pose: accuracy.map(|a| PoseStatus {
+                estimate: [a.estimate[0], a.estimate[1], a.last_headings_deg[0]],
+                truth: [a.truth[0], a.truth[1], a.last_headings_deg[1]],
+                error_m: a.last_error_m,
+                lost: a.last_lost,
+            }),
         }
     }
 }
@@ -1401,5 +1448,23 @@ impl Output {
             );
         }
         println!("\n{}", report.host.table());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_beam_is_a_pose_in_the_teams_frame() {
+        // The left team attacks +x: its frame is the world's, and x goes into the own half.
+        let left = beam_prior([3.0, -1.0, 30f64.to_radians()], 1.0).pose;
+        assert_eq!((left.x, left.y), (-3.0, -1.0));
+        assert!((left.theta - 30f64.to_radians()).abs() < 1e-12);
+        // The server put the right team's `(beam 2 -1 30)` at (2, -1) heading 210 degrees in
+        // the world: in a frame turned half a circle that is (-2, 1) heading 30 degrees.
+        let right = beam_prior([2.0, -1.0, 30f64.to_radians()], -1.0).pose;
+        assert_eq!((right.x, right.y), (-2.0, 1.0));
+        assert!((right.theta - 30f64.to_radians()).abs() < 1e-12);
     }
 }

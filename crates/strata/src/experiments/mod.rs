@@ -674,6 +674,7 @@ impl Scene {
                 team_link: Some(Box::new(sim.team_link(id)?)),
                 game_controller: Some(Box::new(sim.game_controller_link(id)?)),
                 half_duration: 600.0,
+                initial_pose: None,
             };
             let modules = add_soccer_robot(&mut graph, spec, &robot.team)
                 .map_err(|e| anyhow!("robot {}: {e}", robot_name(id)))?;
