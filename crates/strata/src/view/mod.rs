@@ -9,6 +9,7 @@
 //!   JSON endpoints `/api/info`, `/api/frame?t=` and `/api/series?robot=&from=&to=`.
 
 pub mod data;
+pub mod request;
 pub mod server;
 
 use std::path::Path;

@@ -3,7 +3,7 @@
 //! `Connection: close`: a viewer has one or two clients polling a few times a second, which
 //! does not justify an async runtime (`docs/viewer.md`).
 
-use std::io::{self, BufRead, BufReader, Write};
+use std::io::{self, BufReader, Write};
 use std::net::{Ipv4Addr, SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, PoisonError, RwLock};
@@ -13,6 +13,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use super::data::ViewData;
+use super::request::{MAX_REQUEST_BYTES, Target, read_request};
 
 const INDEX_HTML: &str = include_str!("assets/index.html");
 const VIEWER_JS: &str = include_str!("assets/viewer.js");
@@ -20,8 +21,6 @@ const VIEWER_CSS: &str = include_str!("assets/viewer.css");
 
 /// Requests served at once; more get `503` (a viewer is not a public web server).
 const MAX_CONNECTIONS: usize = 32;
-/// The request line and headers; a GET has no body.
-const MAX_REQUEST_BYTES: usize = 16 * 1024;
 /// Points per series at most, unless the request asks for fewer.
 const MAX_SERIES_POINTS: usize = 4000;
 
@@ -100,104 +99,25 @@ impl Drop for ViewServer {
     }
 }
 
-/// A parsed request target.
-#[derive(Debug, PartialEq)]
-struct Target {
-    path: String,
-    query: Vec<(String, String)>,
-}
-
-impl Target {
-    fn parse(target: &str) -> Target {
-        let (path, query) = target.split_once('?').unwrap_or((target, ""));
-        Target {
-            path: percent_decode(path),
-            query: query
-                .split('&')
-                .filter(|p| !p.is_empty())
-                .map(|pair| {
-                    let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
-                    (percent_decode(k), percent_decode(v))
-                })
-                .collect(),
-        }
-    }
-
-    fn get(&self, key: &str) -> Option<&str> {
-        self.query.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
-    }
-
-    /// A number parameter: absent is `None`, malformed is an error naming it.
-    fn number(&self, key: &str) -> Result<Option<f64>, String> {
-        match self.get(key) {
-            None | Some("") => Ok(None),
-            Some(text) => text
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .map(Some)
-                .ok_or_else(|| format!("`{key}` must be a number of seconds, got `{text}`")),
-        }
-    }
-}
-
-fn percent_decode(text: &str) -> String {
-    let bytes = text.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        match bytes[i] {
-            b'+' => out.push(b' '),
-            b'%' if i + 2 < bytes.len() => {
-                let hex = std::str::from_utf8(&bytes[i + 1..i + 3]).ok();
-                match hex.and_then(|h| u8::from_str_radix(h, 16).ok()) {
-                    Some(b) => {
-                        out.push(b);
-                        i += 3;
-                        continue;
-                    }
-                    None => out.push(b'%'),
-                }
-            }
-            b => out.push(b),
-        }
-        i += 1;
-    }
-    String::from_utf8_lossy(&out).into_owned()
-}
-
 /// Reads one request and answers it. Errors are the client's connection failing.
 fn handle(stream: &TcpStream, data: &RwLock<ViewData>) -> io::Result<()> {
     stream.set_read_timeout(Some(Duration::from_secs(10)))?;
     stream.set_write_timeout(Some(Duration::from_secs(10)))?;
     let mut reader = BufReader::new(stream.take_limited());
-    let mut request_line = String::new();
-    if reader.read_line(&mut request_line)? == 0 {
-        return Ok(());
-    }
-    // Headers are read and ignored; a GET's answer depends on its target only.
-    let mut total = request_line.len();
-    loop {
-        let mut line = String::new();
-        let n = reader.read_line(&mut line)?;
-        total += n;
-        if n == 0 || line == "\r\n" || line == "\n" {
-            break;
+    let request = match read_request(&mut reader)? {
+        None => return Ok(()),
+        Some(Ok(request)) => request,
+        Some(Err(rejection)) => {
+            return respond(
+                stream,
+                rejection.status(),
+                "text/plain",
+                rejection.message().as_bytes(),
+            );
         }
-        if total > MAX_REQUEST_BYTES {
-            return respond(stream, 431, "text/plain", b"request headers too large\n");
-        }
-    }
-    let mut parts = request_line.split_whitespace();
-    let (Some(method), Some(target)) = (parts.next(), parts.next()) else {
-        return respond(stream, 400, "text/plain", b"malformed request line\n");
     };
-    if method != "GET" && method != "HEAD" {
-        return respond(stream, 405, "text/plain", b"only GET is served\n");
-    }
-    let target = Target::parse(target);
-    let (status, content_type, body) = route(&target, data);
-    if method == "HEAD" {
+    let (status, content_type, body) = route(&request.target, data);
+    if request.head_only {
         return respond(stream, status, content_type, b"");
     }
     respond(stream, status, content_type, &body)
@@ -255,6 +175,7 @@ fn respond(mut stream: &TcpStream, status: u16, content_type: &str, body: &[u8])
         200 => "OK",
         204 => "No Content",
         400 => "Bad Request",
+        403 => "Forbidden",
         404 => "Not Found",
         405 => "Method Not Allowed",
         431 => "Request Header Fields Too Large",
@@ -279,23 +200,5 @@ trait TakeLimited {
 impl TakeLimited for TcpStream {
     fn take_limited(&self) -> io::Take<&TcpStream> {
         io::Read::take(self, (MAX_REQUEST_BYTES + 1024) as u64)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn targets_are_decoded() {
-        let t = Target::parse("/api/series?robot=home%2F2&from=1.5&to=&x");
-        assert_eq!(t.path, "/api/series");
-        assert_eq!(t.get("robot"), Some("home/2"));
-        assert_eq!(t.number("from"), Ok(Some(1.5)));
-        assert_eq!(t.number("to"), Ok(None));
-        assert_eq!(t.get("x"), Some(""));
-        assert!(t.number("robot").is_err());
-        assert_eq!(percent_decode("a%zz%4"), "a%zz%4");
-        assert_eq!(percent_decode("%41+b"), "A b");
     }
 }
