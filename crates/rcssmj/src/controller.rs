@@ -227,9 +227,8 @@ impl T1Controller {
             (
                 BodyOrder::Special { motion: SpecialMotion::Kick(n) },
                 BodyMode::Standing | BodyMode::Walking(_),
-            ) if usize::from(n) < self.config.kicks.len() => {
-                self.policy.restart_gait();
-                self.body = BodyMode::Kicking(KickRun::new(n));
+            ) if let Some(spec) = self.config.kicks.get(usize::from(n)) => {
+                self.body = BodyMode::Kicking(KickRun::new(n, spec, self.policy.is_walking()));
                 Ok(())
             }
             (BodyOrder::Special { motion: SpecialMotion::Kick(_) }, _)
@@ -300,6 +299,7 @@ impl T1Controller {
         let walk = |v: Velocity| KickCycle {
             command: WalkCommand { vx: v.vx, vy: v.vy, yaw_rate: v.omega },
             smoothing_step,
+            restart_gait: false,
             offsets: [0.0; LEG_COUNT],
         };
         match &mut self.body {
@@ -307,6 +307,9 @@ impl T1Controller {
             BodyMode::Kicking(run) => match self.config.kicks.get(usize::from(run.sequence)) {
                 Some(spec) => {
                     let cycle = run.step(spec, self.policy.phase(), CYCLE);
+                    if cycle.restart_gait {
+                        self.policy.restart_gait();
+                    }
                     if run.finished(spec) {
                         self.body = BodyMode::Standing;
                     }
@@ -452,7 +455,7 @@ impl T1Controller {
                     .config
                     .kicks
                     .get(usize::from(run.sequence))
-                    .map_or(0.0, |k| k.duration()),
+                    .map_or(0.0, |k| run.duration(k)),
             },
         }
     }
@@ -575,7 +578,9 @@ mod tests {
         c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) })).expect("ok");
         c.step(upright());
         c.apply(&kick(1)).expect("a pass is taken while walking");
-        let duration = c.config().kicks[1].duration();
+        // From a walk the kick stands first.
+        let spec = &c.config().kicks[1];
+        let duration = spec.stop + spec.duration();
         let cycles = (duration / CYCLE).round() as usize;
         for i in 0..cycles {
             match c.body_state() {

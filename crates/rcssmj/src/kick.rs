@@ -1,17 +1,20 @@
 //! The T1's kicks, numbered as the soccer application and the 2D simulator number theirs:
 //! `Kick(0)` a strong kick straight ahead, `Kick(1)` a softer one (a pass). The sideways kicks
-//! (`Kick(2)`, `Kick(3)` there) are not in this catalogue.
+//! (`Kick(2)`, `Kick(3)` there) are not in this catalogue: the platform refuses them.
 //!
 //! Each kick is a *walk-through kick*: Booster's walking policy keeps the balance, the kick
-//! orders it a short burst of fast walking straight through the ball, then stands. The burst
-//! starts harder than an ordinary walk (the command's smoothing step is larger), so the feet
-//! reach the ball at speed. A swing of the kicking leg can be laid on top of the policy's
-//! targets during one of that leg's swing phases ([`Swing`]): offsets of its hip, knee and
-//! ankle pitch that throw the foot forward faster than the gait does.
+//! orders it a short burst of fast walking through the ball, then stands. The burst starts
+//! harder than an ordinary walk (a larger smoothing step), so the feet reach the ball at
+//! speed, and always at the gait's first step (phase zero, the left leg swinging first), so
+//! the same foot meets the ball at the same moment every time: ordered while walking, a kick
+//! stands first. A swing of one leg can be laid on the policy's targets during that leg's
+//! swing ([`Swing`]): the forward kick straightens the right knee harder as the right foot
+//! swings through the ball.
 //!
 //! The platform does not know where the ball is: the motion is the same wherever it is, and
-//! the soccer application's approach puts the robot behind the ball (docs/rcssservermj.md has
-//! the placements the kicks were measured from).
+//! the soccer application's approach puts the robot behind the ball. The kicks were tuned from
+//! a ball 0.20 m ahead of the torso on its centre line; crates/rcssmj/tests/kick.rs measures
+//! them and has a bench for other placements.
 
 use serde::{Deserialize, Serialize};
 
@@ -26,6 +29,12 @@ pub struct KickSpec {
     pub name: String,
     /// The burst's walk: forward m/s.
     pub forward: f64,
+    /// ... and leftward m/s (lines the kicking foot up with a ball in the middle).
+    #[serde(default)]
+    pub sideways: f64,
+    /// ... and turning rad/s, counter-clockwise (aims the kicking foot).
+    #[serde(default)]
+    pub turn: f64,
     /// How fast the burst's command rises and falls, m/s per 20 ms cycle (the deployment's
     /// ordinary walk: 0.02).
     pub smoothing_step: f64,
@@ -33,12 +42,15 @@ pub struct KickSpec {
     pub burst: f64,
     /// From the end of the burst until the body stands still again, s.
     pub settle: f64,
+    /// Ordered while walking, the kick first stands this long, s, so that its burst starts
+    /// from both feet on the ground at the gait's first step, as from standing.
+    pub stop: f64,
     /// A leg swing on top of the policy's targets, if any.
     pub swing: Option<Swing>,
 }
 
 impl KickSpec {
-    /// The whole motion, s: burst and settling.
+    /// The whole motion from standing, s: burst and settling (from a walk, `stop` more).
     pub fn duration(&self) -> f64 {
         self.burst + self.settle
     }
@@ -56,8 +68,14 @@ impl KickSpec {
                 return Err(format!("kick {name:?}: {field} must be > 0, got {value}"));
             }
         }
-        if !self.forward.is_finite() {
-            return Err(format!("kick {name:?}: forward must be a number, got {}", self.forward));
+        if !(self.stop.is_finite() && self.stop >= 0.0) {
+            return Err(format!("kick {name:?}: stop must be >= 0, got {}", self.stop));
+        }
+        let walk = [self.forward, self.sideways, self.turn];
+        if !walk.iter().all(|v| v.is_finite()) {
+            return Err(format!(
+                "kick {name:?}: forward, sideways and turn must be numbers, got {walk:?}"
+            ));
         }
         if let Some(swing) = &self.swing {
             swing.validate().map_err(|e| format!("kick {name:?}: swing: {e}"))?;
@@ -139,23 +157,44 @@ impl Swing {
     }
 }
 
-/// The kicks the T1 makes, by sequence number.
+/// The kicks the T1 makes, by sequence number. Tuned against rcssservermj from a ball 0.20 m
+/// ahead of the torso on its centre line, where the soccer application's approach ends
+/// (crates/rcssmj/tests/kick.rs measures them). Both start from standing with the left leg's
+/// step; the slight walk to the right and turn to the right counter the leftward sway of that
+/// first step, which otherwise sends the ball off to the left.
 pub fn catalogue() -> Vec<KickSpec> {
     vec![
         KickSpec {
-            name: "forward: a walk-through kick".to_owned(),
+            name: "forward: a walk-through kick with a right-leg knee snap".to_owned(),
             forward: 0.6,
+            sideways: -0.15,
+            turn: -0.5,
             smoothing_step: 0.05,
             burst: 1.2,
             settle: 1.0,
-            swing: None,
+            stop: 0.6,
+            // The right leg's first swing (phase 0.6 to 0.95 from a standing start) meets the
+            // ball; straightening its knee harder throws the foot through it. More than 0.5
+            // rad made the robot stumble and fall in trials.
+            swing: Some(Swing {
+                leg: KickLeg::Right,
+                after: 0.0,
+                start: 0.65,
+                end: 0.9,
+                hip: 0.0,
+                knee: -0.5,
+                ankle: 0.0,
+            }),
         },
         KickSpec {
-            name: "pass: a slower walk-through kick".to_owned(),
+            name: "pass: a walk-through kick".to_owned(),
             forward: 0.4,
+            sideways: -0.1,
+            turn: 0.0,
             smoothing_step: 0.04,
             burst: 1.0,
             settle: 0.8,
+            stop: 0.6,
             swing: None,
         },
     ]
@@ -178,6 +217,9 @@ pub struct KickRun {
     pub sequence: u8,
     /// s since the kick started.
     pub elapsed: f64,
+    /// s of standing before the burst (the spec's `stop` from a walk, else 0).
+    lead: f64,
+    burst_started: bool,
     swing: SwingStage,
     last_phase: Option<f64>,
 }
@@ -189,31 +231,52 @@ pub struct KickCycle {
     pub command: WalkCommand,
     /// The command's smoothing step this cycle.
     pub smoothing_step: f64,
+    /// The burst starts this cycle: its first step is the gait's first (phase zero).
+    pub restart_gait: bool,
     /// Offsets to add to the policy's leg targets, rad, in the policy's order.
     pub offsets: [f64; LEG_COUNT],
 }
 
 impl KickRun {
-    pub fn new(sequence: u8) -> KickRun {
-        KickRun { sequence, elapsed: 0.0, swing: SwingStage::Waiting, last_phase: None }
+    /// A kick ordered while standing, or while walking (`walking`: it stops first).
+    pub fn new(sequence: u8, spec: &KickSpec, walking: bool) -> KickRun {
+        KickRun {
+            sequence,
+            elapsed: 0.0,
+            lead: if walking { spec.stop } else { 0.0 },
+            burst_started: false,
+            swing: SwingStage::Waiting,
+            last_phase: None,
+        }
+    }
+
+    /// This run's whole duration, s.
+    pub fn duration(&self, spec: &KickSpec) -> f64 {
+        self.lead + spec.duration()
     }
 
     /// This cycle of the kick, at the policy's gait phase `phase` (before this cycle's step);
     /// then advances the kick by `cycle` seconds.
     pub fn step(&mut self, spec: &KickSpec, phase: f64, cycle: f64) -> KickCycle {
-        let bursting = self.elapsed < spec.burst;
+        // Time into the burst (negative while stopping first).
+        let t = self.elapsed - self.lead;
+        let bursting = t >= -1e-9 && t < spec.burst;
+        let restart_gait = bursting && !self.burst_started;
+        self.burst_started |= bursting;
         let command = if bursting {
-            WalkCommand { vx: spec.forward, ..WalkCommand::STAND }
+            WalkCommand { vx: spec.forward, vy: spec.sideways, yaw_rate: spec.turn }
         } else {
             WalkCommand::STAND
         };
+        // The phase the policy steps with: a restarted gait's.
+        let phase = if restart_gait { 0.0 } else { phase };
         let mut offsets = [0.0; LEG_COUNT];
         if let Some(swing) = &spec.swing {
             let window = swing.start..swing.end;
             let entering = window.contains(&phase)
                 && self.last_phase.is_none_or(|last| !window.contains(&last));
             match self.swing {
-                SwingStage::Waiting if bursting && self.elapsed >= swing.after && entering => {
+                SwingStage::Waiting if bursting && t >= swing.after - 1e-9 && entering => {
                     self.swing = SwingStage::Running;
                 }
                 SwingStage::Running if !window.contains(&phase) => {
@@ -227,12 +290,12 @@ impl KickRun {
         }
         self.last_phase = Some(phase);
         self.elapsed += cycle;
-        KickCycle { command, smoothing_step: spec.smoothing_step, offsets }
+        KickCycle { command, smoothing_step: spec.smoothing_step, restart_gait, offsets }
     }
 
     /// Whether the kick has ended (the body stands again).
     pub fn finished(&self, spec: &KickSpec) -> bool {
-        self.elapsed >= spec.duration() - 1e-9
+        self.elapsed >= self.duration(spec) - 1e-9
     }
 }
 
@@ -257,20 +320,38 @@ mod tests {
     #[test]
     fn a_kick_bursts_forward_then_stands_until_its_duration() {
         let spec = &catalogue()[0];
-        let mut run = KickRun::new(0);
+        let mut run = KickRun::new(0, spec, false);
         let first = run.step(spec, 0.0, CYCLE);
         assert_eq!(first.command.vx, spec.forward);
         assert_eq!(first.smoothing_step, spec.smoothing_step);
+        assert!(first.restart_gait, "the burst starts the gait afresh");
         let cycles = (spec.duration() / CYCLE).round() as usize;
         let mut standing = 0;
         for _ in 1..cycles {
             assert!(!run.finished(spec));
-            if run.step(spec, 0.0, CYCLE).command == WalkCommand::STAND {
+            let cycle = run.step(spec, 0.0, CYCLE);
+            assert!(!cycle.restart_gait);
+            if cycle.command == WalkCommand::STAND {
                 standing += 1;
             }
         }
         assert!(run.finished(spec));
         assert_eq!(standing, (spec.settle / CYCLE).round() as usize);
+    }
+
+    #[test]
+    fn a_kick_ordered_while_walking_stands_first() {
+        let spec = &catalogue()[1];
+        let mut run = KickRun::new(1, spec, true);
+        assert!((run.duration(spec) - spec.stop - spec.duration()).abs() < 1e-9);
+        let stop = (spec.stop / CYCLE).round() as usize;
+        for _ in 0..stop {
+            let cycle = run.step(spec, 0.3, CYCLE);
+            assert_eq!(cycle.command, WalkCommand::STAND);
+            assert!(!cycle.restart_gait);
+        }
+        let burst = run.step(spec, 0.3, CYCLE);
+        assert!(burst.restart_gait && burst.command.vx == spec.forward);
     }
 
     #[test]
@@ -286,7 +367,7 @@ mod tests {
         };
         let spec = KickSpec { swing: Some(swing), burst: 5.0, ..catalogue()[0].clone() };
         spec.validate().expect("valid");
-        let mut run = KickRun::new(0);
+        let mut run = KickRun::new(0, &spec, false);
         let mut peak: f64 = 0.0;
         let mut active_cycles = 0;
         // Three gait cycles of 50 steps; the first window (steps 10 to 19) is too early.
