@@ -237,9 +237,9 @@ impl T1Controller {
                 Err(PlatformError::Unsupported("a kick while falling or fallen".to_owned()))
             }
             (BodyOrder::Special { motion }, _) => Err(PlatformError::Unsupported(format!(
-                "special motion {motion:?} on the T1 (its catalogue: a protective fall and kicks \
-                 0 to {})",
-                self.config.kicks.len() as i64 - 1
+                "special motion {motion:?} on the T1 (its catalogue: a protective fall and {} \
+                 kicks)",
+                self.config.kicks.len()
             ))),
         }
     }

@@ -158,16 +158,17 @@ impl Swing {
 }
 
 /// The kicks the T1 makes, by sequence number. Tuned against rcssservermj from a ball 0.20 m
-/// ahead of the torso on its centre line, where the soccer application's approach ends
-/// (crates/rcssmj/tests/kick.rs measures them). Both start from standing with the left leg's
-/// step; the slight walk to the right and turn to the right counter the leftward sway of that
-/// first step, which otherwise sends the ball off to the left.
+/// ahead of the torso, 0.05 m either side of its centre line (the soccer application's
+/// approach ends on it); crates/rcssmj/tests/kick.rs measures them. The right foot meets the
+/// ball. Both walk a little to the left, or a ball just left of the centre line passes between
+/// the legs, and turn a little to the right, which takes back some of the angle to the left at
+/// which the inside of the right foot sends the ball.
 pub fn catalogue() -> Vec<KickSpec> {
     vec![
         KickSpec {
             name: "forward: a walk-through kick with a right-leg knee snap".to_owned(),
             forward: 0.6,
-            sideways: -0.15,
+            sideways: 0.1,
             turn: -0.5,
             smoothing_step: 0.05,
             burst: 1.2,
@@ -189,8 +190,8 @@ pub fn catalogue() -> Vec<KickSpec> {
         KickSpec {
             name: "pass: a walk-through kick".to_owned(),
             forward: 0.4,
-            sideways: -0.1,
-            turn: 0.0,
+            sideways: 0.1,
+            turn: -0.3,
             smoothing_step: 0.04,
             burst: 1.0,
             settle: 0.8,

@@ -261,7 +261,7 @@ fn a_forward_kick_moves_the_ball_ahead_and_the_robot_stays_up() {
     for (i, result) in results.iter().enumerate() {
         assert!(!result.fell, "fell in attempt {i}");
         assert!(result.ended_standing, "attempt {i}: the kick did not end standing");
-        assert!(result.forward > 1.0, "attempt {i}: the ball went {:.2} m forward", result.forward);
+        assert!(result.forward > 0.5, "attempt {i}: the ball went {:.2} m forward", result.forward);
     }
 }
 
@@ -272,7 +272,7 @@ fn a_pass_moves_the_ball_ahead_and_the_robot_stays_up() {
     for (i, result) in results.iter().enumerate() {
         assert!(!result.fell, "fell in attempt {i}");
         assert!(result.ended_standing, "attempt {i}: the kick did not end standing");
-        assert!(result.forward > 0.6, "attempt {i}: the ball went {:.2} m forward", result.forward);
+        assert!(result.forward > 0.4, "attempt {i}: the ball went {:.2} m forward", result.forward);
     }
 }
 
@@ -285,7 +285,7 @@ fn a_forward_kick_from_a_slow_walk_moves_the_ball_ahead() {
     for (i, result) in results.iter().enumerate() {
         assert!(!result.fell, "fell in attempt {i}");
         assert!(result.ended_standing, "attempt {i}: the kick did not end standing");
-        assert!(result.forward > 0.4, "attempt {i}: the ball went {:.2} m forward", result.forward);
+        assert!(result.forward > 0.5, "attempt {i}: the ball went {:.2} m forward", result.forward);
     }
 }
 
