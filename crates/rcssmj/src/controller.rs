@@ -19,6 +19,7 @@ use crate::joints::{
     FIRST_LEG, HEAD_PITCH, HEAD_PITCH_LIMITS, HEAD_YAW, HEAD_YAW_LIMITS, JOINT_COUNT, JointArray,
     LEG_COUNT,
 };
+use crate::kick::{self, KickCycle, KickRun, KickSpec};
 use crate::kinematics::Quaternion;
 use crate::policy::{LegState, WalkCommand, WalkPolicy};
 
@@ -58,6 +59,8 @@ pub struct MotionConfig {
     /// turning): odometry reports commanded x factor. Measured on this policy in the server
     /// (docs/rcssservermj.md).
     pub odometry_scale: [f64; 3],
+    /// The kicks, by sequence number (`Kick(n)` is the n-th): [`crate::kick`].
+    pub kicks: Vec<KickSpec>,
 }
 
 impl Default for MotionConfig {
@@ -73,6 +76,7 @@ impl Default for MotionConfig {
             upright_cycles: 25,
             soft_gain: 0.1,
             odometry_scale: [0.92, 0.85, 1.0],
+            kicks: kick::catalogue(),
         }
     }
 }
@@ -113,6 +117,7 @@ enum BodyMode {
         elapsed: f64,
     },
     Fallen(FallDirection),
+    Kicking(KickRun),
 }
 
 /// The T1's motion control.
@@ -151,11 +156,17 @@ impl T1Controller {
 
     /// The special motions this body can make.
     pub fn catalogue(&self) -> Vec<MotionSpec> {
-        vec![MotionSpec {
+        let mut motions = vec![MotionSpec {
             motion: SpecialMotion::Fall(0),
             name: "protective fall: every joint soft".to_owned(),
             duration: std::time::Duration::from_secs_f64(FALL_DURATION),
-        }]
+        }];
+        motions.extend(self.config.kicks.iter().zip(0u8..).map(|(kick, n)| MotionSpec {
+            motion: SpecialMotion::Kick(n),
+            name: format!("kick {}", kick.name),
+            duration: std::time::Duration::from_secs_f64(kick.duration()),
+        }));
+        motions
     }
 
     /// Starts over after the server put the robot somewhere with every joint at zero (a
@@ -188,6 +199,9 @@ impl T1Controller {
                 BodyOrder::Stand | BodyOrder::Walk { .. },
                 BodyMode::Fallen(_) | BodyMode::Falling { .. },
             ) => Ok(()),
+            // A kick runs to its end: walking orders meanwhile are dropped (actuation holds the
+            // body until the kick reports its end).
+            (BodyOrder::Stand | BodyOrder::Walk { .. }, BodyMode::Kicking(_)) => Ok(()),
             (BodyOrder::Stand, _) => {
                 self.body = BodyMode::Standing;
                 Ok(())
@@ -213,8 +227,23 @@ impl T1Controller {
                 self.body = BodyMode::Falling { elapsed: 0.0 };
                 Ok(())
             }
+            (BodyOrder::Special { motion: SpecialMotion::Kick(_) }, BodyMode::Kicking(_)) => Ok(()),
+            (
+                BodyOrder::Special { motion: SpecialMotion::Kick(n) },
+                BodyMode::Standing | BodyMode::Walking(_),
+            ) if let Some(spec) = self.config.kicks.get(usize::from(n)) => {
+                self.body = BodyMode::Kicking(KickRun::new(n, spec, self.policy.is_walking()));
+                Ok(())
+            }
+            (BodyOrder::Special { motion: SpecialMotion::Kick(_) }, _)
+                if matches!(self.body, BodyMode::Fallen(_) | BodyMode::Falling { .. }) =>
+            {
+                Err(PlatformError::Unsupported("a kick while falling or fallen".to_owned()))
+            }
             (BodyOrder::Special { motion }, _) => Err(PlatformError::Unsupported(format!(
-                "special motion {motion:?} on the T1 (its catalogue: protective fall only)"
+                "special motion {motion:?} on the T1 (its catalogue: a protective fall and {} \
+                 kicks)",
+                self.config.kicks.len()
             ))),
         }
     }
@@ -227,18 +256,14 @@ impl T1Controller {
         let mut commands = self.hold_default_pose();
         let soft = self.config.soft_gain;
         match &mut self.body {
-            BodyMode::Standing | BodyMode::Walking(_) => {
-                let velocity = match self.body {
-                    BodyMode::Walking(v) => v,
-                    _ => Velocity::ZERO,
-                };
-                let command =
-                    WalkCommand { vx: velocity.vx, vy: velocity.vy, yaw_rate: velocity.omega };
+            BodyMode::Standing | BodyMode::Walking(_) | BodyMode::Kicking(_) => {
+                let cycle = self.walk_cycle();
                 let state = leg_state(&measured);
-                let targets = self.policy.step(&state, command);
+                let targets =
+                    self.policy.step_smoothed_by(&state, cycle.command, cycle.smoothing_step);
                 for (i, target) in targets.iter().enumerate() {
                     commands[FIRST_LEG + i] = JointCommand {
-                        q: target.q,
+                        q: target.q + cycle.offsets[i],
                         dq: 0.0,
                         kp: target.kp,
                         kd: target.kd,
@@ -269,6 +294,38 @@ impl T1Controller {
         self.step_head(&measured, &mut commands);
         self.measured = Some(measured);
         commands
+    }
+
+    /// The policy's command this cycle (and a kick's leg offsets); a kick that ends here leaves
+    /// the body standing.
+    fn walk_cycle(&mut self) -> KickCycle {
+        let smoothing_step = self.policy.config().control.command_smoothing_step;
+        let walk = |v: Velocity| KickCycle {
+            command: WalkCommand { vx: v.vx, vy: v.vy, yaw_rate: v.omega },
+            smoothing_step,
+            restart_gait: false,
+            offsets: [0.0; LEG_COUNT],
+        };
+        match &mut self.body {
+            BodyMode::Walking(v) => walk(*v),
+            BodyMode::Kicking(run) => match self.config.kicks.get(usize::from(run.sequence)) {
+                Some(spec) => {
+                    let cycle = run.step(spec, self.policy.phase(), CYCLE);
+                    if cycle.restart_gait {
+                        self.policy.restart_gait();
+                    }
+                    if run.finished(spec) {
+                        self.body = BodyMode::Standing;
+                    }
+                    cycle
+                }
+                None => {
+                    self.body = BodyMode::Standing;
+                    walk(Velocity::ZERO)
+                }
+            },
+            _ => walk(Velocity::ZERO),
+        }
     }
 
     /// Every joint at the deployment's default pose with its gains: what arms and waist do
@@ -402,6 +459,15 @@ impl T1Controller {
                 duration: FALL_DURATION,
             },
             BodyMode::Fallen(direction) => BodyMotionState::Fallen { direction },
+            BodyMode::Kicking(run) => BodyMotionState::Special {
+                motion: SpecialMotion::Kick(run.sequence),
+                elapsed: run.elapsed,
+                duration: self
+                    .config
+                    .kicks
+                    .get(usize::from(run.sequence))
+                    .map_or(0.0, |k| run.duration(k)),
+            },
         }
     }
 
@@ -494,8 +560,87 @@ mod tests {
         assert_eq!(c.body_state(), BodyMotionState::Standing);
         let nan = Velocity::new(f64::NAN, 0.0, 0.0);
         assert!(c.apply(&body(BodyOrder::Walk { velocity: nan })).is_err());
-        let kick = BodyOrder::Special { motion: SpecialMotion::Kick(0) };
-        assert!(matches!(c.apply(&body(kick)), Err(PlatformError::Unsupported(_))));
+        let side_kick = BodyOrder::Special { motion: SpecialMotion::Kick(2) };
+        assert!(matches!(c.apply(&body(side_kick)), Err(PlatformError::Unsupported(_))));
+    }
+
+    fn kick(n: u8) -> ActuatorOrders {
+        body(BodyOrder::Special { motion: SpecialMotion::Kick(n) })
+    }
+
+    #[test]
+    fn the_catalogue_lists_the_kicks_with_their_durations() {
+        let c = controller();
+        let catalogue = c.catalogue();
+        for (n, spec) in c.config().kicks.iter().enumerate() {
+            let entry = catalogue
+                .iter()
+                .find(|m| m.motion == SpecialMotion::Kick(n as u8))
+                .expect("each kick is in the catalogue");
+            assert_eq!(entry.duration.as_secs_f64(), spec.duration());
+            assert!(entry.name.contains(&spec.name));
+        }
+        assert!(catalogue.iter().any(|m| m.motion == SpecialMotion::Fall(0)));
+    }
+
+    #[test]
+    fn a_kick_from_a_walk_runs_its_duration_ignoring_walks_then_stands() {
+        let mut c = controller();
+        c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) })).expect("ok");
+        c.step(upright());
+        c.apply(&kick(1)).expect("a pass is taken while walking");
+        // From a walk the kick stands first.
+        let spec = &c.config().kicks[1];
+        let duration = spec.stop + spec.duration();
+        let cycles = (duration / CYCLE).round() as usize;
+        for i in 0..cycles {
+            match c.body_state() {
+                BodyMotionState::Special {
+                    motion: SpecialMotion::Kick(1),
+                    elapsed,
+                    duration: d,
+                } => {
+                    assert!((elapsed - i as f64 * CYCLE).abs() < 1e-9);
+                    assert_eq!(d, duration);
+                }
+                other => panic!("kicking expected at cycle {i}, got {other:?}"),
+            }
+            // Walks and kicks ordered meanwhile change nothing.
+            c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(0.0, 0.3, 0.0) })).expect("ok");
+            c.apply(&kick(0)).expect("ok");
+            c.step(upright());
+        }
+        assert_eq!(c.body_state(), BodyMotionState::Standing);
+        // The burst walked forward.
+        assert!(c.take_odometry().dx > 0.1);
+    }
+
+    #[test]
+    fn a_kick_is_refused_on_the_ground_and_a_fall_interrupts_it() {
+        let mut c = controller();
+        c.apply(&kick(0)).expect("a kick is taken while standing");
+        c.step(upright());
+        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::Fall(0) })).expect("taken");
+        assert!(matches!(
+            c.body_state(),
+            BodyMotionState::Special { motion: SpecialMotion::Fall(0), .. }
+        ));
+        for _ in 0..MotionConfig::default().fallen_cycles {
+            c.step(pitched(1.4));
+        }
+        assert!(matches!(c.body_state(), BodyMotionState::Fallen { .. }));
+        assert!(matches!(c.apply(&kick(0)), Err(PlatformError::Unsupported(_))));
+        assert!(matches!(c.body_state(), BodyMotionState::Fallen { .. }));
+    }
+
+    #[test]
+    fn a_kick_falling_over_is_fallen() {
+        let mut c = controller();
+        c.apply(&kick(0)).expect("taken");
+        for _ in 0..MotionConfig::default().fallen_cycles {
+            c.step(pitched(-1.4));
+        }
+        assert_eq!(c.body_state(), BodyMotionState::Fallen { direction: FallDirection::Back });
     }
 
     #[test]

@@ -104,6 +104,9 @@ impl RcssConfig {
         {
             return Err(format!("beam must be three finite numbers, got {beam:?}"));
         }
+        for kick in &self.motion.kicks {
+            kick.validate().map_err(|e| format!("motion.kicks: {e}"))?;
+        }
         self.camera.validate()
     }
 }

@@ -105,10 +105,32 @@ impl WalkPolicy {
         self.observation = [0.0; OBSERVATION_LEN];
     }
 
+    /// Starts the next walk at gait phase zero, as after a reset, without forgetting the
+    /// previous action: a motion that needs a known first step (a kick: the left leg swings
+    /// first) calls it. Only while standing, so a gait in progress never jumps.
+    pub fn restart_gait(&mut self) {
+        if !self.walking && smoothed_norm(self.smoothed_command) == 0.0 {
+            self.phase = 0.0;
+        }
+    }
+
     /// One policy step (every [`T1Config::policy_period`], 20 ms): the leg joint targets, in
     /// [`LEG_JOINTS`](super::LEG_JOINTS) order, that walk toward `command`.
     pub fn step(&mut self, state: &LegState, command: WalkCommand) -> [JointTarget; ACTION_LEN] {
-        self.smooth(command);
+        let step = self.config.control.command_smoothing_step;
+        self.step_smoothed_by(state, command, step)
+    }
+
+    /// One policy step whose command moves toward `command` by at most `smoothing_step` per
+    /// component (m/s, rad/s) instead of the deployment's: a motion that needs its walk sooner
+    /// (a kick's burst) accepts a harder start.
+    pub fn step_smoothed_by(
+        &mut self,
+        state: &LegState,
+        command: WalkCommand,
+        smoothing_step: f64,
+    ) -> [JointTarget; ACTION_LEN] {
+        self.smooth(command, smoothing_step);
         self.walking = smoothed_norm(self.smoothed_command)
             >= self.config.gait.standing_command_norm
             && self.config.gait.frequency > 0.0;
@@ -147,8 +169,12 @@ impl WalkPolicy {
 
     /// Moves each smoothed command component toward the desired one by at most the smoothing
     /// step, as the deployment does, so a sudden command never jolts the gait.
-    fn smooth(&mut self, command: WalkCommand) {
-        let step = self.config.control.command_smoothing_step;
+    fn smooth(&mut self, command: WalkCommand, step: f64) {
+        let step = if step.is_finite() && step > 0.0 {
+            step
+        } else {
+            self.config.control.command_smoothing_step
+        };
         for (smoothed, desired) in self.smoothed_command.iter_mut().zip(command.as_array()) {
             if desired.is_finite() {
                 *smoothed += (desired - *smoothed).clamp(-step, step);
@@ -300,6 +326,25 @@ mod tests {
         policy.step(&state, WalkCommand::STAND);
         assert!(!policy.is_walking());
         assert_eq!(policy.phase(), held);
+        Ok(())
+    }
+
+    #[test]
+    fn restart_gait_zeroes_a_held_phase_only_while_standing() -> Result<(), PolicyError> {
+        let mut policy = policy()?;
+        let state = standing_state(&policy);
+        for _ in 0..10 {
+            policy.step(&state, WalkCommand { vx: 0.1, ..WalkCommand::STAND });
+        }
+        let walking = policy.phase();
+        policy.restart_gait();
+        assert_eq!(policy.phase(), walking, "a gait in progress keeps its phase");
+        for _ in 0..10 {
+            policy.step(&state, WalkCommand::STAND);
+        }
+        assert!(!policy.is_walking() && policy.phase() > 0.0);
+        policy.restart_gait();
+        assert_eq!(policy.phase(), 0.0);
         Ok(())
     }
 
