@@ -6,6 +6,7 @@
 //! - [`policy`]: Booster's published T1 walking policy, run in Rust;
 //! - [`controller`]: one server cycle of the body and the neck (the body resource is the
 //!   policy, the head resource the neck);
+//! - [`getup`]: the keyframed get-up motions from the front and the back (`assets/t1/getup.toml`);
 //! - [`kinematics`], [`camera`], [`markers`]: from the server's ideal vision to the detections
 //!   of a realistic head camera;
 //! - [`referee`]: the server's game state as GameController packets;
@@ -15,6 +16,7 @@
 
 pub mod camera;
 pub mod controller;
+pub mod getup;
 pub mod joints;
 pub mod kinematics;
 pub mod markers;
