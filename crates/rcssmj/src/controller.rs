@@ -4,8 +4,8 @@
 //!
 //! The body resource is Booster's walking policy (see [`crate::policy`]): standing is the
 //! policy with a zero command, walking the policy with the ordered velocity. A protective fall
-//! softens every joint; a robot lying on the ground is reported fallen and held soft until it
-//! is upright again (the T1 has no get-up motion here yet: docs/rcssservermj.md). The head
+//! softens every joint; a robot lying on the ground is reported fallen and held soft until a
+//! stand-up order runs its keyframed get-up ([`crate::getup`]) or it is put upright. The head
 //! resource is the neck, driven towards head orders at their speed limit.
 
 use serde::{Deserialize, Serialize};
@@ -15,6 +15,7 @@ use strata_robot::platform::{
     MotionSpec, PlatformError, SpecialMotion,
 };
 
+use crate::getup::GetUpMotions;
 use crate::joints::{
     FIRST_LEG, HEAD_PITCH, HEAD_PITCH_LIMITS, HEAD_YAW, HEAD_YAW_LIMITS, JOINT_COUNT, JointArray,
     LEG_COUNT,
@@ -118,6 +119,12 @@ enum BodyMode {
     },
     Fallen(FallDirection),
     Kicking(KickRun),
+    /// A keyframed get-up, `StandUp(sequence)`, from the joint angles at its start.
+    GettingUp {
+        sequence: u8,
+        elapsed: f64,
+        start: JointArray<f64>,
+    },
 }
 
 /// The T1's motion control.
@@ -133,6 +140,7 @@ pub struct T1Controller {
     odometry: Odometry,
     tilted_cycles: u32,
     upright_cycles: u32,
+    getup: GetUpMotions,
 }
 
 impl T1Controller {
@@ -147,7 +155,15 @@ impl T1Controller {
             odometry: Odometry::ZERO,
             tilted_cycles: 0,
             upright_cycles: 0,
+            getup: GetUpMotions::default(),
         }
+    }
+
+    /// This controller with these get-up motions (`new` has none: a fallen robot waits to be
+    /// put upright).
+    pub fn with_getup(mut self, getup: GetUpMotions) -> T1Controller {
+        self.getup = getup;
+        self
     }
 
     pub fn config(&self) -> &MotionConfig {
@@ -156,17 +172,26 @@ impl T1Controller {
 
     /// The special motions this body can make.
     pub fn catalogue(&self) -> Vec<MotionSpec> {
-        let mut motions = vec![MotionSpec {
+        let mut catalogue = vec![MotionSpec {
             motion: SpecialMotion::Fall(0),
             name: "protective fall: every joint soft".to_owned(),
             duration: std::time::Duration::from_secs_f64(FALL_DURATION),
         }];
-        motions.extend(self.config.kicks.iter().zip(0u8..).map(|(kick, n)| MotionSpec {
+        catalogue.extend(self.config.kicks.iter().zip(0u8..).map(|(kick, n)| MotionSpec {
             motion: SpecialMotion::Kick(n),
             name: format!("kick {}", kick.name),
             duration: std::time::Duration::from_secs_f64(kick.duration()),
         }));
-        motions
+        for (sequence, side) in [(0, "front (face down)"), (1, "back (face up)")] {
+            if let Some(motion) = self.getup.motion(sequence) {
+                catalogue.push(MotionSpec {
+                    motion: SpecialMotion::StandUp(sequence),
+                    name: format!("keyframed get-up from the {side}"),
+                    duration: std::time::Duration::from_secs_f64(motion.duration()),
+                });
+            }
+        }
+        catalogue
     }
 
     /// Starts over after the server put the robot somewhere with every joint at zero (a
@@ -197,7 +222,7 @@ impl T1Controller {
             // Lying, or falling, the body takes no walking orders: only a stand-up would help.
             (
                 BodyOrder::Stand | BodyOrder::Walk { .. },
-                BodyMode::Fallen(_) | BodyMode::Falling { .. },
+                BodyMode::Fallen(_) | BodyMode::Falling { .. } | BodyMode::GettingUp { .. },
             ) => Ok(()),
             // A kick runs to its end: walking orders meanwhile are dropped (actuation holds the
             // body until the kick reports its end).
@@ -219,7 +244,10 @@ impl T1Controller {
                 self.body = if v.is_zero() { BodyMode::Standing } else { BodyMode::Walking(v) };
                 Ok(())
             }
-            (BodyOrder::Special { motion: SpecialMotion::Fall(_) }, BodyMode::Fallen(_)) => Ok(()),
+            (
+                BodyOrder::Special { motion: SpecialMotion::Fall(_) },
+                BodyMode::Fallen(_) | BodyMode::GettingUp { .. },
+            ) => Ok(()),
             (BodyOrder::Special { motion: SpecialMotion::Fall(_) }, BodyMode::Falling { .. }) => {
                 Ok(())
             }
@@ -236,14 +264,42 @@ impl T1Controller {
                 Ok(())
             }
             (BodyOrder::Special { motion: SpecialMotion::Kick(_) }, _)
-                if matches!(self.body, BodyMode::Fallen(_) | BodyMode::Falling { .. }) =>
+                if matches!(
+                    self.body,
+                    BodyMode::Fallen(_) | BodyMode::Falling { .. } | BodyMode::GettingUp { .. }
+                ) =>
             {
-                Err(PlatformError::Unsupported("a kick while falling or fallen".to_owned()))
+                Err(PlatformError::Unsupported(
+                    "a kick while falling, fallen or getting up".to_owned(),
+                ))
+            }
+            (
+                BodyOrder::Special { motion: SpecialMotion::StandUp(sequence) },
+                BodyMode::Fallen(_),
+            ) if self.getup.motion(sequence).is_some() => {
+                let start = self.measured.as_ref().map_or_else(
+                    || self.policy.config().default_targets().map(|t| t.q),
+                    |m| m.joint_positions,
+                );
+                self.body = BodyMode::GettingUp { sequence, elapsed: 0.0, start };
+                Ok(())
+            }
+            (
+                BodyOrder::Special { motion: SpecialMotion::StandUp(_) },
+                BodyMode::GettingUp { .. },
+            ) => Ok(()),
+            // Refused rather than ignored, so actuation frees the body: ordered again once the
+            // robot lies still.
+            (BodyOrder::Special { motion: SpecialMotion::StandUp(_) }, mode)
+                if !matches!(mode, BodyMode::Fallen(_)) =>
+            {
+                Err(PlatformError::Unsupported(format!(
+                    "a stand-up while the T1 is not lying on the ground ({mode:?})"
+                )))
             }
             (BodyOrder::Special { motion }, _) => Err(PlatformError::Unsupported(format!(
-                "special motion {motion:?} on the T1 (its catalogue: a protective fall and {} \
-                 kicks)",
-                self.config.kicks.len()
+                "special motion {motion:?} on the T1 (its catalogue: {:?})",
+                self.catalogue().iter().map(|m| m.motion).collect::<Vec<_>>()
             ))),
         }
     }
@@ -288,6 +344,16 @@ impl T1Controller {
                 for command in &mut commands {
                     command.kp *= soft;
                     command.kd *= soft;
+                }
+            }
+            BodyMode::GettingUp { sequence, elapsed, start } => {
+                if let Some(motion) = self.getup.motion(*sequence) {
+                    let gains = self.policy.config().default_targets();
+                    commands = motion.commands(*elapsed, start, &gains);
+                    *elapsed += CYCLE;
+                    if *elapsed >= motion.duration() + CYCLE / 2.0 {
+                        self.body = self.getup_ended(&measured);
+                    }
                 }
             }
         }
@@ -340,6 +406,18 @@ impl T1Controller {
         })
     }
 
+    /// Standing if the get-up ended upright (the policy starts over from here), else still
+    /// fallen: the stand-up may be ordered again.
+    fn getup_ended(&mut self, measured: &MeasuredBody) -> BodyMode {
+        let [roll, pitch] = measured.orientation.roll_pitch();
+        if roll.abs().max(pitch.abs()) < self.getup.upright_angle() {
+            self.policy.reset();
+            BodyMode::Standing
+        } else {
+            BodyMode::Fallen(fall_direction(roll, pitch))
+        }
+    }
+
     fn track_fall(&mut self, measured: &MeasuredBody) {
         let [roll, pitch] = measured.orientation.roll_pitch();
         let tilted = roll.abs().max(pitch.abs()) > self.config.fallen_angle;
@@ -356,7 +434,12 @@ impl T1Controller {
                 self.body = BodyMode::Standing;
                 self.policy.reset();
             }
-            BodyMode::Fallen(_) => {}
+            // Lying, the side it lies on now: it may have rolled over, or been laid down again.
+            BodyMode::Fallen(_) if tilted => {
+                self.body = BodyMode::Fallen(fall_direction(roll, pitch))
+            }
+            // A get-up tilts the torso on purpose; its end decides.
+            BodyMode::Fallen(_) | BodyMode::GettingUp { .. } => {}
             _ if self.tilted_cycles >= self.config.fallen_cycles => {
                 self.body = BodyMode::Fallen(fall_direction(roll, pitch));
             }
@@ -467,6 +550,11 @@ impl T1Controller {
                     .kicks
                     .get(usize::from(run.sequence))
                     .map_or(0.0, |k| run.duration(k)),
+            },
+            BodyMode::GettingUp { sequence, elapsed, .. } => BodyMotionState::Special {
+                motion: SpecialMotion::StandUp(sequence),
+                elapsed,
+                duration: self.getup.motion(sequence).map_or(0.0, |m| m.duration()),
             },
         }
     }
@@ -690,6 +778,119 @@ mod tests {
             c.step(upright());
         }
         assert_eq!(c.body_state(), BodyMotionState::Standing, "caught upright: standing again");
+    }
+
+    /// A controller with a two-keyframe get-up from the front only, 0.2 s + 0.3 s.
+    fn with_front_getup() -> T1Controller {
+        let getup = GetUpMotions::from_toml_str(
+            "upright_angle = 0.5\n\
+             [[front]]\nduration = 0.2\ngain = 2.0\ntargets = { knee_pitch = 2.0 }\n\
+             [[front]]\nduration = 0.3\ntargets = { knee_pitch = 0.4 }\n",
+            "test",
+        )
+        .expect("a valid get-up");
+        controller().with_getup(getup)
+    }
+
+    fn lie_down(c: &mut T1Controller) {
+        for _ in 0..MotionConfig::default().fallen_cycles {
+            c.step(pitched(1.5));
+        }
+        assert_eq!(c.body_state(), BodyMotionState::Fallen { direction: FallDirection::Front });
+    }
+
+    fn stand_up(sequence: u8) -> ActuatorOrders {
+        body(BodyOrder::Special { motion: SpecialMotion::StandUp(sequence) })
+    }
+
+    #[test]
+    fn the_catalogue_lists_the_get_ups_it_has_with_their_durations() {
+        let c = with_front_getup();
+        let stand_ups = |c: &T1Controller| -> Vec<MotionSpec> {
+            c.catalogue()
+                .into_iter()
+                .filter(|m| matches!(m.motion, SpecialMotion::StandUp(_)))
+                .collect()
+        };
+        let catalogue = stand_ups(&c);
+        assert_eq!(catalogue.len(), 1);
+        assert_eq!(catalogue[0].motion, SpecialMotion::StandUp(0));
+        assert_eq!(catalogue[0].duration, std::time::Duration::from_millis(500));
+        assert!(stand_ups(&controller()).is_empty(), "no get-up without motions");
+    }
+
+    #[test]
+    fn a_stand_up_runs_its_keyframes_and_ends_standing_when_upright() {
+        let mut c = with_front_getup();
+        lie_down(&mut c);
+        // Ordered standing, or a side this body has no motion for, it stays on the ground.
+        c.apply(&body(BodyOrder::Stand)).expect("ignored");
+        assert!(matches!(c.apply(&stand_up(1)), Err(PlatformError::Unsupported(_))));
+        assert!(matches!(c.body_state(), BodyMotionState::Fallen { .. }));
+
+        c.apply(&stand_up(0)).expect("taken");
+        let knee = FIRST_LEG + 3;
+        let kp = c.policy.config().default_targets()[knee].kp;
+        let first = c.step(pitched(1.5));
+        assert_eq!(first[knee].kp, 2.0 * kp, "the keyframe's gain");
+        let mut last = first;
+        for _ in 0..10 {
+            last = c.step(pitched(1.0));
+        }
+        assert!((last[knee].q - 2.0).abs() < 0.1, "near the first keyframe: {}", last[knee].q);
+        match c.body_state() {
+            BodyMotionState::Special { motion, elapsed, duration } => {
+                assert_eq!(motion, SpecialMotion::StandUp(0));
+                assert!((elapsed - 0.22).abs() < 1e-9 && duration == 0.5, "{elapsed} {duration}");
+            }
+            other => panic!("getting up expected, got {other:?}"),
+        }
+        // Tilted on purpose while getting up: neither a fall nor a new order interrupts it.
+        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::Fall(0) })).expect("ignored");
+        c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(0.3, 0.0, 0.0) })).expect("ok");
+        c.apply(&stand_up(0)).expect("already getting up");
+        for _ in 0..14 {
+            c.step(pitched(0.2));
+        }
+        assert!(matches!(c.body_state(), BodyMotionState::Special { .. }));
+        c.step(pitched(0.2));
+        assert_eq!(c.body_state(), BodyMotionState::Standing, "upright at the end");
+        // The walking policy has the legs again.
+        let next = c.step(upright());
+        assert_eq!(next[knee].kp, kp);
+    }
+
+    #[test]
+    fn a_stand_up_that_ends_tilted_is_still_fallen_and_may_try_again() {
+        let mut c = with_front_getup();
+        lie_down(&mut c);
+        c.apply(&stand_up(0)).expect("taken");
+        for _ in 0..26 {
+            c.step(pitched(1.2));
+        }
+        assert_eq!(c.body_state(), BodyMotionState::Fallen { direction: FallDirection::Front });
+        c.apply(&stand_up(0)).expect("a second try");
+        c.step(pitched(1.2));
+        assert!(
+            matches!(c.body_state(), BodyMotionState::Special { elapsed, .. } if elapsed > 0.0)
+        );
+    }
+
+    #[test]
+    fn a_robot_lying_reports_the_side_it_lies_on_now() {
+        let mut c = with_front_getup();
+        lie_down(&mut c);
+        // Rolled over, or laid down again on its back: the back's get-up is the one to order.
+        c.step(pitched(-1.5));
+        assert_eq!(c.body_state(), BodyMotionState::Fallen { direction: FallDirection::Back });
+    }
+
+    #[test]
+    fn a_stand_up_while_on_its_feet_is_refused() {
+        let mut c = with_front_getup();
+        assert!(matches!(c.apply(&stand_up(0)), Err(PlatformError::Unsupported(_))));
+        c.step(upright());
+        assert_eq!(c.body_state(), BodyMotionState::Standing);
     }
 
     #[test]

@@ -7,6 +7,7 @@
 //! - [`controller`]: one server cycle of the body and the neck (the body resource is the
 //!   policy, the head resource the neck);
 //! - [`kick`]: the T1's kicks, walking bursts through the ball on the policy;
+//! - [`getup`]: the keyframed get-up motions from the front and the back (`assets/t1/getup.toml`);
 //! - [`kinematics`], [`camera`], [`markers`]: from the server's ideal vision to the detections
 //!   of a realistic head camera;
 //! - [`referee`]: the server's game state as GameController packets;
@@ -16,6 +17,7 @@
 
 pub mod camera;
 pub mod controller;
+pub mod getup;
 pub mod joints;
 pub mod kick;
 pub mod kinematics;

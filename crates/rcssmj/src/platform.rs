@@ -12,6 +12,7 @@
 
 use std::io;
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
@@ -26,6 +27,7 @@ use strata_runtime::Time;
 
 use crate::camera::{CameraConfig, CameraModel, DetectorKind, Sighting};
 use crate::controller::{CYCLE, JointCommand, MeasuredBody, MotionConfig, T1Controller};
+use crate::getup::{GetUpError, GetUpMotions};
 use crate::joints::{
     HEAD_PITCH, HEAD_PITCH_LIMITS, HEAD_YAW, HEAD_YAW_LIMITS, JOINTS, by_perceptor,
 };
@@ -71,6 +73,9 @@ pub struct RcssConfig {
     /// Seeds the camera model's random numbers.
     pub camera_seed: u64,
     pub motion: MotionConfig,
+    /// A get-up keyframe file in the format of the shipped `assets/t1/getup.toml`, to tune the
+    /// get-up without a build; none: the shipped motions.
+    pub getup: Option<PathBuf>,
 }
 
 impl Default for RcssConfig {
@@ -86,6 +91,7 @@ impl Default for RcssConfig {
             camera: CameraConfig::default(),
             camera_seed: 1,
             motion: MotionConfig::default(),
+            getup: None,
         }
     }
 }
@@ -138,6 +144,8 @@ pub enum RcssError {
     },
     #[error("the walking policy: {0}")]
     Policy(#[from] PolicyError),
+    #[error("the get-up motions: {0}")]
+    GetUp(#[from] GetUpError),
 }
 
 /// Counters of the server link since `connect`.
@@ -302,6 +310,10 @@ impl RcssPlatform {
         config: RcssConfig,
     ) -> Result<RcssPlatform, RcssError> {
         let policy = WalkPolicy::shipped()?;
+        let getup = match &config.getup {
+            Some(path) => GetUpMotions::load(path)?,
+            None => GetUpMotions::shipped()?,
+        };
         let mut stream = connect_retrying(address, resolved, config.connect_timeout)?;
         let socket_error = |source| RcssError::Socket { address: address.to_owned(), source };
         stream.set_nodelay(true).map_err(socket_error)?;
@@ -318,7 +330,7 @@ impl RcssPlatform {
             .map_err(|source| RcssError::Frame { address: address.to_owned(), source })?;
         let socket = stream.try_clone().map_err(socket_error)?;
 
-        let controller = T1Controller::new(config.motion.clone(), policy);
+        let controller = T1Controller::new(config.motion.clone(), policy).with_getup(getup);
         let catalogue = controller.catalogue();
         let max_velocity = controller.config().max_velocity;
         let max_head_speed = controller.config().max_head_speed;
