@@ -11,9 +11,11 @@
 //! - [`referee`]: the server's game state as GameController packets;
 //! - [`platform`]: [`platform::RcssPlatform`], the [`strata_robot::platform::Platform`] over the
 //!   agent port;
-//! - [`server`]: starting the server from the project's environment.
+//! - [`server`]: starting the server from the project's environment;
+//! - [`compute`]: what each server cycle costs the robot's process, in CPU time.
 
 pub mod camera;
+pub mod compute;
 pub mod controller;
 pub mod joints;
 pub mod kinematics;

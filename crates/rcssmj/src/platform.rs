@@ -19,12 +19,13 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 use strata_robot::platform::{
-    ActuatorOrders, BodyOrder, CameraFrame, FootContact, HeadAngles, InertialData, MotionFeedback,
-    Platform, PlatformError, PlatformInfo, SensorFrame, SpecialMotion, stamp_at,
+    ActuatorOrders, BodyMotionState, BodyOrder, CameraFrame, FootContact, HeadAngles, InertialData,
+    MotionFeedback, Platform, PlatformError, PlatformInfo, SensorFrame, SpecialMotion, stamp_at,
 };
 use strata_runtime::Time;
 
 use crate::camera::{CameraConfig, CameraModel, DetectorKind, Sighting};
+use crate::compute::{ComputeMeter, ComputeReport, thread_cpu_time};
 use crate::controller::{CYCLE, JointCommand, MeasuredBody, MotionConfig, T1Controller};
 use crate::joints::{
     HEAD_PITCH, HEAD_PITCH_LIMITS, HEAD_YAW, HEAD_YAW_LIMITS, JOINTS, by_perceptor,
@@ -34,7 +35,7 @@ use crate::markers;
 use crate::policy::{PolicyError, WalkPolicy};
 use crate::protocol::{
     self, Effector, FrameError, GameStatePerceptor, InitRequest, MAX_PERCEPTION_FRAME, Perception,
-    SeenObject, SeenRobot,
+    PlayMode, SeenObject, SeenRobot,
 };
 use crate::referee::{RefereeLink, SharedGame, TeamNumbers};
 
@@ -180,11 +181,19 @@ impl TruthSource {
 /// what standing and walking sway reach).
 pub const FALL_ONSET_TILT: f64 = 0.35;
 
+/// How long before a fall's onset a protective-fall order still counts for it, s (the
+/// protective fall's duration).
+pub const ORDER_BEFORE_ONSET: f64 = 0.6;
+
 /// One fall as the platform saw it: the perception in which the torso's tilt first passed
 /// [`FALL_ONSET_TILT`] (the ground truth of the onset), and the robot's protective-fall order
 /// reaching the platform. The time between them is the architecture's fall detection latency,
 /// the paper's 51 ms figure: measured on this machine's clock from the perception's arrival
-/// (the server's own clock only counts 20 ms cycles).
+/// (the server's own clock only counts 20 ms cycles). The fall detector extrapolates the tilt
+/// with the gyroscope, so a fast fall can be ordered before the torso passes the onset tilt:
+/// an order at most [`ORDER_BEFORE_ONSET`] before the onset counts for it, with a negative
+/// latency. A tilt past the onset while the body is already in its protective fall or lying
+/// is the same fall, not a new one.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FallRecord {
     /// The server's time of the onset, s.
@@ -206,12 +215,18 @@ struct Shared {
     /// Whether the torso is tilted beyond the onset angle now.
     tilted: bool,
     falls: Vec<FallRecord>,
+    /// A protective-fall order that came with no fall begun: the server's time and the
+    /// arrival of its newest perception then, and the order's own instant.
+    early_order: Option<(Option<f64>, Instant)>,
     unread: Option<SensorFrame>,
     last_at: Option<Instant>,
     pending: Vec<String>,
     pending_dropped: usize,
     disconnected: Option<String>,
+    /// Whether the link was lost before the game was over (the server stopped or crashed).
+    lost_mid_game: bool,
     stats: RcssStats,
+    compute: ComputeMeter,
 }
 
 type SharedState = Arc<(Mutex<Shared>, Condvar)>;
@@ -250,6 +265,7 @@ pub struct RcssPlatform {
 
 /// What the connection thread needs besides the socket.
 struct Session {
+    address: String,
     team: String,
     game: SharedGame,
     truth: TruthSource,
@@ -324,13 +340,16 @@ impl RcssPlatform {
                 controller,
                 sim_time: None,
                 tilted: false,
+                early_order: None,
                 falls: Vec::new(),
                 unread: None,
                 last_at: None,
                 pending: Vec::new(),
                 pending_dropped: 0,
                 disconnected: None,
+                lost_mid_game: false,
                 stats: RcssStats::default(),
+                compute: ComputeMeter::default(),
             }),
             Condvar::new(),
         ));
@@ -353,6 +372,7 @@ impl RcssPlatform {
         let game: SharedGame = Arc::default();
         let truth = TruthSource::default();
         let session = Session {
+            address: address.to_owned(),
             team: team.to_owned(),
             game: Arc::clone(&game),
             truth: truth.clone(),
@@ -444,6 +464,24 @@ impl RcssPlatform {
         lock(&self.shared).falls.clone()
     }
 
+    /// The robot's compute per server cycle since `connect` or the last
+    /// [`RcssPlatform::restart_compute`] (see [`crate::compute`]).
+    pub fn compute(&self) -> ComputeReport {
+        lock(&self.shared).compute.report()
+    }
+
+    /// Starts the compute figures over: the cycles before (the robot's set-up) are left out.
+    pub fn restart_compute(&self) {
+        lock(&self.shared).compute.restart();
+    }
+
+    /// Why the link to the server was lost before the game was over, if it was: the server
+    /// stopped or crashed mid-game (not the end of a game).
+    pub fn lost_mid_game(&self) -> Option<String> {
+        let shared = lock(&self.shared);
+        if shared.lost_mid_game { shared.disconnected.clone() } else { None }
+    }
+
     pub fn address(&self) -> &str {
         &self.address
     }
@@ -528,12 +566,20 @@ impl Platform for RcssPlatform {
         let fall_ordered =
             matches!(orders.body, Some(BodyOrder::Special { motion: SpecialMotion::Fall(_) }));
         let time = shared.sim_time;
-        if fall_ordered
-            && let Some(fall) = shared.falls.last_mut()
-            && fall.ordered.is_none()
-        {
-            fall.ordered = time;
-            fall.latency = fall.onset_at.map(|at| at.elapsed().as_secs_f64());
+        if fall_ordered {
+            tracing::debug!(?time, tilted = shared.tilted, "protective fall ordered");
+        }
+        if fall_ordered {
+            let tilted = shared.tilted;
+            match shared.falls.last_mut() {
+                // The fall under way (a stumble that came upright again was not ordered).
+                Some(fall) if fall.ordered.is_none() && tilted => {
+                    fall.ordered = time;
+                    fall.latency = fall.onset_at.map(|at| at.elapsed().as_secs_f64());
+                }
+                // Ordered before the tilt passed the onset: the fall detector predicted it.
+                _ => shared.early_order = Some((time, Instant::now())),
+            }
         }
         shared.controller.apply(orders)
     }
@@ -580,12 +626,20 @@ fn io_loop(mut stream: TcpStream, mut session: Session, shared: &SharedState, st
         }
         let message = match protocol::read_frame(&mut stream, &mut buffer, MAX_PERCEPTION_FRAME) {
             Ok(message) => message,
-            Err(FrameError::Closed) => break Some("rcssservermj closed the connection".to_owned()),
+            Err(FrameError::Closed) => {
+                break Some(format!("rcssservermj at {} closed the connection", session.address));
+            }
             Err(FrameError::Io(e)) if e.kind() == io::ErrorKind::Interrupted => continue,
             // A broken frame leaves no way to find the next one: the link is lost.
-            Err(error) => break Some(format!("reading from rcssservermj failed: {error}")),
+            Err(error) => {
+                break Some(format!(
+                    "reading from rcssservermj at {} failed: {error}",
+                    session.address
+                ));
+            }
         };
         let arrived = Instant::now();
+        lock(shared).compute.arrival();
         let mut effectors: Vec<Effector> = Vec::with_capacity(JOINTS.len() + 2);
         match protocol::decode_perception(message) {
             Ok(perception) => {
@@ -639,16 +693,28 @@ fn io_loop(mut stream: TcpStream, mut session: Session, shared: &SharedState, st
             last_answer = Some(due.max(now));
         }
         if let Err(error) = protocol::write_frame(&mut stream, &answer) {
-            break Some(format!("sending to rcssservermj failed: {error}"));
+            break Some(format!("sending to rcssservermj at {} failed: {error}", session.address));
         }
         lock(shared).stats.answers += 1;
     };
+    let game_over = session
+        .game
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .as_ref()
+        .is_some_and(|game| game.play_mode == Some(PlayMode::GameOver));
     let mut guard = lock(shared);
     if let Some(reason) = reason
         && !stop.load(Ordering::Acquire)
     {
-        tracing::warn!(%reason, "rcssservermj link lost");
-        guard.disconnected = Some(reason);
+        if game_over {
+            tracing::info!(%reason, "rcssservermj link closed after the game");
+            guard.disconnected = Some(format!("{reason} after the game was over"));
+        } else {
+            tracing::warn!(%reason, "rcssservermj link lost");
+            guard.disconnected = Some(reason);
+            guard.lost_mid_game = true;
+        }
     }
     shared.1.notify_all();
 }
@@ -704,17 +770,32 @@ fn cycle(
     let mut guard = lock(shared);
     if let Some(time) = perception.time {
         guard.sim_time = Some(time);
-        if tilted && !guard.tilted {
-            guard.falls.push(FallRecord {
-                onset: time,
-                ordered: None,
-                latency: None,
-                onset_at: Some(arrived),
-            });
+        let protecting = matches!(
+            guard.controller.body_state(),
+            BodyMotionState::Special { .. } | BodyMotionState::Fallen { .. }
+        );
+        let early = guard.early_order.take().filter(|(_, at)| {
+            arrived.saturating_duration_since(*at).as_secs_f64() <= ORDER_BEFORE_ONSET
+        });
+        if tilted && !guard.tilted && (!protecting || early.is_some()) {
+            let (ordered, latency) = match early {
+                Some((ordered, at)) => {
+                    (ordered, Some(-arrived.saturating_duration_since(at).as_secs_f64()))
+                }
+                None => (None, None),
+            };
+            guard.falls.push(FallRecord { onset: time, ordered, latency, onset_at: Some(arrived) });
+        } else {
+            // Still waiting for the onset it predicted.
+            guard.early_order = early;
         }
     }
     guard.tilted = tilted;
+    let before = thread_cpu_time();
     let commands = guard.controller.step(measured);
+    if let (Some(before), Some(after)) = (before, thread_cpu_time()) {
+        guard.compute.policy_step(after.saturating_sub(before));
+    }
     guard.stats.perceptions += 1;
     if frame.camera.is_some() {
         guard.stats.images += 1;
