@@ -9,6 +9,7 @@
 //! - [`kinematics`], [`camera`], [`markers`]: from the server's ideal vision to the detections
 //!   of a realistic head camera;
 //! - [`referee`]: the server's game state as GameController packets;
+//! - [`falls`]: falls against the server's ground truth, and the protective fall's latency;
 //! - [`platform`]: [`platform::RcssPlatform`], the [`strata_robot::platform::Platform`] over the
 //!   agent port;
 //! - [`server`]: starting the server from the project's environment;
@@ -17,6 +18,7 @@
 pub mod camera;
 pub mod compute;
 pub mod controller;
+pub mod falls;
 pub mod joints;
 pub mod kinematics;
 pub mod markers;

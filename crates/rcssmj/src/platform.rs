@@ -27,6 +27,8 @@ use strata_runtime::Time;
 use crate::camera::{CameraConfig, CameraModel, DetectorKind, Sighting};
 use crate::compute::{ComputeMeter, ComputeReport, thread_cpu_time};
 use crate::controller::{CYCLE, JointCommand, MeasuredBody, MotionConfig, T1Controller};
+use crate::falls::FallLog;
+pub use crate::falls::{FALL_ONSET_TILT, FallRecord};
 use crate::joints::{
     HEAD_PITCH, HEAD_PITCH_LIMITS, HEAD_YAW, HEAD_YAW_LIMITS, JOINTS, by_perceptor,
 };
@@ -177,47 +179,12 @@ impl TruthSource {
     }
 }
 
-/// Torso tilt from which a fall counts as begun, for [`FallRecord`], rad (20 degrees: beyond
-/// what standing and walking sway reach).
-pub const FALL_ONSET_TILT: f64 = 0.35;
-
-/// How long before a fall's onset a protective-fall order still counts for it, s (the
-/// protective fall's duration).
-pub const ORDER_BEFORE_ONSET: f64 = 0.6;
-
-/// One fall as the platform saw it: the perception in which the torso's tilt first passed
-/// [`FALL_ONSET_TILT`] (the ground truth of the onset), and the robot's protective-fall order
-/// reaching the platform. The time between them is the architecture's fall detection latency,
-/// the paper's 51 ms figure: measured on this machine's clock from the perception's arrival
-/// (the server's own clock only counts 20 ms cycles). The fall detector extrapolates the tilt
-/// with the gyroscope, so a fast fall can be ordered before the torso passes the onset tilt:
-/// an order at most [`ORDER_BEFORE_ONSET`] before the onset counts for it, with a negative
-/// latency. A tilt past the onset while the body is already in its protective fall or lying
-/// is the same fall, not a new one.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FallRecord {
-    /// The server's time of the onset, s.
-    pub onset: f64,
-    /// The server's time of the newest perception when the order came, s; `None` if no
-    /// protective-fall order came (yet).
-    pub ordered: Option<f64>,
-    /// From the onset perception's arrival to the order, s.
-    pub latency: Option<f64>,
-    #[serde(skip)]
-    onset_at: Option<Instant>,
-}
-
 #[derive(Debug)]
 struct Shared {
     controller: T1Controller,
     /// The server's time of the newest perception.
     sim_time: Option<f64>,
-    /// Whether the torso is tilted beyond the onset angle now.
-    tilted: bool,
-    falls: Vec<FallRecord>,
-    /// A protective-fall order that came with no fall begun: the server's time and the
-    /// arrival of its newest perception then, and the order's own instant.
-    early_order: Option<(Option<f64>, Instant)>,
+    falls: FallLog,
     unread: Option<SensorFrame>,
     last_at: Option<Instant>,
     pending: Vec<String>,
@@ -339,9 +306,7 @@ impl RcssPlatform {
             Mutex::new(Shared {
                 controller,
                 sim_time: None,
-                tilted: false,
-                early_order: None,
-                falls: Vec::new(),
+                falls: FallLog::default(),
                 unread: None,
                 last_at: None,
                 pending: Vec::new(),
@@ -461,7 +426,7 @@ impl RcssPlatform {
 
     /// Every fall since `connect`, with the protective-fall order's latency.
     pub fn falls(&self) -> Vec<FallRecord> {
-        lock(&self.shared).falls.clone()
+        lock(&self.shared).falls.falls().to_vec()
     }
 
     /// The robot's compute per server cycle since `connect` or the last
@@ -565,21 +530,9 @@ impl Platform for RcssPlatform {
         }
         let fall_ordered =
             matches!(orders.body, Some(BodyOrder::Special { motion: SpecialMotion::Fall(_) }));
-        let time = shared.sim_time;
         if fall_ordered {
-            tracing::debug!(?time, tilted = shared.tilted, "protective fall ordered");
-        }
-        if fall_ordered {
-            let tilted = shared.tilted;
-            match shared.falls.last_mut() {
-                // The fall under way (a stumble that came upright again was not ordered).
-                Some(fall) if fall.ordered.is_none() && tilted => {
-                    fall.ordered = time;
-                    fall.latency = fall.onset_at.map(|at| at.elapsed().as_secs_f64());
-                }
-                // Ordered before the tilt passed the onset: the fall detector predicted it.
-                _ => shared.early_order = Some((time, Instant::now())),
-            }
+            let time = shared.sim_time;
+            shared.falls.order(time, Instant::now());
         }
         shared.controller.apply(orders)
     }
@@ -766,31 +719,15 @@ fn cycle(
         *session.game.lock().unwrap_or_else(PoisonError::into_inner) = Some(game.clone());
     }
     let [roll, pitch] = orientation.roll_pitch();
-    let tilted = roll.hypot(pitch) > FALL_ONSET_TILT;
     let mut guard = lock(shared);
     if let Some(time) = perception.time {
         guard.sim_time = Some(time);
-        let protecting = matches!(
-            guard.controller.body_state(),
-            BodyMotionState::Special { .. } | BodyMotionState::Fallen { .. }
-        );
-        let early = guard.early_order.take().filter(|(_, at)| {
-            arrived.saturating_duration_since(*at).as_secs_f64() <= ORDER_BEFORE_ONSET
-        });
-        if tilted && !guard.tilted && (!protecting || early.is_some()) {
-            let (ordered, latency) = match early {
-                Some((ordered, at)) => {
-                    (ordered, Some(-arrived.saturating_duration_since(at).as_secs_f64()))
-                }
-                None => (None, None),
-            };
-            guard.falls.push(FallRecord { onset: time, ordered, latency, onset_at: Some(arrived) });
-        } else {
-            // Still waiting for the onset it predicted.
-            guard.early_order = early;
-        }
     }
-    guard.tilted = tilted;
+    let protecting = matches!(
+        guard.controller.body_state(),
+        BodyMotionState::Special { .. } | BodyMotionState::Fallen { .. }
+    );
+    guard.falls.perception(perception.time, roll.hypot(pitch), protecting, arrived);
     let before = thread_cpu_time();
     let commands = guard.controller.step(measured);
     if let (Some(before), Some(after)) = (before, thread_cpu_time()) {
