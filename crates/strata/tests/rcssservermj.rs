@@ -372,7 +372,7 @@ fn a_t1_tipped_over_is_caught_falling_by_the_reactive_layer() {
         (figure(fall, "/onset"), figure(fall, "/ordered"), figure(fall, "/latency"));
     println!(
         "fall onset (tilt past 20 degrees) at {onset:.2} s (server time), protective fall \
-         ordered at {ordered:.2} s: {:.0} ms {} the onset perception arrived",
+         ordered at {ordered:.2} s: {:.1} ms {} the onset perception arrived",
         latency.abs() * 1e3,
         if latency < 0.0 { "before (predicted by the gyroscope)" } else { "after" }
     );
