@@ -11,12 +11,16 @@
 //! - [`kinematics`], [`camera`], [`markers`]: from the server's ideal vision to the detections
 //!   of a realistic head camera;
 //! - [`referee`]: the server's game state as GameController packets;
+//! - [`falls`]: falls against the server's ground truth, and the protective fall's latency;
 //! - [`platform`]: [`platform::RcssPlatform`], the [`strata_robot::platform::Platform`] over the
 //!   agent port;
-//! - [`server`]: starting the server from the project's environment.
+//! - [`server`]: starting the server from the project's environment;
+//! - [`compute`]: what each server cycle costs the robot's process, in CPU time.
 
 pub mod camera;
+pub mod compute;
 pub mod controller;
+pub mod falls;
 pub mod getup;
 pub mod joints;
 pub mod kick;

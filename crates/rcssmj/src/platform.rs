@@ -20,13 +20,16 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 use strata_robot::platform::{
-    ActuatorOrders, BodyOrder, CameraFrame, FootContact, HeadAngles, InertialData, MotionFeedback,
-    Platform, PlatformError, PlatformInfo, SensorFrame, SpecialMotion, stamp_at,
+    ActuatorOrders, BodyMotionState, BodyOrder, CameraFrame, FootContact, HeadAngles, InertialData,
+    MotionFeedback, Platform, PlatformError, PlatformInfo, SensorFrame, SpecialMotion, stamp_at,
 };
 use strata_runtime::Time;
 
 use crate::camera::{CameraConfig, CameraModel, DetectorKind, Sighting};
+use crate::compute::{ComputeMeter, ComputeReport, thread_cpu_time};
 use crate::controller::{CYCLE, JointCommand, MeasuredBody, MotionConfig, T1Controller};
+use crate::falls::FallLog;
+pub use crate::falls::{FALL_ONSET_TILT, FallRecord};
 use crate::getup::{GetUpError, GetUpMotions};
 use crate::joints::{
     HEAD_PITCH, HEAD_PITCH_LIMITS, HEAD_YAW, HEAD_YAW_LIMITS, JOINTS, by_perceptor,
@@ -36,7 +39,7 @@ use crate::markers;
 use crate::policy::{PolicyError, WalkPolicy};
 use crate::protocol::{
     self, Effector, FrameError, GameStatePerceptor, InitRequest, MAX_PERCEPTION_FRAME, Perception,
-    SeenObject, SeenRobot,
+    PlayMode, SeenObject, SeenRobot,
 };
 use crate::referee::{RefereeLink, SharedGame, TeamNumbers};
 
@@ -187,42 +190,21 @@ impl TruthSource {
     }
 }
 
-/// Torso tilt from which a fall counts as begun, for [`FallRecord`], rad (20 degrees: beyond
-/// what standing and walking sway reach).
-pub const FALL_ONSET_TILT: f64 = 0.35;
-
-/// One fall as the platform saw it: the perception in which the torso's tilt first passed
-/// [`FALL_ONSET_TILT`] (the ground truth of the onset), and the robot's protective-fall order
-/// reaching the platform. The time between them is the architecture's fall detection latency,
-/// the paper's 51 ms figure: measured on this machine's clock from the perception's arrival
-/// (the server's own clock only counts 20 ms cycles).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct FallRecord {
-    /// The server's time of the onset, s.
-    pub onset: f64,
-    /// The server's time of the newest perception when the order came, s; `None` if no
-    /// protective-fall order came (yet).
-    pub ordered: Option<f64>,
-    /// From the onset perception's arrival to the order, s.
-    pub latency: Option<f64>,
-    #[serde(skip)]
-    onset_at: Option<Instant>,
-}
-
 #[derive(Debug)]
 struct Shared {
     controller: T1Controller,
     /// The server's time of the newest perception.
     sim_time: Option<f64>,
-    /// Whether the torso is tilted beyond the onset angle now.
-    tilted: bool,
-    falls: Vec<FallRecord>,
+    falls: FallLog,
     unread: Option<SensorFrame>,
     last_at: Option<Instant>,
     pending: Vec<String>,
     pending_dropped: usize,
     disconnected: Option<String>,
+    /// Whether the link was lost before the game was over (the server stopped or crashed).
+    lost_mid_game: bool,
     stats: RcssStats,
+    compute: ComputeMeter,
 }
 
 type SharedState = Arc<(Mutex<Shared>, Condvar)>;
@@ -261,6 +243,7 @@ pub struct RcssPlatform {
 
 /// What the connection thread needs besides the socket.
 struct Session {
+    address: String,
     team: String,
     game: SharedGame,
     truth: TruthSource,
@@ -338,14 +321,15 @@ impl RcssPlatform {
             Mutex::new(Shared {
                 controller,
                 sim_time: None,
-                tilted: false,
-                falls: Vec::new(),
+                falls: FallLog::default(),
                 unread: None,
                 last_at: None,
                 pending: Vec::new(),
                 pending_dropped: 0,
                 disconnected: None,
+                lost_mid_game: false,
                 stats: RcssStats::default(),
+                compute: ComputeMeter::default(),
             }),
             Condvar::new(),
         ));
@@ -368,6 +352,7 @@ impl RcssPlatform {
         let game: SharedGame = Arc::default();
         let truth = TruthSource::default();
         let session = Session {
+            address: address.to_owned(),
             team: team.to_owned(),
             game: Arc::clone(&game),
             truth: truth.clone(),
@@ -456,7 +441,25 @@ impl RcssPlatform {
 
     /// Every fall since `connect`, with the protective-fall order's latency.
     pub fn falls(&self) -> Vec<FallRecord> {
-        lock(&self.shared).falls.clone()
+        lock(&self.shared).falls.falls().to_vec()
+    }
+
+    /// The robot's compute per server cycle since `connect` or the last
+    /// [`RcssPlatform::restart_compute`] (see [`crate::compute`]).
+    pub fn compute(&self) -> ComputeReport {
+        lock(&self.shared).compute.report()
+    }
+
+    /// Starts the compute figures over: the cycles before (the robot's set-up) are left out.
+    pub fn restart_compute(&self) {
+        lock(&self.shared).compute.restart();
+    }
+
+    /// Why the link to the server was lost before the game was over, if it was: the server
+    /// stopped or crashed mid-game (not the end of a game).
+    pub fn lost_mid_game(&self) -> Option<String> {
+        let shared = lock(&self.shared);
+        if shared.lost_mid_game { shared.disconnected.clone() } else { None }
     }
 
     pub fn address(&self) -> &str {
@@ -542,13 +545,9 @@ impl Platform for RcssPlatform {
         }
         let fall_ordered =
             matches!(orders.body, Some(BodyOrder::Special { motion: SpecialMotion::Fall(_) }));
-        let time = shared.sim_time;
-        if fall_ordered
-            && let Some(fall) = shared.falls.last_mut()
-            && fall.ordered.is_none()
-        {
-            fall.ordered = time;
-            fall.latency = fall.onset_at.map(|at| at.elapsed().as_secs_f64());
+        if fall_ordered {
+            let time = shared.sim_time;
+            shared.falls.order(time, Instant::now());
         }
         shared.controller.apply(orders)
     }
@@ -595,12 +594,20 @@ fn io_loop(mut stream: TcpStream, mut session: Session, shared: &SharedState, st
         }
         let message = match protocol::read_frame(&mut stream, &mut buffer, MAX_PERCEPTION_FRAME) {
             Ok(message) => message,
-            Err(FrameError::Closed) => break Some("rcssservermj closed the connection".to_owned()),
+            Err(FrameError::Closed) => {
+                break Some(format!("rcssservermj at {} closed the connection", session.address));
+            }
             Err(FrameError::Io(e)) if e.kind() == io::ErrorKind::Interrupted => continue,
             // A broken frame leaves no way to find the next one: the link is lost.
-            Err(error) => break Some(format!("reading from rcssservermj failed: {error}")),
+            Err(error) => {
+                break Some(format!(
+                    "reading from rcssservermj at {} failed: {error}",
+                    session.address
+                ));
+            }
         };
         let arrived = Instant::now();
+        lock(shared).compute.arrival();
         let mut effectors: Vec<Effector> = Vec::with_capacity(JOINTS.len() + 2);
         match protocol::decode_perception(message) {
             Ok(perception) => {
@@ -654,16 +661,28 @@ fn io_loop(mut stream: TcpStream, mut session: Session, shared: &SharedState, st
             last_answer = Some(due.max(now));
         }
         if let Err(error) = protocol::write_frame(&mut stream, &answer) {
-            break Some(format!("sending to rcssservermj failed: {error}"));
+            break Some(format!("sending to rcssservermj at {} failed: {error}", session.address));
         }
         lock(shared).stats.answers += 1;
     };
+    let game_over = session
+        .game
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .as_ref()
+        .is_some_and(|game| game.play_mode == Some(PlayMode::GameOver));
     let mut guard = lock(shared);
     if let Some(reason) = reason
         && !stop.load(Ordering::Acquire)
     {
-        tracing::warn!(%reason, "rcssservermj link lost");
-        guard.disconnected = Some(reason);
+        if game_over {
+            tracing::info!(%reason, "rcssservermj link closed after the game");
+            guard.disconnected = Some(format!("{reason} after the game was over"));
+        } else {
+            tracing::warn!(%reason, "rcssservermj link lost");
+            guard.disconnected = Some(reason);
+            guard.lost_mid_game = true;
+        }
     }
     shared.1.notify_all();
 }
@@ -715,21 +734,20 @@ fn cycle(
         *session.game.lock().unwrap_or_else(PoisonError::into_inner) = Some(game.clone());
     }
     let [roll, pitch] = orientation.roll_pitch();
-    let tilted = roll.hypot(pitch) > FALL_ONSET_TILT;
     let mut guard = lock(shared);
     if let Some(time) = perception.time {
         guard.sim_time = Some(time);
-        if tilted && !guard.tilted {
-            guard.falls.push(FallRecord {
-                onset: time,
-                ordered: None,
-                latency: None,
-                onset_at: Some(arrived),
-            });
-        }
     }
-    guard.tilted = tilted;
+    let protecting = matches!(
+        guard.controller.body_state(),
+        BodyMotionState::Special { .. } | BodyMotionState::Fallen { .. }
+    );
+    guard.falls.perception(perception.time, roll.hypot(pitch), protecting, arrived);
+    let before = thread_cpu_time();
     let commands = guard.controller.step(measured);
+    if let (Some(before), Some(after)) = (before, thread_cpu_time()) {
+        guard.compute.policy_step(after.saturating_sub(before));
+    }
     guard.stats.perceptions += 1;
     if frame.camera.is_some() {
         guard.stats.images += 1;

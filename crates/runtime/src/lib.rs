@@ -47,7 +47,8 @@ pub use package::{ModuleId, Package};
 pub use rng::{module_rng, stable_hash};
 pub use shared::Shared;
 pub use stats::{
-    HostKind, HostStats, InputStats, ModuleStats, RateStats, Scheduling, StatsCollector, Summary,
+    DurationRecorder, HostKind, HostStats, InputStats, ModuleStats, RateStats, Scheduling,
+    StatsCollector, Summary,
 };
 pub use tap::{Tap, TapOutput, TapRecord, TapSender, Taps};
 pub use threaded::{RunningHost, StopHandle, ThreadedHost};

@@ -74,6 +74,30 @@ impl Durations {
     }
 }
 
+/// A distribution of durations recorded one at a time, summarized like a module's compute
+/// time: for figures a platform or a command measures outside the modules (the compute of a
+/// whole robot per sensor cycle), with the same resolution and the same percentiles.
+#[derive(Debug, Clone, Default)]
+pub struct DurationRecorder {
+    durations: Durations,
+    count: u64,
+}
+
+impl DurationRecorder {
+    pub fn record(&mut self, duration: Duration) {
+        self.durations.record(clamp_ns(duration));
+        self.count += 1;
+    }
+
+    pub fn count(&self) -> u64 {
+        self.count
+    }
+
+    pub fn summary(&self) -> Summary {
+        Summary::of(&self.durations.histogram())
+    }
+}
+
 /// Collects one module's statistics as its cycles run.
 #[derive(Debug, Clone)]
 pub struct StatsCollector {
@@ -353,6 +377,21 @@ mod tests {
     use proptest::prelude::*;
 
     use super::*;
+
+    #[test]
+    fn a_duration_recorder_summarizes_what_it_recorded() {
+        let mut recorder = DurationRecorder::default();
+        assert_eq!(recorder.summary(), Summary::default());
+        for us in 1..=100 {
+            recorder.record(Duration::from_micros(us));
+        }
+        let summary = recorder.summary();
+        assert_eq!((recorder.count(), summary.count), (100, 100));
+        // Two significant digits: within 1 %.
+        assert!((summary.p50_us - 50.0).abs() <= 0.5, "{summary:?}");
+        assert!((summary.p99_us - 99.0).abs() <= 1.0, "{summary:?}");
+        assert!((summary.max_us - 100.0).abs() <= 1.0, "{summary:?}");
+    }
 
     #[test]
     fn duration_buckets_are_hdrhistograms() {

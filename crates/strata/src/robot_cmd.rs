@@ -31,6 +31,7 @@ use strata::logging::{RobotRunConfig, open_run_log};
 use strata::matches::LayerRate;
 use strata_log::{ConfigFormat, LogCompression, McapTap, McapTapOptions, RunInfo, WhenFull};
 use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
+use strata_rcssmj::compute::ComputeReport;
 use strata_rcssmj::platform::{FALL_ONSET_TILT, FallRecord, RcssConfig, RcssPlatform, TruthSource};
 use strata_rcssmj::referee::TeamNumbers;
 use strata_robot::assembly::RobotModules;
@@ -374,6 +375,10 @@ pub fn run(args: RobotArgs) -> Result<()> {
     });
 
     let running = host.start().context("starting the robot's module threads")?;
+    if let Some(t1) = &platform.t1 {
+        // The cycles while the robot was being set up are not its work.
+        t1.lock().unwrap_or_else(PoisonError::into_inner).inner.restart_compute();
+    }
     for (module, reason) in running.real_time_refusals() {
         out.note(&format!(
             "module {module} runs with the default scheduling policy: real-time priority {} \
@@ -485,16 +490,27 @@ pub fn run(args: RobotArgs) -> Result<()> {
         &modules,
         stats,
     );
-    let falls = platform
-        .t1
-        .as_ref()
-        .map(|t1| t1.lock().unwrap_or_else(PoisonError::into_inner).inner.falls())
-        .unwrap_or_default();
-    let report = Report { localization: accuracy.and_then(|a| a.snapshot()), falls, ..report };
+    let t1 = platform.t1.as_ref().map(|t1| t1.lock().unwrap_or_else(PoisonError::into_inner));
+    let falls = t1.as_ref().map(|t1| t1.inner.falls()).unwrap_or_default();
+    let compute = t1.as_ref().map(|t1| Compute::new(t1.inner.compute(), &report.host));
+    let lost_server = t1.as_ref().and_then(|t1| t1.inner.lost_mid_game());
+    drop(t1);
+    let report =
+        Report { localization: accuracy.and_then(|a| a.snapshot()), falls, compute, ..report };
     out.report(&report);
-    match failure {
-        Some(error) => Err(error).context("a module of the robot failed"),
-        None => Ok(()),
+    match (failure, lost_server) {
+        (Some(error), _) => Err(error).context("a module of the robot failed"),
+        // The 2D simulator's server ends a game by closing its connections; rcssservermj does
+        // not, so a closed link before its GameOver is a server that stopped or crashed.
+        (None, Some(reason)) => bail!(
+            "lost the server mid-game: {reason} (it stopped or crashed); the run's report is \
+             written{}",
+            args.log
+                .as_ref()
+                .map(|p| format!(" and its log {} finalized", p.display()))
+                .unwrap_or_default()
+        ),
+        (None, None) => Ok(()),
     }
 }
 
@@ -1197,6 +1213,31 @@ struct Report {
     /// (rcssservermj only).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     falls: Vec<FallRecord>,
+    /// The robot's compute per server cycle (rcssservermj only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    compute: Option<Compute>,
+}
+
+/// The robot's compute per 20 ms server cycle: CPU time measured by the platform at each
+/// cycle's boundary (`strata_rcssmj::compute`), and the modules' own wall times for comparison.
+#[derive(Debug, Serialize)]
+struct Compute {
+    #[serde(flatten)]
+    per_cycle: ComputeReport,
+    /// Every module's measured compute (wall time of its cycles) summed over the run, per
+    /// server cycle, us: the share of `process` the modules account for (wall time also counts
+    /// waiting for a core).
+    modules_wall_mean_us: f64,
+}
+
+impl Compute {
+    fn new(per_cycle: ComputeReport, host: &HostStats) -> Compute {
+        let total_us: f64 =
+            host.modules.iter().map(|m| m.compute_time.mean_us * m.compute_time.count as f64).sum();
+        let modules_wall_mean_us =
+            if per_cycle.cycles > 0 { total_us / per_cycle.cycles as f64 } else { 0.0 };
+        Compute { per_cycle, modules_wall_mean_us }
+    }
 }
 
 impl Report {
@@ -1247,6 +1288,7 @@ impl Report {
             host,
             localization: None,
             falls: Vec::new(),
+            compute: None,
         }
     }
 }
@@ -1405,6 +1447,27 @@ impl Output {
                     fall.onset
                 ),
             }
+        }
+        if let Some(c) = &report.compute {
+            let p = &c.per_cycle;
+            println!(
+                "{}: compute per {:.0} ms server cycle over {} cycles (CPU time, us): process p50 {:.0} p99 {:.0} max {:.0} ({:.1} % / {:.1} % / {:.1} % of the cycle), mean {:.0}; connection thread p50 {:.0} p99 {:.0}; walking policy p50 {:.0} p99 {:.0}; modules' wall time mean {:.0}",
+                self.name,
+                p.cycle_ms,
+                p.cycles,
+                p.process.p50_us,
+                p.process.p99_us,
+                p.process.max_us,
+                100.0 * p.share_of_cycle.p50,
+                100.0 * p.share_of_cycle.p99,
+                100.0 * p.share_of_cycle.max,
+                p.process.mean_us,
+                p.connection.p50_us,
+                p.connection.p99_us,
+                p.policy.p50_us,
+                p.policy.p99_us,
+                c.modules_wall_mean_us,
+            );
         }
         println!(
             "{}: game states followed: {}",
