@@ -26,7 +26,10 @@ use crate::{CONFIG_ATTACHMENT_PREFIX, GRAPH_METADATA, RUN_METADATA, STATS_METADA
 pub use messages::Messages;
 
 use messages::ChannelInfo;
-use records::{MAGIC, RECORD_HEADER, RecordFile, decode_chunk, parse_attachment, parse_metadata};
+use records::{
+    MAGIC, RECORD_HEADER, RecordFile, check_chunk_records, decode_chunk, parse_attachment,
+    parse_metadata,
+};
 
 /// One logged message.
 #[derive(Clone, Debug, PartialEq)]

@@ -13,7 +13,7 @@ use crate::error::LogError;
 
 use super::{
     ChannelInfo, ChunkLocation, LogReader, MAGIC, RECORD_HEADER, RecordFile, Recovery, TopicInfo,
-    decode_chunk, parse_attachment, parse_metadata,
+    check_chunk_records, decode_chunk, parse_attachment, parse_metadata,
 };
 
 impl LogReader {
@@ -49,9 +49,41 @@ impl LogReader {
         }
     }
 
+    /// mcap's summary reader reads whatever records the footer points at, chunks included, with
+    /// the streaming reader that trusts an uncompressed chunk's records to fit
+    /// ([`check_chunk_records`]); a footer pointing at such a chunk is refused here (and the
+    /// file then scanned like one without a summary).
+    fn check_summary_chunks(records: &mut RecordFile) -> Result<(), LogError> {
+        // The footer record: opcode, length, summary_start, summary_offset_start, summary_crc.
+        const FOOTER_BODY: u64 = 8 + 8 + 4;
+        let Some(footer) =
+            records.len.checked_sub(MAGIC.len() as u64 + RECORD_HEADER + FOOTER_BODY)
+        else {
+            return Ok(());
+        };
+        let Some((op::FOOTER, body)) = records.record_at(footer)? else { return Ok(()) };
+        let Some(start) = body.get(..8).and_then(|b| b.try_into().ok()).map(u64::from_le_bytes)
+        else {
+            return Ok(());
+        };
+        let mut offset = start;
+        while offset != 0 && offset < footer {
+            let Some((opcode, body)) = records.record_at(offset)? else { return Ok(()) };
+            if opcode == op::CHUNK {
+                check_chunk_records(&body).map_err(|what| LogError::Invalid {
+                    path: records.path.clone(),
+                    what: format!("chunk in the summary at byte {offset}: {what}"),
+                })?;
+            }
+            offset = offset.saturating_add(RECORD_HEADER + body.len() as u64);
+        }
+        Ok(())
+    }
+
     /// The summary of a complete file, `None` if it has no footer.
     fn read_summary(records: &mut RecordFile) -> Result<Option<LogReader>, LogError> {
         let path = records.path.clone();
+        Self::check_summary_chunks(records)?;
         let summary = {
             let mut reader = mcap::sans_io::SummaryReader::new_with_options(
                 mcap::sans_io::SummaryReaderOptions::default().with_file_size(records.len),

@@ -57,6 +57,45 @@ impl RecordFile {
     }
 }
 
+/// Refuses an uncompressed chunk whose records overrun it. mcap 0.26's streaming reader takes
+/// each record of an uncompressed chunk off the chunk's remaining length without checking that
+/// the record fits (`sans_io/linear_reader.rs`): with overflow checks on (debug builds, the fuzz
+/// targets) that panics, without them the length wraps and the reader runs on past the chunk.
+/// `body` is a chunk record's body. A header cut short passes: the reader reports it.
+pub(super) fn check_chunk_records(body: &[u8]) -> Result<(), String> {
+    // message_start_time, message_end_time, uncompressed_size, uncompressed_crc.
+    const FIXED: usize = 8 + 8 + 8 + 4;
+    let u32_at =
+        |at: usize| body.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+    let u64_at = |at: usize| {
+        body.get(at..at + 8).map(|b| u64::from_le_bytes(b.try_into().unwrap_or([0xff; 8])))
+    };
+    let Some(compression_len) = u32_at(FIXED) else { return Ok(()) };
+    let Some(records_at) = (FIXED + 4).checked_add(compression_len as usize) else { return Ok(()) };
+    if compression_len != 0 {
+        return Ok(());
+    }
+    let Some(records_len) = u64_at(records_at) else { return Ok(()) };
+    let mut position = 0u64;
+    while position < records_len {
+        let header = records_at as u64 + 8 + position;
+        let Some(len) = usize::try_from(header).ok().and_then(|at| u64_at(at + 1)) else {
+            return Ok(());
+        };
+        let end = position.checked_add(RECORD_HEADER).and_then(|p| p.checked_add(len));
+        match end {
+            Some(end) if end <= records_len => position = end,
+            _ => {
+                return Err(format!(
+                    "its record at offset {position} ({len} bytes) overruns its {records_len} \
+                     bytes of records"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// What a chunk holds once decompressed and checked.
 pub(super) struct ChunkContents {
     pub(super) channels: Vec<(u16, ChannelInfo, String, Option<String>)>,
@@ -73,6 +112,10 @@ pub(super) fn decode_chunk(
     body: &[u8],
 ) -> Result<ChunkContents, LogError> {
     let bad = |source| LogError::Record { path: path.to_path_buf(), offset, source };
+    check_chunk_records(body).map_err(|what| LogError::Invalid {
+        path: path.to_path_buf(),
+        what: format!("chunk at byte {offset}: {what}"),
+    })?;
     // The chunk is fed to the streaming reader as the one record of a data section, which lets
     // it bound every length it reads and check the CRC of the whole chunk before yielding any
     // record of it: a damaged chunk yields an error and none of its messages.
@@ -205,4 +248,48 @@ fn crc32(bytes: &[u8]) -> u32 {
         }
     }
     !crc
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An uncompressed chunk's body holding `records`, declared `records_len` bytes long.
+    fn chunk_body(records: &[u8], records_len: u64) -> Vec<u8> {
+        let mut body = vec![0u8; 8 + 8 + 8 + 4];
+        body.extend_from_slice(&0u32.to_le_bytes()); // compression: "" (none)
+        body.extend_from_slice(&records_len.to_le_bytes());
+        body.extend_from_slice(records);
+        body
+    }
+
+    fn record(opcode: u8, body_len: u64) -> Vec<u8> {
+        let mut bytes = vec![opcode];
+        bytes.extend_from_slice(&body_len.to_le_bytes());
+        bytes.resize(bytes.len() + body_len as usize, 0);
+        bytes
+    }
+
+    #[test]
+    fn uncompressed_records_must_fit_their_chunk() {
+        let records = [record(op::MESSAGE, 4), record(op::MESSAGE, 2)].concat();
+        let len = records.len() as u64;
+        assert_eq!(check_chunk_records(&chunk_body(&records, len)), Ok(()));
+        // The chunk claims one byte less than its records take: the last one overruns it.
+        let error = check_chunk_records(&chunk_body(&records, len - 1)).expect_err("overrun");
+        assert!(error.contains("offset 13 (2 bytes)"), "{error}");
+        // A length near u64::MAX must not wrap around into "fits".
+        let huge = [vec![op::MESSAGE], u64::MAX.to_le_bytes().to_vec()].concat();
+        assert!(check_chunk_records(&chunk_body(&huge, 9)).is_err());
+    }
+
+    #[test]
+    fn a_cut_header_or_a_compressed_chunk_is_left_to_the_reader() {
+        assert_eq!(check_chunk_records(&[0; 10]), Ok(()));
+        let mut compressed = vec![0u8; 28];
+        compressed.extend_from_slice(&3u32.to_le_bytes());
+        compressed.extend_from_slice(b"lz4");
+        compressed.extend_from_slice(&100u64.to_le_bytes());
+        assert_eq!(check_chunk_records(&compressed), Ok(()));
+    }
 }
