@@ -12,11 +12,15 @@
 //! the test asserts that the robot stands up from each side, and reports how often the first
 //! order did.
 
+mod common;
+
+use common::server;
+
 use std::time::{Duration, Instant};
 
 use strata_rcssmj::platform::{RcssConfig, RcssPlatform};
 use strata_rcssmj::protocol::monitor::{MonitorCommand, RobotOrientation, TeamRef};
-use strata_rcssmj::server::{ServerError, ServerOptions, ServerProcess};
+use strata_rcssmj::server::ServerProcess;
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, MotionFeedback, Platform, SpecialMotion,
 };
@@ -25,19 +29,6 @@ use strata_runtime::Time;
 const TEAM: &str = "GetUp";
 /// Where the robot lies: its own half, clear of everyone.
 const SPOT: [f64; 2] = [-3.0, 0.0];
-
-fn server() -> Option<ServerProcess> {
-    match ServerProcess::start(&ServerOptions::default()) {
-        Ok(server) => Some(server),
-        Err(ServerError::NotInstalled)
-            if std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none() =>
-        {
-            eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
-            None
-        }
-        Err(error) => panic!("starting rcssservermj: {error}"),
-    }
-}
 
 /// The next cycle's server time and motion feedback.
 fn next_cycle(robot: &mut RcssPlatform, last: &mut f64) -> (f64, MotionFeedback) {

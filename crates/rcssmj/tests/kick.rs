@@ -11,17 +11,17 @@
 //! kick, m/s) and `STRATA_KICK_SPEC` (a kick in TOML, replacing the catalogue's) choose what is
 //! tried; `STRATA_KICK_DEBUG` prints the robot and the ball every cycle of the kick.
 
-use std::time::{Duration, Instant};
+mod common;
+
+use common::{run_for, server};
 
 use strata_rcssmj::kick::KickSpec;
-use strata_rcssmj::platform::{GroundTruth, RcssConfig, RcssPlatform};
+use strata_rcssmj::platform::{RcssConfig, RcssPlatform};
 use strata_rcssmj::protocol::FieldSide;
 use strata_rcssmj::protocol::monitor::MonitorCommand;
-use strata_rcssmj::server::{ServerError, ServerOptions, ServerProcess};
+use strata_rcssmj::server::ServerProcess;
 use strata_robot::geometry::Velocity;
-use strata_robot::platform::{
-    ActuatorOrders, BodyMotionState, BodyOrder, MotionFeedback, Platform, SpecialMotion,
-};
+use strata_robot::platform::{ActuatorOrders, BodyMotionState, BodyOrder, Platform, SpecialMotion};
 use strata_runtime::Time;
 
 /// Where the soccer application's approach leaves the ball: 0.20 m ahead of the torso
@@ -29,54 +29,9 @@ use strata_runtime::Time;
 /// from about there.
 const BALL_AHEAD: [f64; 2] = [0.20, 0.0];
 
-fn server() -> Option<ServerProcess> {
-    match ServerProcess::start(&ServerOptions::default()) {
-        Ok(server) => Some(server),
-        Err(ServerError::NotInstalled)
-            if std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none() =>
-        {
-            eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
-            None
-        }
-        Err(error) => panic!("starting rcssservermj: {error}"),
-    }
-}
-
 fn t1(server: &ServerProcess, config: RcssConfig) -> RcssPlatform {
     let config = RcssConfig { pace: 0.0, beam: Some([-3.0, 0.0, 0.0]), ..config };
     RcssPlatform::connect(&server.agent_address(), "Kicker", 1, config).expect("a T1 connects")
-}
-
-/// Runs the robot for `seconds` of simulation time, calling `each` every cycle with the newest
-/// ground truth, feedback and time since the start; stops early when `each` says so.
-fn run_for(
-    robot: &mut RcssPlatform,
-    seconds: f64,
-    mut each: impl FnMut(&GroundTruth, &MotionFeedback, f64) -> bool,
-) -> GroundTruth {
-    let start = robot.ground_truth().expect("a first perception").time;
-    let deadline = Instant::now() + Duration::from_secs_f64(seconds * 2.0 + 30.0);
-    let mut last_time = start;
-    loop {
-        assert!(Instant::now() < deadline, "the server did not advance {seconds} s in time");
-        match robot.read_sensors(Time::ZERO) {
-            Ok(Some(_)) => {}
-            Ok(None) => {
-                std::thread::sleep(Duration::from_micros(200));
-                continue;
-            }
-            Err(error) => panic!("the platform failed: {error}"),
-        }
-        let truth = robot.ground_truth().expect("truth");
-        if truth.time <= last_time {
-            continue;
-        }
-        last_time = truth.time;
-        let motion = robot.read_motion(Time::ZERO).expect("motion");
-        if !each(&truth, &motion, truth.time - start) || truth.time - start >= seconds {
-            return truth;
-        }
-    }
 }
 
 fn order(robot: &mut RcssPlatform, body: BodyOrder) {

@@ -6,65 +6,23 @@
 //! The physics is MuJoCo's, not ours, and the server steps when our answer arrives, so a run
 //! is close to but not bit-for-bit repeatable: the thresholds leave room for that.
 
+mod common;
+
+use common::{run_for, server};
+
 use std::time::{Duration, Instant};
 
-use strata_rcssmj::platform::{GroundTruth, RcssConfig, RcssPlatform};
-use strata_rcssmj::server::{ServerError, ServerOptions, ServerProcess};
+use strata_rcssmj::platform::{RcssConfig, RcssPlatform};
+use strata_rcssmj::server::ServerProcess;
 use strata_robot::geometry::Velocity;
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, MotionFeedback, Platform, PlatformError,
 };
 use strata_runtime::Time;
 
-fn server() -> Option<ServerProcess> {
-    match ServerProcess::start(&ServerOptions::default()) {
-        Ok(server) => Some(server),
-        Err(ServerError::NotInstalled)
-            if std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none() =>
-        {
-            eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
-            None
-        }
-        Err(error) => panic!("starting rcssservermj: {error}"),
-    }
-}
-
 fn t1(server: &ServerProcess, team: &str, beam: [f64; 3]) -> RcssPlatform {
     let config = RcssConfig { pace: 0.0, beam: Some(beam), ..RcssConfig::default() };
     RcssPlatform::connect(&server.agent_address(), team, 1, config).expect("a T1 connects")
-}
-
-/// Runs the robot for `seconds` of simulation time, calling `each` with the newest ground
-/// truth and feedback every cycle; returns the last truth.
-fn run_for(
-    robot: &mut RcssPlatform,
-    seconds: f64,
-    mut each: impl FnMut(&GroundTruth, &MotionFeedback, f64) -> bool,
-) -> GroundTruth {
-    let start = robot.ground_truth().expect("a first perception").time;
-    let deadline = Instant::now() + Duration::from_secs_f64(seconds * 2.0 + 30.0);
-    let mut last_time = start;
-    loop {
-        assert!(Instant::now() < deadline, "the server did not advance {seconds} s in time");
-        let now = Time::ZERO;
-        match robot.read_sensors(now) {
-            Ok(Some(_)) => {}
-            Ok(None) => {
-                std::thread::sleep(Duration::from_micros(200));
-                continue;
-            }
-            Err(error) => panic!("the platform failed: {error}"),
-        }
-        let truth = robot.ground_truth().expect("truth");
-        if truth.time <= last_time {
-            continue;
-        }
-        last_time = truth.time;
-        let motion = robot.read_motion(now).expect("motion");
-        if !each(&truth, &motion, truth.time - start) || truth.time - start >= seconds {
-            return truth;
-        }
-    }
 }
 
 fn fallen(motion: &MotionFeedback) -> bool {
