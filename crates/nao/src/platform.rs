@@ -16,8 +16,8 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 use strata_robot::geometry::Velocity;
 use strata_robot::platform::{
-    ActuatorOrders, Buttons, FootContact, HeadAngles, InertialData, MotionFeedback, Platform,
-    PlatformError, PlatformInfo, SensorFrame, stamp_at,
+    ActuatorOrders, Buttons, FootContact, HeadAngles, InertialData, MotionFeedback,
+    PendingProblems, Platform, PlatformError, PlatformInfo, SensorFrame, stamp_at,
 };
 use strata_runtime::Time;
 
@@ -122,19 +122,14 @@ struct Shared {
     unread: Option<Received>,
     /// The newest packet, kept for feedback stamps and diagnostics.
     last: Option<Received>,
-    pending: Vec<Pending>,
-    pending_dropped: usize,
+    pending: PendingProblems<Pending>,
     disconnected: Option<String>,
     stats: LolaStats,
 }
 
 impl Shared {
     fn report(&mut self, problem: Pending) {
-        if self.pending.len() < MAX_PENDING {
-            self.pending.push(problem);
-        } else {
-            self.pending_dropped += 1;
-        }
+        self.pending.push(problem);
     }
 }
 
@@ -191,8 +186,7 @@ impl LolaPlatform {
                 controller,
                 unread: None,
                 last: None,
-                pending: Vec::new(),
-                pending_dropped: 0,
+                pending: PendingProblems::new(MAX_PENDING),
                 disconnected: None,
                 stats: LolaStats::default(),
             }),
@@ -257,7 +251,7 @@ impl LolaPlatform {
                 let last_error = guard
                     .disconnected
                     .clone()
-                    .or_else(|| guard.pending.last().map(|p| p.text().to_owned()));
+                    .or_else(|| guard.pending.iter().last().map(|p| p.text().to_owned()));
                 return Err(LolaError::NoFirstPacket {
                     path: self.path.clone(),
                     waited: timeout,
@@ -337,16 +331,8 @@ impl Platform for LolaPlatform {
 
     fn read_sensors(&mut self, now: Time) -> Result<Option<SensorFrame>, PlatformError> {
         let mut shared = lock(&self.shared);
-        if !shared.pending.is_empty() {
-            let dropped = std::mem::take(&mut shared.pending_dropped);
-            let problems = std::mem::take(&mut shared.pending);
-            let malformed = problems.iter().any(|p| matches!(p, Pending::Malformed(_)));
-            let mut text: Vec<&str> = problems.iter().map(Pending::text).collect();
-            let more = format!("and {dropped} more");
-            if dropped > 0 {
-                text.push(&more);
-            }
-            let text = text.join("; ");
+        let malformed = shared.pending.iter().any(|p| matches!(p, Pending::Malformed(_)));
+        if let Some(text) = shared.pending.take_text(Pending::text) {
             return Err(if malformed {
                 PlatformError::Malformed(text)
             } else {

@@ -21,7 +21,8 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CameraFrame, FootContact, HeadAngles, InertialData,
-    MotionFeedback, Platform, PlatformError, PlatformInfo, SensorFrame, SpecialMotion, stamp_at,
+    MotionFeedback, PendingProblems, Platform, PlatformError, PlatformInfo, SensorFrame,
+    SpecialMotion, stamp_at,
 };
 use strata_runtime::Time;
 
@@ -198,8 +199,7 @@ struct Shared {
     falls: FallLog,
     unread: Option<SensorFrame>,
     last_at: Option<Instant>,
-    pending: Vec<String>,
-    pending_dropped: usize,
+    pending: PendingProblems<String>,
     disconnected: Option<String>,
     /// Whether the link was lost before the game was over (the server stopped or crashed).
     lost_mid_game: bool,
@@ -217,11 +217,7 @@ fn lock(shared: &SharedState) -> MutexGuard<'_, Shared> {
 
 impl Shared {
     fn report(&mut self, problem: String) {
-        if self.pending.len() < MAX_PENDING {
-            self.pending.push(problem);
-        } else {
-            self.pending_dropped += 1;
-        }
+        self.pending.push(problem);
     }
 }
 
@@ -324,8 +320,7 @@ impl RcssPlatform {
                 falls: FallLog::default(),
                 unread: None,
                 last_at: None,
-                pending: Vec::new(),
-                pending_dropped: 0,
+                pending: PendingProblems::new(MAX_PENDING),
                 disconnected: None,
                 lost_mid_game: false,
                 stats: RcssStats::default(),
@@ -487,12 +482,7 @@ impl Platform for RcssPlatform {
 
     fn read_sensors(&mut self, now: Time) -> Result<Option<SensorFrame>, PlatformError> {
         let mut shared = lock(&self.shared);
-        if !shared.pending.is_empty() {
-            let dropped = std::mem::take(&mut shared.pending_dropped);
-            let mut text = std::mem::take(&mut shared.pending).join("; ");
-            if dropped > 0 {
-                text.push_str(&format!("; and {dropped} more"));
-            }
+        if let Some(text) = shared.pending.take_text(String::as_str) {
             return Err(PlatformError::Malformed(text));
         }
         if let Some(mut frame) = shared.unread.take() {

@@ -279,6 +279,57 @@ pub fn stamp_at(now: Time, at: std::time::Instant) -> Time {
     Time::from_nanos(now.as_nanos().saturating_sub(age))
 }
 
+/// Problems a platform's I/O thread met since the robot last read its sensors, held for the
+/// next `read_sensors` to report: bounded, so a peer sending garbage every cycle cannot grow
+/// it, and counting what did not fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PendingProblems<T> {
+    problems: Vec<T>,
+    dropped: usize,
+    capacity: usize,
+}
+
+impl<T> PendingProblems<T> {
+    pub fn new(capacity: usize) -> PendingProblems<T> {
+        PendingProblems { problems: Vec::new(), dropped: 0, capacity }
+    }
+
+    /// Holds a problem, or counts it when the queue is full.
+    pub fn push(&mut self, problem: T) {
+        if self.problems.len() < self.capacity {
+            self.problems.push(problem);
+        } else {
+            self.dropped += 1;
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.problems.is_empty()
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = &T> {
+        self.problems.iter()
+    }
+
+    /// Empties the queue: the problems held and how many more did not fit.
+    pub fn take(&mut self) -> (Vec<T>, usize) {
+        (std::mem::take(&mut self.problems), std::mem::take(&mut self.dropped))
+    }
+
+    /// Empties the queue into one line: the problems' texts and how many more there were.
+    pub fn take_text(&mut self, text: impl Fn(&T) -> &str) -> Option<String> {
+        if self.problems.is_empty() {
+            return None;
+        }
+        let (problems, dropped) = self.take();
+        let mut line = problems.iter().map(text).collect::<Vec<_>>().join("; ");
+        if dropped > 0 {
+            line.push_str(&format!("; and {dropped} more"));
+        }
+        Some(line)
+    }
+}
+
 /// A platform shared by the perception and actuation modules of one robot.
 pub type SharedPlatform = Arc<Mutex<dyn Platform>>;
 
@@ -341,5 +392,22 @@ impl<L: ExternalLink + ?Sized> ExternalLink for Box<L> {
 
     fn send(&mut self, now: Time, payload: &[u8]) -> Result<(), LinkError> {
         (**self).send(now, payload)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pending_problems_are_bounded_and_reported_in_one_line() {
+        let mut pending = PendingProblems::new(2);
+        assert_eq!(pending.take_text(|p: &String| p), None);
+        for problem in ["a", "b", "c", "d"] {
+            pending.push(problem.to_owned());
+        }
+        assert_eq!(pending.take_text(|p| p).as_deref(), Some("a; b; and 2 more"));
+        assert!(pending.is_empty());
+        assert_eq!(pending.take(), (Vec::new(), 0));
     }
 }
