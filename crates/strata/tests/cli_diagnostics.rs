@@ -2,32 +2,15 @@
 //! default, more with -v, errors only with -q, RUST_LOG honoured) that never mix with the
 //! output on stdout.
 
+mod common;
+
+use common::cli::{run, stderr, strata, temp_dir};
+
 use std::io::Write as _;
 use std::os::unix::net::UnixListener;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Output;
 use std::thread::JoinHandle;
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("strata-diag-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("a temporary directory");
-    dir
-}
-
-fn strata(args: &[&str]) -> Command {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_strata"));
-    command.args(args).env_remove("RUST_LOG");
-    command
-}
-
-fn run(command: &mut Command) -> Output {
-    command.output().expect("strata runs")
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
 
 /// A LoLA socket that accepts one robot, sends it a few bytes that are no sensor packet and
 /// hangs up: the robot's LoLA thread notes the malformed data (debug) and warns that the link

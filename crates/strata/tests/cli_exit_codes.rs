@@ -1,29 +1,9 @@
 //! Exit codes: 0 success, 1 an error (usage errors included), 2 a replay whose outputs differ
 //! from the log — so a script can tell "not deterministic" from "could not check".
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("strata-exit-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("a temporary directory");
-    dir
-}
-
-fn strata(args: &[&str]) -> Command {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_strata"));
-    command.args(args).env_remove("RUST_LOG");
-    command
-}
-
-fn run(command: &mut Command) -> Output {
-    command.output().expect("strata runs")
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
+use common::cli::{run, stderr, strata, temp_dir};
 
 #[test]
 fn exit_codes_tell_errors_from_differing_replays() {
