@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 use strata::experiments::{self, EXPERIMENTS, Options};
+use strata::physics::Engine;
 
 #[derive(Debug, Args)]
 pub struct ExperimentArgs {
@@ -35,6 +36,10 @@ pub struct ExperimentArgs {
     /// the graph, seed and scenario; the team experiment's runs are match logs (docs/logging.md).
     #[arg(long, value_name = "FILE.mcap")]
     pub log: Option<PathBuf>,
+    /// Where the experiment runs: the built-in 2D simulator, or Booster T1s in rcssservermj
+    /// (docs/rcssservermj.md; output in results/NAME-rcssservermj/ by default).
+    #[arg(long, value_enum, default_value = "sim")]
+    pub engine: Engine,
 }
 
 pub fn run(args: ExperimentArgs) -> Result<()> {
@@ -46,6 +51,7 @@ pub fn run(args: ExperimentArgs) -> Result<()> {
         progress: !args.json,
         strata_exe: std::env::current_exe().ok(),
         log: args.log.clone(),
+        engine: args.engine,
         ..Options::default()
     };
     if args.name == "all" && args.log.is_some() {

@@ -6,5 +6,6 @@ pub mod experiments;
 pub mod links;
 pub mod logging;
 pub mod matches;
+pub mod physics;
 pub mod replay_registry;
 pub mod view;

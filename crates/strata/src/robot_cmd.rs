@@ -133,6 +133,11 @@ pub struct RobotArgs {
     /// Game state and team messages over UDP, as on a real field (implied on a NAO).
     #[arg(long)]
     pub net: bool,
+    /// Team messages over UDP while the platform keeps the game state (rcssservermj: its
+    /// referee): the server carries no message of Strata's size. `--team-port`, `--broadcast`
+    /// and `--interface` apply.
+    #[arg(long, conflicts_with = "net")]
+    pub team_udp: bool,
     /// The robot's field interface as ADDRESS/PREFIX (e.g. 10.0.18.15/16): team messages go to
     /// its directed broadcast address instead of 255.255.255.255.
     #[arg(long, value_name = "ADDR/PREFIX", conflicts_with = "broadcast")]
@@ -277,19 +282,34 @@ pub fn run(args: RobotArgs) -> Result<()> {
         let Some(PlatformLinks { team_link, game_controller, label }) = platform.links else {
             bail!("without --net the simulator server must carry team messages and game state");
         };
-        let (team_counters, gc_counters) = (Arc::<LinkCounters>::default(), Arc::default());
-        let team: Option<Box<dyn TeamLink>> = team_link.map(|link| {
-            Box::new(Counted::new(link, Arc::clone(&team_counters))) as Box<dyn TeamLink>
-        });
+        let gc_counters = Arc::<LinkCounters>::default();
+        let (team, team_counters, team_label): (Option<Box<dyn TeamLink>>, _, _) = if args.team_udp
+        {
+            let net_config = net_config(&args)?;
+            let udp = links::UdpTeamLink::bind(net_config.team_port, net_config.broadcast)
+                .with_context(|| format!("binding UDP port {} (team)", net_config.team_port))?;
+            let counters = udp.counters();
+            let label = format!(
+                "UDP :{} -> {}:{}",
+                net_config.team_port, net_config.broadcast, net_config.team_port
+            );
+            (Some(Box::new(udp)), counters, label)
+        } else {
+            let counters = Arc::<LinkCounters>::default();
+            let link = team_link.map(|link| {
+                Box::new(Counted::new(link, Arc::clone(&counters))) as Box<dyn TeamLink>
+            });
+            let label = match link {
+                Some(_) => label.to_owned(),
+                None => "none (the platform carries no team messages; --team-udp or --net \
+                             for UDP)"
+                    .to_owned(),
+            };
+            (link, counters, label)
+        };
         let gc: Box<dyn ExternalLink> =
             Box::new(Counted::new(game_controller, Arc::clone(&gc_counters)));
-        let endpoints = Endpoints {
-            game_controller: label.to_owned(),
-            team: match team {
-                Some(_) => label.to_owned(),
-                None => "none (the platform carries no team messages; --net for UDP)".to_owned(),
-            },
-        };
+        let endpoints = Endpoints { game_controller: label.to_owned(), team: team_label };
         (team, gc, team_counters, gc_counters, endpoints)
     };
 
@@ -563,13 +583,31 @@ fn validate(args: &RobotArgs) -> Result<()> {
             {
                 bail!("{option} configures the UDP links: add --net");
             }
+            if args.team_udp {
+                bail!(
+                    "--team-udp is for --platform rcssservermj (the simulator server carries \
+                       team messages; --net puts everything on UDP)"
+                );
+            }
         }
         PlatformKind::Rcssservermj => {
             if args.controller == ControllerKind::Test {
                 bail!("--controller test runs against the simulator server only");
             }
+            for (option, given) in net_options {
+                let team_option = matches!(option, "--interface" | "--broadcast" | "--team-port");
+                if given && !args.net && !(team_option && args.team_udp) {
+                    bail!(
+                        "{option} configures the UDP links: add --net{}",
+                        if team_option { " (or --team-udp)" } else { "" }
+                    );
+                }
+            }
         }
         PlatformKind::Nao => {
+            if args.team_udp {
+                bail!("--team-udp is for --platform rcssservermj (a NAO has everything on UDP)");
+            }
             if args.server.is_some() {
                 bail!("--server is for --platform sim; a NAO reads its sensors through LoLA");
             }

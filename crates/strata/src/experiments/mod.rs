@@ -44,6 +44,7 @@ use strata_soccer::world_config::world_config;
 
 use crate::logging::{RobotRunConfig, open_run_log};
 use crate::matches::robot_name;
+use crate::physics::Engine;
 use strata_log::{ConfigFormat, McapTap, McapTapOptions, RunInfo, WhenFull};
 
 /// Every experiment, in the order `strata experiment all` runs them.
@@ -68,6 +69,8 @@ pub struct Options {
     pub strata_exe: Option<PathBuf>,
     /// Record the experiment's first run (first condition, run 0) into this MCAP file.
     pub log: Option<PathBuf>,
+    /// The built-in simulator or T1s in rcssservermj (`crate::physics::experiments`).
+    pub engine: Engine,
 }
 
 impl Default for Options {
@@ -81,6 +84,7 @@ impl Default for Options {
             log: None,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             strata_exe: None,
+            engine: Engine::Sim,
         }
     }
 }
@@ -100,35 +104,45 @@ pub fn run(name: &str, options: &Options) -> Result<Outcome> {
     if !EXPERIMENTS.contains(&name) {
         bail!("no experiment `{name}` (try: {}, all)", EXPERIMENTS.join(", "));
     }
-    let out_dir = options.out.clone().unwrap_or_else(|| Path::new("results").join(name));
+    let out_dir = options.out.clone().unwrap_or_else(|| match options.engine {
+        Engine::Sim => Path::new("results").join(name),
+        Engine::Rcssservermj => Path::new("results").join(format!("{name}-rcssservermj")),
+    });
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("creating the output directory {}", out_dir.display()))?;
     let mut ctx = Ctx::new(name, options, out_dir.clone());
-    let summary = match name {
-        goal_covering::NAME => {
-            let scenario =
-                ctx.scenario::<goal_covering::Scenario>(goal_covering::DEFAULT_SCENARIO)?;
-            to_json(&goal_covering::run(&scenario, &mut ctx)?)?
-        }
-        rates::NAME => {
-            let scenario = ctx.scenario::<rates::Scenario>(rates::DEFAULT_SCENARIO)?;
-            to_json(&rates::run(&scenario, &mut ctx)?)?
-        }
-        fall::NAME => {
-            let scenario = ctx.scenario::<fall::Scenario>(fall::DEFAULT_SCENARIO)?;
-            to_json(&fall::run(&scenario, &mut ctx)?)?
-        }
-        team::NAME => {
-            let scenario = ctx.scenario::<team::Scenario>(team::DEFAULT_SCENARIO)?;
-            to_json(&team::run(&scenario, &mut ctx)?)?
-        }
-        other => bail!("no experiment `{other}` (try: {}, all)", EXPERIMENTS.join(", ")),
+    let summary = match (options.engine, name) {
+        (Engine::Rcssservermj, _) => crate::physics::experiments::run(name, &mut ctx)?,
+        (Engine::Sim, name) => run_2d(name, &mut ctx)?,
     };
     let summary_path = out_dir.join("summary.json");
     std::fs::write(&summary_path, serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("writing {}", summary_path.display()))?;
     ctx.files.push(summary_path);
     Ok(Outcome { experiment: name.to_owned(), out_dir, files: ctx.files, summary })
+}
+
+fn run_2d(name: &str, ctx: &mut Ctx<'_>) -> Result<serde_json::Value> {
+    Ok(match name {
+        goal_covering::NAME => {
+            let scenario =
+                ctx.scenario::<goal_covering::Scenario>(goal_covering::DEFAULT_SCENARIO)?;
+            to_json(&goal_covering::run(&scenario, ctx)?)?
+        }
+        rates::NAME => {
+            let scenario = ctx.scenario::<rates::Scenario>(rates::DEFAULT_SCENARIO)?;
+            to_json(&rates::run(&scenario, ctx)?)?
+        }
+        fall::NAME => {
+            let scenario = ctx.scenario::<fall::Scenario>(fall::DEFAULT_SCENARIO)?;
+            to_json(&fall::run(&scenario, ctx)?)?
+        }
+        team::NAME => {
+            let scenario = ctx.scenario::<team::Scenario>(team::DEFAULT_SCENARIO)?;
+            to_json(&team::run(&scenario, ctx)?)?
+        }
+        other => bail!("no experiment `{other}` (try: {}, all)", EXPERIMENTS.join(", ")),
+    })
 }
 
 /// Runs every experiment; with `--out DIR`, each writes to `DIR/NAME/`. A scenario file cannot
@@ -140,12 +154,8 @@ pub fn run_all(options: &Options) -> Result<Vec<Outcome>> {
     EXPERIMENTS
         .iter()
         .map(|name| {
-            let options = Options {
-                out: Some(
-                    options.out.clone().unwrap_or_else(|| PathBuf::from("results")).join(name),
-                ),
-                ..options.clone()
-            };
+            let options =
+                Options { out: options.out.as_ref().map(|out| out.join(name)), ..options.clone() };
             run(name, &options)
         })
         .collect()
@@ -387,7 +397,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// Loads `--scenario` or the built-in scenario.
-    fn scenario<T: DeserializeOwned + Validate>(&mut self, built_in: &str) -> Result<T> {
+    pub(crate) fn scenario<T: DeserializeOwned + Validate>(&mut self, built_in: &str) -> Result<T> {
         let (text, source, dir) = match &self.options.scenario {
             Some(path) => {
                 let text = std::fs::read_to_string(path)
@@ -396,7 +406,14 @@ impl<'a> Ctx<'a> {
             }
             None => (
                 built_in.to_owned(),
-                format!("built-in scenario crates/strata/scenarios/{}.toml", self.name),
+                format!(
+                    "built-in scenario crates/strata/scenarios/{}{}.toml",
+                    match self.options.engine {
+                        Engine::Sim => "",
+                        Engine::Rcssservermj => "rcssservermj/",
+                    },
+                    self.name
+                ),
                 None,
             ),
         };
