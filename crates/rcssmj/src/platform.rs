@@ -42,7 +42,7 @@ use crate::protocol::{
     self, Effector, FrameError, GameStatePerceptor, InitRequest, MAX_PERCEPTION_FRAME, Perception,
     PlayMode, SeenObject, SeenRobot,
 };
-use crate::referee::{RefereeLink, SharedGame, TeamNumbers};
+use crate::referee::{RefereeLink, RefereeRules, SharedGame, TeamNumbers};
 
 /// Pending problems kept for `read_sensors` beyond which only a count is kept.
 const MAX_PENDING: usize = 8;
@@ -80,6 +80,14 @@ pub struct RcssConfig {
     /// A get-up keyframe file in the format of the shipped `assets/t1/getup.toml`, to tune the
     /// get-up without a build; none: the shipped motions.
     pub getup: Option<PathBuf>,
+    /// The length of a half in the server's rule book, play seconds (`ssim` rules: 300): the
+    /// referee's packets give the half and the seconds left in it from the server's play time.
+    pub half_time: f64,
+    /// Team messages per team and game that the referee's packets announce (the SPL's 1200).
+    pub message_budget: u16,
+    /// Robots per team in the referee's packets (`ssim` rules: at most 7): a robot's share of
+    /// the message budget.
+    pub players_per_team: u8,
 }
 
 impl Default for RcssConfig {
@@ -96,6 +104,9 @@ impl Default for RcssConfig {
             camera_seed: 1,
             motion: MotionConfig::default(),
             getup: None,
+            half_time: RefereeRules::default().half_time,
+            message_budget: RefereeRules::default().message_budget,
+            players_per_team: 7,
         }
     }
 }
@@ -105,6 +116,12 @@ impl RcssConfig {
     pub fn validate(&self) -> Result<(), String> {
         if !(self.pace.is_finite() && self.pace >= 0.0) {
             return Err(format!("pace must be a number >= 0, got {}", self.pace));
+        }
+        if self.players_per_team == 0 {
+            return Err("players_per_team must be at least 1".to_owned());
+        }
+        if !(self.half_time.is_finite() && self.half_time > 0.0) {
+            return Err(format!("half_time must be > 0 s, got {}", self.half_time));
         }
         if !(self.torso_height.is_finite() && self.torso_height > 0.0) {
             return Err(format!("torso_height must be > 0, got {}", self.torso_height));
@@ -235,6 +252,8 @@ pub struct RcssPlatform {
     thread: Option<JoinHandle<()>>,
     stall_timeout: Duration,
     stall_reported: bool,
+    rules: RefereeRules,
+    players: u8,
 }
 
 /// What the connection thread needs besides the socket.
@@ -344,6 +363,9 @@ impl RcssPlatform {
         let stop = Arc::new(AtomicBool::new(false));
         let first_timeout = config.first_perception_timeout;
         let stall_timeout = config.stall_timeout;
+        let rules =
+            RefereeRules { half_time: config.half_time, message_budget: config.message_budget };
+        let players_per_team = config.players_per_team;
         let game: SharedGame = Arc::default();
         let truth = TruthSource::default();
         let session = Session {
@@ -375,6 +397,8 @@ impl RcssPlatform {
             thread: Some(thread),
             stall_timeout,
             stall_reported: false,
+            rules,
+            players: players_per_team,
         };
         platform.wait_for_first_perception(first_timeout)?;
         tracing::info!(address, team, player, "connected to rcssservermj");
@@ -416,8 +440,8 @@ impl RcssPlatform {
 
     /// A GameController link that follows the server's referee, for the robot's planning
     /// layer (see [`crate::referee`]).
-    pub fn referee_link(&self, numbers: TeamNumbers, players_per_team: u8) -> RefereeLink {
-        RefereeLink::new(Arc::clone(&self.game), &self.team, numbers, players_per_team)
+    pub fn referee_link(&self, numbers: TeamNumbers) -> RefereeLink {
+        RefereeLink::new(Arc::clone(&self.game), &self.team, numbers, self.players, self.rules)
     }
 
     /// The server's ground truth of the torso (for accuracy reports only).

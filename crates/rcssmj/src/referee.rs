@@ -27,6 +27,23 @@ use strata_spl::gamecontroller::{GameControlData, GameState, SetPlay, TeamInfo};
 
 use crate::protocol::{FieldSide, GameStatePerceptor, PlayMode};
 
+/// What the packets say that the server does not: its rule book's half length, which gives
+/// the half and the seconds left from the play time, and a message budget (the server counts
+/// no team messages, but the robots pace theirs by the budget as on an SPL field).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefereeRules {
+    /// Length of a half in the server's rule book, play seconds (the `ssim` rules': 300).
+    pub half_time: f64,
+    /// Team messages per team and game.
+    pub message_budget: u16,
+}
+
+impl Default for RefereeRules {
+    fn default() -> Self {
+        RefereeRules { half_time: 300.0, message_budget: 1200 }
+    }
+}
+
 /// The team numbers the packets use: ours, and the one that stands for the other team.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TeamNumbers {
@@ -48,6 +65,7 @@ pub fn control_data(
     team_name: &str,
     numbers: TeamNumbers,
     players_per_team: u8,
+    rules: RefereeRules,
 ) -> Option<GameControlData> {
     let side = game.side_of(team_name)?;
     let (left, right) = match side {
@@ -72,17 +90,22 @@ pub fn control_data(
     let team = |number: u8, score: u32| TeamInfo {
         team_number: number,
         score: u8::try_from(score).unwrap_or(u8::MAX),
-        // The server has no message budget: an unlimited one.
-        message_budget: u16::MAX,
+        message_budget: rules.message_budget,
         ..TeamInfo::default()
     };
+    // The server's play time runs on through the halves: the first ends at one half time, the
+    // second at two.
+    let half_time = rules.half_time.max(1.0);
+    let first_half = game.play_time < half_time;
+    let half_end = if first_half { half_time } else { 2.0 * half_time };
+    let secs_remaining = (half_end - game.play_time).round().clamp(-32768.0, 32767.0) as i16;
     Some(GameControlData {
         players_per_team,
         state,
         set_play,
-        first_half: true,
+        first_half,
         kicking_team: kicking.map(team_of),
-        secs_remaining: i16::try_from(game.play_time.round() as i64).unwrap_or(i16::MAX),
+        secs_remaining,
         teams: [team(left, game.score_left), team(right, game.score_right)],
         ..GameControlData::default()
     })
@@ -127,6 +150,7 @@ pub struct RefereeLink {
     team_name: String,
     numbers: TeamNumbers,
     players_per_team: u8,
+    rules: RefereeRules,
     last: Option<(GameControlData, Time)>,
     packet_number: u8,
 }
@@ -137,12 +161,14 @@ impl RefereeLink {
         team_name: &str,
         numbers: TeamNumbers,
         players_per_team: u8,
+        rules: RefereeRules,
     ) -> RefereeLink {
         RefereeLink {
             game,
             team_name: team_name.to_owned(),
             numbers,
             players_per_team,
+            rules,
             last: None,
             packet_number: 0,
         }
@@ -152,9 +178,9 @@ impl RefereeLink {
 impl ExternalLink for RefereeLink {
     fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
         let game = self.game.lock().unwrap_or_else(PoisonError::into_inner).clone();
-        let Some(data) = game
-            .and_then(|g| control_data(&g, &self.team_name, self.numbers, self.players_per_team))
-        else {
+        let Some(data) = game.and_then(|g| {
+            control_data(&g, &self.team_name, self.numbers, self.players_per_team, self.rules)
+        }) else {
             return Ok(Vec::new());
         };
         let due = match &self.last {
@@ -201,7 +227,8 @@ mod tests {
     fn play_modes_become_game_states_for_the_right_team() {
         let numbers = TeamNumbers::new(10);
         let before = gs(PlayMode::BeforeKickOff, Some("Us"), None);
-        let data = control_data(&before, "Us", numbers, 7).expect("our team is on the left");
+        let data = control_data(&before, "Us", numbers, 7, RefereeRules::default())
+            .expect("our team is on the left");
         assert_eq!(data.state, GameState::Ready);
         assert_eq!(data.teams[0].team_number, 10);
         assert_eq!(data.teams[0].score, 2);
@@ -209,30 +236,60 @@ mod tests {
         assert!(data.first_half);
 
         let kick_off = gs(PlayMode::KickOffRight, Some("Them"), Some("Us"));
-        let data = control_data(&kick_off, "Us", numbers, 7).expect("on the right");
+        let data = control_data(&kick_off, "Us", numbers, 7, RefereeRules::default())
+            .expect("on the right");
         assert_eq!(data.state, GameState::Playing);
         assert_eq!(data.teams[1].team_number, 10);
         assert_eq!(data.kicking_team, Some(10));
 
         let corner = gs(PlayMode::CornerKickLeft, Some("Them"), Some("Us"));
-        let data = control_data(&corner, "Us", numbers, 7).expect("on the right");
+        let data =
+            control_data(&corner, "Us", numbers, 7, RefereeRules::default()).expect("on the right");
         assert_eq!(
             (data.set_play, data.kicking_team),
             (SetPlay::CornerKick, Some(numbers.opponent))
         );
 
         assert_eq!(
-            control_data(&gs(PlayMode::GameOver, Some("Us"), None), "Us", numbers, 7)
-                .map(|d| d.state),
+            control_data(
+                &gs(PlayMode::GameOver, Some("Us"), None),
+                "Us",
+                numbers,
+                7,
+                RefereeRules::default()
+            )
+            .map(|d| d.state),
             Some(GameState::Finished)
         );
-        assert!(control_data(&before, "Nobody", numbers, 7).is_none());
+        assert!(control_data(&before, "Nobody", numbers, 7, RefereeRules::default()).is_none());
+    }
+
+    #[test]
+    fn the_play_time_gives_the_half_and_the_seconds_left_in_it() {
+        let numbers = TeamNumbers::new(1);
+        let rules = RefereeRules { half_time: 300.0, message_budget: 500 };
+        let at = |t: f64| {
+            let game =
+                GameStatePerceptor { play_time: t, ..gs(PlayMode::PlayOn, Some("Us"), None) };
+            control_data(&game, "Us", numbers, 3, rules).expect("our team is on the left")
+        };
+        let early = at(240.4);
+        assert_eq!((early.first_half, early.secs_remaining), (true, 60));
+        assert_eq!(early.teams[0].message_budget, 500);
+        let second = at(545.0);
+        assert_eq!((second.first_half, second.secs_remaining), (false, 55));
     }
 
     #[test]
     fn the_link_sends_on_change_and_twice_a_second() {
         let game: SharedGame = Arc::new(Mutex::new(None));
-        let mut link = RefereeLink::new(Arc::clone(&game), "Us", TeamNumbers::new(3), 5);
+        let mut link = RefereeLink::new(
+            Arc::clone(&game),
+            "Us",
+            TeamNumbers::new(3),
+            5,
+            RefereeRules::default(),
+        );
         let at = |ms: u64| Time::from_nanos(ms * 1_000_000);
         assert!(link.receive(at(0)).expect("never fails").is_empty());
         *game.lock().expect("not poisoned") = Some(gs(PlayMode::BeforeKickOff, Some("Us"), None));

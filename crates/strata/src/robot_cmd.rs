@@ -50,7 +50,7 @@ use strata_soccer::field::TeamField;
 use strata_soccer::game::GameDirective;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot, robot_world_config};
 use strata_spl::Field;
-use strata_spl::gamecontroller::{GameControlData, MAX_NUM_PLAYERS};
+use strata_spl::gamecontroller::GameControlData;
 
 use crate::sim_cmd;
 
@@ -865,7 +865,7 @@ fn open_platform(args: &RobotArgs) -> Result<OpenPlatform> {
             let t1 = RcssPlatform::connect(&server, &team_name, args.player, config)
                 .with_context(|| format!("connecting a T1 to rcssservermj at {server}"))?;
             let info = t1.info();
-            let referee = t1.referee_link(TeamNumbers::new(args.team), MAX_NUM_PLAYERS as u8);
+            let referee = t1.referee_link(TeamNumbers::new(args.team));
             let truth = t1.truth_source();
             let t1 = Arc::new(Mutex::new(Observed { inner: t1, counters: Arc::clone(&counters) }));
             let shared: SharedPlatform = t1.clone();
