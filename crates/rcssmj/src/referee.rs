@@ -16,8 +16,10 @@
 //! | `penalty_kick_*`, `penalty_shoot_*` | Playing, set play penalty kick |
 //! | `GameOver` | Finished |
 //!
-//! The left team is listed first and, in the first half, attacks +x, which is where the server
-//! puts it (it defends the goal at negative x).
+//! The server's left team defends the goal at negative x in both halves (the teams change ends
+//! by connecting in the other order). A GameController lists first the team that attacks +x in
+//! the first half and -x in the second, so the left team is listed first in the first half and
+//! second in the second.
 
 use std::sync::{Arc, Mutex, PoisonError};
 
@@ -99,6 +101,7 @@ pub fn control_data(
     let first_half = game.play_time < half_time;
     let half_end = if first_half { half_time } else { 2.0 * half_time };
     let secs_remaining = (half_end - game.play_time).round().clamp(-32768.0, 32767.0) as i16;
+    let (left_team, right_team) = (team(left, game.score_left), team(right, game.score_right));
     Some(GameControlData {
         players_per_team,
         state,
@@ -106,7 +109,7 @@ pub fn control_data(
         first_half,
         kicking_team: kicking.map(team_of),
         secs_remaining,
-        teams: [team(left, game.score_left), team(right, game.score_right)],
+        teams: if first_half { [left_team, right_team] } else { [right_team, left_team] },
         ..GameControlData::default()
     })
 }
@@ -278,6 +281,10 @@ mod tests {
         assert_eq!(early.teams[0].message_budget, 500);
         let second = at(545.0);
         assert_eq!((second.first_half, second.secs_remaining), (false, 55));
+        // Still on the left, attacking +x: listed second, as the GameController lists the
+        // team attacking +x in the second half.
+        assert_eq!(second.teams[1].team_number, 1);
+        assert_eq!(second.teams[1].score, 2);
     }
 
     #[test]

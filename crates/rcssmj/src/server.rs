@@ -185,6 +185,11 @@ impl ServerProcess {
         format!("127.0.0.1:{}", self.monitor_port)
     }
 
+    /// The server's process id (to read its CPU time).
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     pub fn program(&self) -> &Path {
         &self.program
     }

@@ -595,6 +595,16 @@ pub fn kickoff_pose(field: &TeamField, player: u8, kicking: bool) -> Pose {
         6 => Point::new(-hl * 0.6, -0.7),
         _ => Point::new(-hl * 0.4, 0.0),
     };
+    // Only the kicker stands in the centre circle, however large the field's circle is
+    // (rcssservermj's referee moves a defender inside it off the field).
+    let clear = circle + 0.25;
+    let distance = spot.x.hypot(spot.y);
+    let kicker = kicking && player == 2;
+    let spot = if !kicker && distance < clear && distance > 0.0 {
+        Point::new(spot.x * clear / distance, spot.y * clear / distance)
+    } else {
+        spot
+    };
     facing(spot, centre)
 }
 
@@ -1037,7 +1047,13 @@ mod tests {
 
     #[test]
     fn kickoff_positions_are_legal() {
-        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        for preset in strata_spl::field::PRESETS {
+            kickoff_positions_are_legal_on(preset);
+        }
+    }
+
+    fn kickoff_positions_are_legal_on(preset: &str) {
+        let field = TeamField::new(strata_spl::Field::preset(preset).expect("preset"), 1.0);
         for player in 1..=7 {
             for kicking in [true, false] {
                 let p = kickoff_pose(&field, player, kicking).position();
@@ -1045,7 +1061,7 @@ mod tests {
                 let in_circle = p.range() < field.center_circle_radius;
                 assert!(
                     !in_circle || (kicking && player == 2),
-                    "player {player} kicking {kicking}"
+                    "{preset}: player {player} kicking {kicking}"
                 );
             }
         }

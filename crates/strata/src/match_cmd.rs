@@ -9,6 +9,8 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use strata::logging::{LogSettings, MatchLog, parse_robots};
 use strata::matches::{Match, MatchConfig, MatchReport};
+use strata::physics::game::{GameConfig, PhysicsReport, RULES_HALF_TIME};
+use strata::physics::{self, Engine};
 use strata::view::{LiveTap, ViewServer};
 use strata_log::LogCompression;
 use strata_runtime::Encoding;
@@ -17,9 +19,14 @@ use strata_soccer::team::TeamConfig;
 
 #[derive(Debug, Args)]
 pub struct MatchArgs {
-    /// Robots per team (7: the SPL Champions Cup; 4: the paper's games).
-    #[arg(long, default_value_t = 7)]
-    pub players: u8,
+    /// Where the game is played: the built-in 2D simulator, or Booster T1s in rcssservermj
+    /// (docs/rcssservermj.md; `scripts/setup-rcssservermj` installs it).
+    #[arg(long, value_enum, default_value = "sim")]
+    pub engine: Engine,
+    /// Robots per team (7: the SPL Champions Cup; 4: the paper's games) [default: 7; 3 on
+    /// rcssservermj].
+    #[arg(long)]
+    pub players: Option<u8>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// The home team: a built-in team (full, no-coordination, no-active-vision, always-ball,
@@ -29,12 +36,14 @@ pub struct MatchArgs {
     /// The away team, as --home.
     #[arg(long, default_value = "full")]
     pub away: String,
-    /// Stop after this many simulated seconds (default: the whole game).
+    /// Stop after this many simulated seconds (default: the whole game; on rcssservermj, play
+    /// seconds).
     #[arg(long)]
     pub duration: Option<f64>,
-    /// Length of a half, simulated seconds.
-    #[arg(long, default_value_t = 600.0)]
-    pub half: f64,
+    /// Length of a half, simulated seconds [default: 600; on rcssservermj 300, its rule
+    /// book's half, and at most that].
+    #[arg(long)]
+    pub half: Option<f64>,
     /// Sensor and actuation noise: none, default or high.
     #[arg(long, default_value = "default")]
     pub noise: String,
@@ -52,6 +61,8 @@ pub struct MatchArgs {
     pub json: bool,
     /// Record the match into this MCAP file: every package of the chosen robots, ground truth,
     /// game state and behavior paths, with the configuration replay needs (docs/logging.md).
+    /// On rcssservermj each robot process writes its own log beside it:
+    /// `STEM-hHALF-home|away-PLAYER.mcap`.
     #[arg(long, value_name = "FILE.mcap")]
     pub log: Option<PathBuf>,
     /// The robots whose packages are logged, e.g. `home/1,away/2` (default: all).
@@ -104,11 +115,11 @@ pub fn parse_noise(name: &str) -> Result<NoiseLevel> {
 
 pub fn config(args: &MatchArgs) -> Result<MatchConfig> {
     Ok(MatchConfig {
-        players: args.players,
+        players: args.players.unwrap_or(7),
         seed: args.seed,
         home: TeamConfig::resolve(&args.home)?,
         away: TeamConfig::resolve(&args.away)?,
-        half_duration: args.half,
+        half_duration: args.half.unwrap_or(600.0),
         limit: args.duration,
         noise: parse_noise(&args.noise)?,
         field: args.field.clone(),
@@ -119,14 +130,18 @@ pub fn config(args: &MatchArgs) -> Result<MatchConfig> {
 }
 
 pub fn run(args: MatchArgs) -> Result<()> {
+    if args.engine == Engine::Rcssservermj {
+        return run_physics(&args);
+    }
     let config = config(&args)?;
+    let players = config.players;
     let mut game = Match::new(config)?;
     let log = match &args.log {
         Some(path) => {
             let settings = LogSettings {
                 path: path.clone(),
                 robots: match &args.log_robots {
-                    Some(text) => parse_robots(text, args.players)?,
+                    Some(text) => parse_robots(text, players)?,
                     None => Vec::new(),
                 },
                 world_state_hz: (args.log_world_hz > 0.0).then_some(args.log_world_hz),
@@ -188,6 +203,54 @@ pub fn run(args: MatchArgs) -> Result<()> {
     Ok(())
 }
 
+/// A game of T1s in rcssservermj (`strata::physics::game`).
+fn run_physics(args: &MatchArgs) -> Result<()> {
+    let defaults = MatchArgs::defaults();
+    let not_here = [
+        ("--noise", args.noise != defaults.noise),
+        ("--field", args.field != defaults.field),
+        ("--packet-loss", args.packet_loss != defaults.packet_loss),
+        ("--realtime", args.realtime),
+        ("--view", args.view),
+        ("--log-robots", args.log_robots.is_some()),
+        ("--log-world-hz", args.log_world_hz != defaults.log_world_hz),
+    ];
+    if let Some((option, _)) = not_here.iter().find(|(_, given)| *given) {
+        bail!(
+            "{option} is for the built-in simulator: rcssservermj has its own field and physics, \
+             runs in real time, and each robot logs all of its own packages"
+        );
+    }
+    let config = GameConfig {
+        exe: std::env::current_exe().context("finding the strata executable for the robots")?,
+        players: args.players.unwrap_or(3),
+        seed: args.seed,
+        home: args.home.clone(),
+        away: args.away.clone(),
+        half: args.half.unwrap_or(RULES_HALF_TIME),
+        limit: args.duration,
+        log: args.log.clone(),
+        join_timeout: std::time::Duration::from_secs(120),
+        stall_timeout: std::time::Duration::from_secs(60),
+    };
+    let bar = if args.json { ProgressBar::hidden() } else { ProgressBar::new(1000) };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let report = physics::game::play(&config, &mut |fraction, score| {
+        bar.set_position((fraction * 1000.0) as u64);
+        bar.set_message(score.to_owned());
+    })?;
+    bar.finish_and_clear();
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print_report(&report);
+    }
+    Ok(())
+}
+
 pub fn print_report(r: &MatchReport) {
     let [home, away] = &r.teams;
     println!(
@@ -202,8 +265,12 @@ pub fn print_report(r: &MatchReport) {
         if r.finished { "full time" } else { "stopped early" }
     );
     println!(
-        "{:.0} s simulated in {:.1} s wall: {:.0}x real time ({} host)",
-        r.simulated_s, r.wall_s, r.real_time_factor, r.host
+        "{:.0} s simulated in {:.1} s wall: {:.*}x real time ({})",
+        r.simulated_s,
+        r.wall_s,
+        if r.real_time_factor < 10.0 { 2 } else { 0 },
+        r.real_time_factor,
+        if r.physics.is_some() { r.host.clone() } else { format!("{} host", r.host) }
     );
     println!("\nEvents");
     for e in r.events.iter().filter(|e| e.kind == "goal" || e.kind == "penalty") {
@@ -270,4 +337,64 @@ pub fn print_report(r: &MatchReport) {
         r.team_messages.over_budget,
         r.team_messages.rejected_oversize
     );
+    if let Some(physics) = &r.physics {
+        print_physics(physics);
+    }
+}
+
+fn print_physics(p: &PhysicsReport) {
+    println!("\nHalves ({:.0} play seconds each; the left team kicks off)", p.half_s);
+    for h in &p.halves {
+        println!(
+            "  half {}: {} on the left, goals {}-{}, {:.0} s played, {:.0} s simulated in {:.0} s \
+             wall{}",
+            h.half,
+            h.left,
+            h.goals[0],
+            h.goals[1],
+            h.play_s,
+            h.simulated_s,
+            h.wall_s,
+            if h.finished { "" } else { " (stopped early)" }
+        );
+    }
+    println!("\nRobots in physics");
+    println!(
+        "  {:<8} {:>6} {:>9} {:>22} {:>8} {:>10} {:>16}",
+        "robot",
+        "falls",
+        "stood up",
+        "fall -> order (ms)",
+        "CPU (s)",
+        "CPU share",
+        "pose error (m)"
+    );
+    for robot in &p.robots {
+        let latencies: Vec<String> =
+            robot.fall_latency_ms.iter().map(|ms| format!("{ms:.0}")).collect();
+        let errors: Vec<String> =
+            robot.localization_mean_m.iter().map(|m| format!("{m:.2}")).collect();
+        println!(
+            "  {:<8} {:>6} {:>9} {:>22} {:>8.1} {:>9.1}% {:>16}",
+            robot.name,
+            robot.falls,
+            robot.stood_up,
+            latencies.join(" "),
+            robot.cpu_s,
+            100.0 * robot.cpu_share,
+            errors.join(" ")
+        );
+    }
+    let c = &p.cpu;
+    println!(
+        "\nCPU: server {:.1} s, robots {:.1} s: Strata's share {:.1} %, the largest robot's \
+         {:.1} % (target under {:.0} % per robot: {})",
+        c.server_s,
+        c.robots_s,
+        100.0 * c.strata_share,
+        100.0 * c.max_robot_share,
+        100.0 * c.target_share,
+        if c.target_met { "met" } else { "not met" }
+    );
+    println!("Reproducible from the seed: {}", p.reproducible);
 }

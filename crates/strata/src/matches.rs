@@ -127,6 +127,9 @@ pub struct MatchReport {
     pub events: Vec<MatchEvent>,
     pub robots: Vec<RobotReport>,
     pub team_messages: TeamMessageStats,
+    /// Games of T1s in rcssservermj only: halves, stand-ups, the CPU's split.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physics: Option<crate::physics::game::PhysicsReport>,
 }
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -353,7 +356,16 @@ impl Match {
         };
         if game.state == GameState::Playing {
             let roles = self.role_tap.roles.lock().unwrap_or_else(|e| e.into_inner()).clone();
-            sampler.sample(now, &self.robots, &roles, &penalized);
+            let playing: Vec<(String, usize, Role)> = self
+                .robots
+                .iter()
+                .filter(|(id, _)| !penalized.contains(id))
+                .filter_map(|(id, _)| {
+                    let name = robot_name(*id);
+                    roles.get(&name).map(|role| (name, id.team, *role))
+                })
+                .collect();
+            sampler.sample(now.as_secs_f64(), &playing);
         }
         (now.as_secs_f64(), game.game_over)
     }
@@ -459,14 +471,16 @@ impl Match {
                 rejected_oversize: comms.rejected_oversize,
                 over_budget: comms.over_budget,
             },
+            physics: None,
         }
     }
 }
 
-/// Role samples, once per simulated second of play.
+/// Role samples, once per second of play: which role each robot playing holds (penalized,
+/// absent and fallen robots play none).
 #[derive(Debug, Default)]
-struct RoleSampler {
-    last_time: Option<Time>,
+pub(crate) struct RoleSampler {
+    last_time: Option<f64>,
     per_robot: BTreeMap<String, BTreeMap<String, u64>>,
     robot_samples: BTreeMap<String, u64>,
     last_role: BTreeMap<String, Role>,
@@ -477,25 +491,16 @@ struct RoleSampler {
 }
 
 impl RoleSampler {
-    fn sample(
-        &mut self,
-        now: Time,
-        robots: &[(RobotId, RobotModules)],
-        roles: &BTreeMap<String, Role>,
-        out: &[RobotId],
-    ) {
-        if self.last_time.is_some_and(|t| (now - t).as_secs_f64() < 0.999) {
+    /// One sample at `now` s: each playing robot's name, team (0 home, 1 away) and role.
+    pub(crate) fn sample(&mut self, now: f64, playing: &[(String, usize, Role)]) {
+        if self.last_time.is_some_and(|t| now - t < 0.999) {
             return;
         }
-        let dt = self.last_time.map_or(1.0, |t| (now - t).as_secs_f64().min(2.0));
+        let dt = self.last_time.map_or(1.0, |t| (now - t).min(2.0));
         self.last_time = Some(now);
         let mut strikers = [0usize; 2];
-        for (id, _) in robots {
-            if out.contains(id) {
-                continue;
-            }
-            let name = robot_name(*id);
-            let Some(role) = roles.get(&name) else { continue };
+        for (name, team, role) in playing {
+            let team = (*team).min(1);
             *self
                 .per_robot
                 .entry(name.clone())
@@ -503,13 +508,14 @@ impl RoleSampler {
                 .entry(role.name().to_owned())
                 .or_default() += 1;
             *self.robot_samples.entry(name.clone()).or_default() += 1;
-            if self.last_role.insert(name, *role).is_some_and(|previous| previous != *role) {
-                self.switches[id.team] += 1;
+            if self.last_role.insert(name.clone(), *role).is_some_and(|previous| previous != *role)
+            {
+                self.switches[team] += 1;
             }
             // The robot going to the ball: the striker when attacking, the active defender when
             // defending (Table 1); two of them at once is the conflict ARS must resolve.
             if matches!(role, Role::Striker | Role::ActiveDefender) {
-                strikers[id.team] += 1;
+                strikers[team] += 1;
             }
         }
         for (team, count) in strikers.into_iter().enumerate() {
@@ -521,7 +527,7 @@ impl RoleSampler {
         }
     }
 
-    fn robot_roles(&self, robot: &str) -> BTreeMap<String, f64> {
+    pub(crate) fn robot_roles(&self, robot: &str) -> BTreeMap<String, f64> {
         let total = self.robot_samples.get(robot).copied().unwrap_or(0).max(1) as f64;
         self.per_robot
             .get(robot)
@@ -529,7 +535,7 @@ impl RoleSampler {
             .unwrap_or_default()
     }
 
-    fn team_stats(&self, team: usize, players: u8) -> RoleStats {
+    pub(crate) fn team_stats(&self, team: usize, players: u8) -> RoleStats {
         let n = self.samples[team].max(1) as f64;
         let histogram = self.strikers[team].map(|c| c as f64 / n);
         let robot_minutes = self.samples[team] as f64 * f64::from(players) / 60.0;

@@ -8,6 +8,7 @@
 
 pub mod cpu;
 pub mod experiments;
+pub mod game;
 pub mod robot;
 
 use clap::ValueEnum;

@@ -241,12 +241,20 @@ fn read_lines(
     })
 }
 
-/// A UDP port no process of this machine uses right now, for one team's messages: robots bind
-/// it shared (SO_REUSEPORT), so the short gap before they bind it cannot make them fail, and
-/// two games on one machine do not hear each other.
-pub fn free_udp_port() -> Result<u16> {
-    let socket = std::net::UdpSocket::bind(("127.0.0.1", 0)).context("finding a free UDP port")?;
-    Ok(socket.local_addr().context("finding a free UDP port")?.port())
+/// `N` distinct UDP ports no process of this machine uses right now, one per team's messages:
+/// robots bind them shared (SO_REUSEPORT), so the short gap before they bind cannot make them
+/// fail, and two games on one machine do not hear each other. Every socket is held until all
+/// are chosen, or the system could hand out one port twice.
+pub fn free_udp_ports<const N: usize>() -> Result<[u16; N]> {
+    let mut sockets = Vec::with_capacity(N);
+    let mut ports = [0u16; N];
+    for port in &mut ports {
+        let socket =
+            std::net::UdpSocket::bind(("127.0.0.1", 0)).context("finding a free UDP port")?;
+        *port = socket.local_addr().context("finding a free UDP port")?.port();
+        sockets.push(socket);
+    }
+    Ok(ports)
 }
 
 /// The `strata` executable for robot processes: `exe` if given, else this process's own

@@ -1,0 +1,108 @@
+//! `strata match --engine rcssservermj` as a user runs it: a short game of T1s against the real
+//! server, both halves, and the same report as a 2D match with the physics section.
+//!
+//! Needs the server (`scripts/setup-rcssservermj`); without it the game test says so and
+//! passes, unless `STRATA_REQUIRE_RCSSSERVERMJ` is set (as `scripts/test` does). The physics is
+//! not bit-for-bit repeatable: the test asserts what any game must show, not a score.
+
+mod common;
+
+use common::cli::{run, stderr, strata};
+use strata_rcssmj::server::find_server;
+
+fn server_installed() -> bool {
+    let installed = find_server().is_some_and(|p| p.is_file());
+    if !installed {
+        assert!(
+            std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none(),
+            "rcssservermj is required (STRATA_REQUIRE_RCSSSERVERMJ) but not installed"
+        );
+        eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
+    }
+    installed
+}
+
+#[test]
+fn a_short_game_plays_both_halves_and_reports_like_a_2d_match() {
+    if !server_installed() {
+        return;
+    }
+    let output = run(&mut strata(&[
+        "match",
+        "--engine",
+        "rcssservermj",
+        "--players",
+        "1",
+        "--half",
+        "12",
+        "--seed",
+        "3",
+        "--json",
+    ]));
+    assert!(output.status.success(), "the game failed: {}", stderr(&output));
+    let report: serde_json::Value =
+        serde_json::from_slice(&output.stdout).expect("--json prints one JSON object");
+    println!("{report:#}");
+    assert_eq!(report["finished"], true, "the referee ended both halves");
+    let physics = &report["physics"];
+    let halves = physics["halves"].as_array().expect("halves");
+    assert_eq!(halves.len(), 2);
+    // The teams change ends: each is on the server's left for one half.
+    let lefts: Vec<&str> = halves.iter().filter_map(|h| h["left"].as_str()).collect();
+    assert_eq!(lefts, ["full (home)", "full (away)"]);
+    for half in halves {
+        assert!(half["play_s"].as_f64().is_some_and(|s| s >= 11.0), "{half}");
+    }
+    let kick_offs = report["events"]
+        .as_array()
+        .expect("events")
+        .iter()
+        .filter(|e| e["kind"] == "kick-off")
+        .count();
+    assert_eq!(kick_offs, 2, "one kick-off per half");
+
+    let robots = report["robots"].as_array().expect("robots");
+    assert_eq!(robots.len(), 2);
+    for robot in robots {
+        for layer in ["planning", "deliberative", "reactive"] {
+            let rate = robot["layers"]
+                .as_array()
+                .and_then(|ls| ls.iter().find(|l| l["layer"] == layer))
+                .unwrap_or_else(|| panic!("{layer} layer of {}", robot["name"]));
+            assert!(rate["cycles"].as_u64().is_some_and(|c| c > 0), "{rate}");
+            assert!(rate["mean_hz"].as_f64().is_some_and(|hz| hz > 0.0), "{rate}");
+        }
+        assert!(robot["roles"]["goalie"].as_f64().is_some_and(|share| share > 0.9), "{robot}");
+    }
+    for robot in physics["robots"].as_array().expect("physics robots") {
+        assert!(robot["cpu_s"].as_f64().is_some_and(|s| s > 0.0), "{robot}");
+        // Each half's process knew where it stood, whichever end its team defended.
+        let errors = robot["localization_mean_m"].as_array().expect("localization");
+        assert_eq!(errors.len(), 2, "{robot}");
+        for error in errors {
+            assert!(error.as_f64().is_some_and(|m| m < 1.0), "{robot}");
+        }
+        assert!(robot["ended"].as_array().is_some_and(|e| e.len() == 2), "{robot}");
+    }
+    let cpu = &physics["cpu"];
+    assert!(cpu["server_s"].as_f64().is_some_and(|s| s > 0.0), "{cpu}");
+    assert!(cpu["strata_share"].as_f64().is_some_and(|s| s > 0.0 && s < 1.0), "{cpu}");
+    assert!(report["team_messages"]["sent"].as_u64().is_some_and(|n| n > 0));
+}
+
+#[test]
+fn options_of_the_built_in_simulator_are_refused_with_the_option_named() {
+    for (args, needle) in [
+        (&["--noise", "high"][..], "--noise"),
+        (&["--view"][..], "--view"),
+        (&["--players", "8"][..], "--players"),
+        (&["--half", "400"][..], "--half"),
+    ] {
+        let mut all = vec!["match", "--engine", "rcssservermj"];
+        all.extend_from_slice(args);
+        let output = run(&mut strata(&all));
+        assert!(!output.status.success(), "{args:?} was accepted");
+        let text = stderr(&output);
+        assert!(text.contains(needle), "{args:?}: {text}");
+    }
+}
