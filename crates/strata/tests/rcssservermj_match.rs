@@ -106,3 +106,69 @@ fn options_of_the_built_in_simulator_are_refused_with_the_option_named() {
         assert!(text.contains(needle), "{args:?}: {text}");
     }
 }
+
+#[test]
+fn the_team_experiment_plays_its_games_in_physics_beside_the_2d_ones() {
+    if !server_installed() {
+        return;
+    }
+    let dir = common::cli::temp_dir("team-3d");
+    let scenario = dir.join("team.toml");
+    std::fs::write(
+        &scenario,
+        "players = 1\nhalf = 8.0\nruns = 1\nreference = \"full\"\n\
+         baseline = \"no-coordination\"\nfield_2d = \"spl\"\n",
+    )
+    .expect("a scenario file");
+    let out = dir.join("out");
+    let output = run(&mut strata(&[
+        "experiment",
+        "team",
+        "--engine",
+        "rcssservermj",
+        "--scenario",
+        scenario.to_str().expect("a UTF-8 path"),
+        "--out",
+        out.to_str().expect("a UTF-8 path"),
+        "--json",
+    ]));
+    assert!(output.status.success(), "the experiment failed: {}", stderr(&output));
+    let summary: serde_json::Value =
+        serde_json::from_slice(&output.stdout).expect("--json prints one JSON object");
+    println!("{summary:#}");
+    let games = summary["games"].as_array().expect("games");
+    assert_eq!(games.len(), 1);
+    assert_eq!(games[0]["finished"], true);
+    assert!(games[0]["goals_2d"].as_array().is_some_and(|g| g.len() == 2));
+    assert_eq!(summary["targets"]["games_finished"], true);
+    for file in ["report.md", "games.csv", "goal-difference.png", "summary.json"] {
+        assert!(out.join(file).is_file(), "{file} written");
+    }
+    let report = std::fs::read_to_string(out.join("report.md")).expect("the report");
+    assert!(report.contains("--engine rcssservermj"), "the report's command names the engine");
+}
+
+#[test]
+fn a_physics_scenario_with_a_bad_value_names_the_file_and_the_field() {
+    let dir = common::cli::temp_dir("team-3d-bad");
+    let scenario = dir.join("team.toml");
+    std::fs::write(
+        &scenario,
+        "players = 9\nhalf = 8.0\nruns = 1\nreference = \"full\"\n\
+         baseline = \"no-coordination\"\nfield_2d = \"spl\"\n",
+    )
+    .expect("a scenario file");
+    let output = run(&mut strata(&[
+        "experiment",
+        "team",
+        "--engine",
+        "rcssservermj",
+        "--scenario",
+        scenario.to_str().expect("a UTF-8 path"),
+        "--out",
+        dir.join("out").to_str().expect("a UTF-8 path"),
+    ]));
+    assert!(!output.status.success());
+    let text = stderr(&output);
+    assert!(text.contains("team.toml") && text.contains("players"), "{text}");
+}

@@ -471,9 +471,13 @@ impl<'a> Ctx<'a> {
             Some(p) => format!(" --scenario {}", p.display()),
             None => String::new(),
         };
+        let engine_arg = match self.options.engine {
+            Engine::Sim => "",
+            Engine::Rcssservermj => " --engine rcssservermj",
+        };
         md.bullets(&[
             format!(
-                "Command: `strata experiment {} --runs {runs} --seed {}{scenario_arg}`",
+                "Command: `strata experiment {}{engine_arg} --runs {runs} --seed {}{scenario_arg}`",
                 self.name, self.options.seed
             ),
             format!("Scenario: {}", self.scenario_source),

@@ -3,15 +3,29 @@
 //! (`crate::experiments`), with each report placing the 2D figures beside the physics ones.
 //! Scenarios: `crates/strata/scenarios/rcssservermj/NAME.toml`.
 
+pub mod team;
+
 use anyhow::{Result, bail};
 
 use crate::experiments::{Ctx, EXPERIMENTS};
 
 /// Runs experiment `name` in physics; its summary is what `--json` prints.
 pub fn run(name: &str, ctx: &mut Ctx<'_>) -> Result<serde_json::Value> {
-    let _ = ctx;
-    if !EXPERIMENTS.contains(&name) {
-        bail!("no experiment `{name}` (try: {}, all)", EXPERIMENTS.join(", "));
-    }
-    bail!("`{name}` does not run on rcssservermj in this version (run it without --engine)")
+    let summary = match name {
+        team::NAME => {
+            let scenario = ctx.scenario::<team::Scenario>(team::DEFAULT_SCENARIO)?;
+            to_json(&team::run(&scenario, ctx)?)?
+        }
+        other if EXPERIMENTS.contains(&other) => {
+            bail!(
+                "`{other}` does not run on rcssservermj in this version (run it without --engine)"
+            )
+        }
+        other => bail!("no experiment `{other}` (try: {}, all)", EXPERIMENTS.join(", ")),
+    };
+    Ok(summary)
+}
+
+fn to_json(value: &impl serde::Serialize) -> Result<serde_json::Value> {
+    serde_json::to_value(value).map_err(anyhow::Error::from)
 }
