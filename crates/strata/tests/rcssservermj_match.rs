@@ -172,3 +172,21 @@ fn a_physics_scenario_with_a_bad_value_names_the_file_and_the_field() {
     let text = stderr(&output);
     assert!(text.contains("team.toml") && text.contains("players"), "{text}");
 }
+
+#[test]
+fn team_messages_over_udp_alone_are_for_the_physics_platform() {
+    for (args, needle) in [
+        (&["--platform", "sim", "--team-udp"][..], "--team-udp"),
+        (&["--platform", "nao", "--team-udp"][..], "--team-udp"),
+        // The GameController's ports mean nothing while the server's referee rules.
+        (&["--platform", "rcssservermj", "--team-udp", "--gc-port", "4000"][..], "--gc-port"),
+        (&["--platform", "rcssservermj", "--team-port", "12000"][..], "--team-udp"),
+    ] {
+        let mut all = vec!["robot", "--team", "1", "--player", "2"];
+        all.extend_from_slice(args);
+        let output = run(&mut strata(&all));
+        assert!(!output.status.success(), "{args:?} was accepted");
+        let text = stderr(&output);
+        assert!(text.contains(needle), "{args:?}: {text}");
+    }
+}
