@@ -54,6 +54,16 @@ pub struct MotionModel {
     pub collision_distance: f64,
     /// How long each walk command lasts if no newer one replaces it, s.
     pub walk_command_duration: f64,
+    /// Objects nearer than this are looked at from above, m: farther ones with the head level.
+    pub near_gaze_range: f64,
+    /// How far above a near object's direction the gaze points, rad (it then sits in the
+    /// image's lower part, and more of the ground beyond it in view).
+    pub near_gaze_offset: f64,
+    /// The head pitch the primitives order, rad: [up, down].
+    pub head_pitch_limits: [f64; 2],
+    /// The ball search's head pitch, rad: [centre, amplitude] of its ellipse (a taller robot
+    /// looks further down to see the ground at its feet).
+    pub ball_search_pitch: [f64; 2],
 }
 
 impl Default for MotionModel {
@@ -70,9 +80,23 @@ impl Default for MotionModel {
             approach_distance: 0.16,
             collision_distance: 0.45,
             walk_command_duration: 0.4,
+            near_gaze_range: 0.6,
+            near_gaze_offset: 0.6,
+            head_pitch_limits: [-0.6, 0.5],
+            ball_search_pitch: [0.15, 0.2],
         }
     }
 }
+
+impl MotionModel {
+    /// The Booster T1's (`crates/soccer/bodies/booster-t1.toml`), for rcssservermj.
+    pub fn booster_t1() -> MotionModel {
+        // Embedded and checked by a test: it cannot fail at run time.
+        toml::from_str(BOOSTER_T1).unwrap_or_default()
+    }
+}
+
+const BOOSTER_T1: &str = include_str!("../bodies/booster-t1.toml");
 
 type Input<'a, 'b> = ReactiveInput<'a, WorldState>;
 
@@ -104,8 +128,13 @@ pub fn walk_velocity(model: &MotionModel, target: Point<Robot>, heading: f64) ->
 fn gaze_at(model: &MotionModel, point: Point<Robot>) -> HeadAngles {
     let range = point.range().max(0.05);
     // Look down at near objects so they stay above the lower edge of the image.
-    let pitch = if range < 0.6 { (model.camera_height / range).atan() - 0.6 } else { 0.0 };
-    HeadAngles { yaw: point.bearing().clamp(-2.0, 2.0), pitch: pitch.clamp(-0.6, 0.5) }
+    let pitch = if range < model.near_gaze_range {
+        (model.camera_height / range).atan() - model.near_gaze_offset
+    } else {
+        0.0
+    };
+    let [up, down] = model.head_pitch_limits;
+    HeadAngles { yaw: point.bearing().clamp(-2.0, 2.0), pitch: pitch.clamp(up, down) }
 }
 
 fn head_command(model: &MotionModel, target: HeadAngles) -> HeadCommand {
@@ -132,11 +161,12 @@ impl SearchObjectEllipse {
 
     const POINTS: usize = 8;
 
-    fn point(goal: &HeadGoal, phase: usize) -> HeadAngles {
+    fn point(model: &MotionModel, goal: &HeadGoal, phase: usize) -> HeadAngles {
         // The ball lies on the ground near the robot: a low, wide ellipse. Landmarks stand at
         // the field's edges: a flatter, wider one.
+        let [ball_centre, ball_amplitude] = model.ball_search_pitch;
         let (yaw_amplitude, pitch_centre, pitch_amplitude) = match goal {
-            HeadGoal::ObserveBall => (1.6, 0.15, 0.2),
+            HeadGoal::ObserveBall => (1.6, ball_centre, ball_amplitude),
             _ => (1.9, 0.0, 0.08),
         };
         let angle = phase as f64 / Self::POINTS as f64 * std::f64::consts::TAU;
@@ -157,8 +187,8 @@ impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for SearchObjectEllips
         let yaw = input.percepts.head.yaw;
         self.phase = (0..Self::POINTS)
             .min_by(|a, b| {
-                let pa = Self::point(&HeadGoal::ObserveBall, *a).yaw;
-                let pb = Self::point(&HeadGoal::ObserveBall, *b).yaw;
+                let pa = Self::point(&self.model, &HeadGoal::ObserveBall, *a).yaw;
+                let pb = Self::point(&self.model, &HeadGoal::ObserveBall, *b).yaw;
                 (pa - yaw).abs().total_cmp(&(pb - yaw).abs())
             })
             .unwrap_or(0);
@@ -174,7 +204,7 @@ impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for SearchObjectEllips
         self.started = true;
         self.phase = (self.phase + 1) % Self::POINTS;
         Some(HeadCommand::Queue(HeadMotion {
-            target: Self::point(goal, self.phase),
+            target: Self::point(&self.model, goal, self.phase),
             max_speed: self.model.head_speed * 0.6,
         }))
     }
@@ -570,6 +600,27 @@ mod tests {
     use strata_runtime::Time;
 
     use crate::world_config::{BALL, world_config};
+
+    #[test]
+    fn the_t1_looks_down_at_a_ball_at_its_feet_and_the_nao_as_before() {
+        let t1: MotionModel = toml::from_str(BOOSTER_T1).expect("the shipped T1 body parses");
+        assert_eq!(MotionModel::booster_t1(), t1);
+        assert!(t1.camera_height > 1.0 && t1.kick_reach_x[0] > 0.1);
+        // A ball 0.25 m ahead: the T1 pitches its head far down, the NAO as it always did.
+        let at_feet = Point::new(0.25, 0.0);
+        let t1_pitch = gaze_at(&t1, at_feet).pitch;
+        let nao = MotionModel::default();
+        assert!(t1_pitch > 0.9, "{t1_pitch}");
+        let nao_expected = ((0.5f64 / 0.25).atan() - 0.6).min(0.5);
+        assert!((gaze_at(&nao, at_feet).pitch - nao_expected).abs() < 1e-12);
+        assert_eq!(gaze_at(&nao, Point::new(2.0, 0.0)).pitch, 0.0);
+        // The T1's ball search reaches down to its feet: the lowest point plus half the image
+        // (29 degrees) sees the ground 0.3 m ahead of a 1.1 m camera.
+        let lowest = (0..SearchObjectEllipse::POINTS)
+            .map(|k| SearchObjectEllipse::point(&t1, &HeadGoal::ObserveBall, k).pitch)
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!((t1.camera_height / (lowest + 0.506).tan()) < 0.3, "{lowest}");
+    }
 
     /// A robot at the centre facing +x that knows the ball at `ball` (robot frame).
     fn world_with_ball(ball: Point<Robot>) -> WorldState {

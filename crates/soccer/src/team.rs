@@ -164,6 +164,14 @@ impl TeamConfig {
         }
         positive("motion.max_forward", self.motion.max_forward)?;
         positive("motion.head_speed", self.motion.head_speed)?;
+        positive("motion.camera_height", self.motion.camera_height)?;
+        let [up, down] = self.motion.head_pitch_limits;
+        if !(up.is_finite() && down.is_finite() && up <= down) {
+            return Err(invalid(
+                "motion.head_pitch_limits",
+                format!("must be [up, down] with up <= down, got [{up}, {down}]"),
+            ));
+        }
         positive("planning.message_interval", self.planning.message_interval)?;
         positive("behavior.fov", self.behavior.fov)?;
         if !(0.0..=1.0).contains(&self.multiplexer.hysteresis) {

@@ -347,7 +347,8 @@ fn print_physics(p: &PhysicsReport) {
     for h in &p.halves {
         println!(
             "  half {}: {} on the left, goals {}-{}, {:.0} s played, {:.0} s simulated in {:.0} s \
-             wall{}",
+             wall{}; the ball rolled {:.1} m, came {:.1} m from the home goal and {:.1} m from \
+             the away goal",
             h.half,
             h.left,
             h.goals[0],
@@ -355,7 +356,10 @@ fn print_physics(p: &PhysicsReport) {
             h.play_s,
             h.simulated_s,
             h.wall_s,
-            if h.finished { "" } else { " (stopped early)" }
+            if h.finished { "" } else { " (stopped early)" },
+            h.ball_travel_m,
+            h.ball_nearest_goal_m[0],
+            h.ball_nearest_goal_m[1]
         );
     }
     println!("\nRobots in physics");

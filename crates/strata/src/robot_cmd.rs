@@ -48,6 +48,7 @@ use strata_runtime::{
 use strata_soccer::behaviors::Decision;
 use strata_soccer::field::TeamField;
 use strata_soccer::game::GameDirective;
+use strata_soccer::primitives::MotionModel;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot, robot_world_config};
 use strata_spl::Field;
 use strata_spl::gamecontroller::GameControlData;
@@ -229,8 +230,13 @@ pub fn run(args: RobotArgs) -> Result<()> {
     // simulator client maps its server's stamps with the smallest offset seen between a
     // reader's clock and the server's, and an earlier clock would corrupt that offset.
     let early_clock = MonotonicClock::start();
-    let config = TeamConfig::resolve(&args.team_config)
+    let mut config = TeamConfig::resolve(&args.team_config)
         .with_context(|| format!("team configuration `{}`", args.team_config))?;
+    if args.platform == PlatformKind::Rcssservermj && config.motion == MotionModel::default() {
+        // The team file's primitives assume a NAO unless it says otherwise: a T1 is taller,
+        // faster and kicks from further away.
+        config.motion = MotionModel::booster_t1();
+    }
     let field = resolve_field(args.field.as_deref().unwrap_or(match args.platform {
         PlatformKind::Rcssservermj => "rcssservermj",
         PlatformKind::Sim | PlatformKind::Nao => "spl",

@@ -117,6 +117,10 @@ pub struct HalfReport {
     pub goals: [u8; 2],
     /// The server's referee ended the half.
     pub finished: bool,
+    /// How far the ball rolled during play, m (ground truth, sampled ten times a second).
+    pub ball_travel_m: f64,
+    /// How close the ball came to the centre of the goal each team defends (home, away), m.
+    pub ball_nearest_goal_m: [f64; 2],
 }
 
 /// One robot over the whole game (both its processes).
@@ -446,6 +450,11 @@ impl HalfRun<'_> {
         let mut advanced = (sim_start, Instant::now());
         let mut exited: Vec<bool> = vec![false; players.len()];
         let mut last_sample = Instant::now();
+        let goal_x = self.field.dimensions().field_length / 2.0;
+        let mut ball_travel = 0.0;
+        let mut last_ball: Option<[f64; 2]> = None;
+        // The ball starts each half on the centre spot; the left team defends x < 0.
+        let mut nearest = [goal_x; 2];
         loop {
             std::thread::sleep(Duration::from_millis(100));
             let truth: MonitorState = server.truth();
@@ -460,6 +469,18 @@ impl HalfRun<'_> {
                 );
             }
             let Some(game) = truth.game.clone() else { continue };
+            if let Some([x, y, _]) = truth.ball_position {
+                if let Some([px, py]) = last_ball {
+                    let step = (x - px).hypot(y - py);
+                    // A jump is the referee placing the ball, not a roll.
+                    if step < 2.0 {
+                        ball_travel += step;
+                    }
+                }
+                last_ball = Some([x, y]);
+                nearest[self.left.index] = nearest[self.left.index].min((x + goal_x).hypot(y));
+                nearest[self.right.index] = nearest[self.right.index].min((x - goal_x).hypot(y));
+            }
             let played = (game.play_time - half_start).max(0.0);
             let t = base + played;
             // Goals: the server's left team is `self.left`.
@@ -537,6 +558,8 @@ impl HalfRun<'_> {
                     wall_s: 0.0,
                     goals,
                     finished: over,
+                    ball_travel_m: ball_travel,
+                    ball_nearest_goal_m: nearest,
                 });
             }
         }
