@@ -14,6 +14,7 @@
 //! Lockstep experiments are deterministic for a seed: run `k` of a condition uses seed
 //! `seed + k`, the same for every method compared.
 
+pub mod counts;
 pub mod fall;
 pub mod goal_covering;
 pub mod plot;
@@ -384,7 +385,7 @@ impl std::fmt::Debug for Ctx<'_> {
 }
 
 impl<'a> Ctx<'a> {
-    fn new(name: &'a str, options: &'a Options, out_dir: PathBuf) -> Ctx<'a> {
+    pub(crate) fn new(name: &'a str, options: &'a Options, out_dir: PathBuf) -> Ctx<'a> {
         Ctx {
             name,
             options,
@@ -471,9 +472,13 @@ impl<'a> Ctx<'a> {
             Some(p) => format!(" --scenario {}", p.display()),
             None => String::new(),
         };
+        let engine_arg = match self.options.engine {
+            Engine::Sim => "",
+            Engine::Rcssservermj => " --engine rcssservermj",
+        };
         md.bullets(&[
             format!(
-                "Command: `strata experiment {} --runs {runs} --seed {}{scenario_arg}`",
+                "Command: `strata experiment {}{engine_arg} --runs {runs} --seed {}{scenario_arg}`",
                 self.name, self.options.seed
             ),
             format!("Scenario: {}", self.scenario_source),
