@@ -163,6 +163,10 @@ fn rates_in_physics_measure_every_layer_of_every_robot_under_both_conditions() {
         .map(|r| number(r, "/path_m/mean"))
         .sum();
     assert!(walked > 0.5, "the robots hardly moved: {walked:.2} m in all");
+    for robot in summary["robots"].as_array().expect("robots") {
+        let pace = number(robot, "/window_frames_hz/mean");
+        assert!(pace.is_finite() && pace > 0.0, "no server cycles measured: {robot}");
+    }
 
     for file in [
         "report.md",

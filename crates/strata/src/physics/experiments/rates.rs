@@ -88,6 +88,10 @@ pub struct Scenario {
     pub tolerance: f64,
     /// Torso speed over a 1 s window, upright, from which a robot walks, m/s.
     pub walking_speed: f64,
+    /// Turning rate over a 1 s window, upright, from which a robot walks (turns in place),
+    /// rad/s.
+    #[serde(default = "default_turning_speed")]
+    pub turning_speed: f64,
     /// The 2D rates experiment run by the same command, for comparison.
     #[serde(default)]
     pub sim: SimComparison,
@@ -97,6 +101,10 @@ pub struct Scenario {
     pub paper: Vec<PaperRow>,
     #[serde(skip)]
     resolved: Option<TeamConfig>,
+}
+
+fn default_turning_speed() -> f64 {
+    0.2
 }
 
 fn yes() -> bool {
@@ -164,6 +172,7 @@ impl Validate for Scenario {
         }
         check.fraction("tolerance", self.tolerance)?;
         check.positive("walking_speed", self.walking_speed)?;
+        check.positive("turning_speed", self.turning_speed)?;
         check.non_negative("sim.duration", self.sim.duration)?;
         check.at_least("sim.runs", self.sim.runs, 1)?;
         check.not_empty("robots", &self.robots)?;
@@ -196,6 +205,9 @@ struct RobotRun {
     role: Option<String>,
     /// Server cycles the robot perceived.
     sensor_frames: u64,
+    /// Server cycles it perceived per second of its own clock from the kick-off to the stop
+    /// (its status lines then): the run's pace without the start and the Ready.
+    window_frames_hz: f64,
     /// Simulated seconds, from the kick-off to the end of the run.
     walking_s: f64,
     upright_s: f64,
@@ -246,6 +258,11 @@ pub struct RobotSummary {
     /// Reactive cycles per perceived server cycle: 1 when the reactive layer acts on every
     /// sensor frame, whatever the machine does to the server's pace.
     pub reactive_per_frame: Estimate,
+    /// Server cycles perceived per second from the kick-off to the stop (the run's pace
+    /// without the start and the Ready), and times `reactive_per_frame`: the reactive layer's
+    /// rate over that window.
+    pub window_frames_hz: Estimate,
+    pub window_reactive_hz: Estimate,
     pub walking_min: f64,
     pub upright_min: f64,
     pub path_m: Estimate,
@@ -389,12 +406,17 @@ fn run_once(input: &RunInput<'_>, log: Option<PathBuf>, tick: &dyn Fn(u64)) -> R
         ball_area: scenario.ball_area,
     };
     let mut trainer = Trainer::new(plan, input.seed);
-    let mut walks: Vec<WalkTracker> =
-        scenario.robots.iter().map(|_| WalkTracker::new(scenario.walking_speed)).collect();
+    let mut walks: Vec<WalkTracker> = scenario
+        .robots
+        .iter()
+        .map(|_| WalkTracker::new(scenario.walking_speed, scenario.turning_speed))
+        .collect();
     let started = Instant::now();
     let mut last_t = f64::NEG_INFINITY;
     let mut last_advance = Instant::now();
     let mut window: Option<(f64, Instant)> = None;
+    // Each robot's newest status line (its clock, its perceived server cycles) at the kick-off.
+    let mut at_kick_off: Vec<Option<(f64, f64)>> = Vec::new();
     let mut ticked = 0u64;
     loop {
         std::thread::sleep(Duration::from_millis(20));
@@ -438,7 +460,10 @@ fn run_once(input: &RunInput<'_>, log: Option<PathBuf>, tick: &dyn Fn(u64)) -> R
             server.command(commands);
         }
         let Some(kick_off) = trainer.kicked_off() else { continue };
-        let (kick_off, _) = *window.get_or_insert((kick_off, Instant::now()));
+        let (kick_off, _) = *window.get_or_insert_with(|| {
+            at_kick_off = robots.iter().map(status_frames).collect();
+            (kick_off, Instant::now())
+        });
         for (walk, truth) in walks.iter_mut().zip(&truths) {
             if let Some(truth) = truth {
                 walk.sample(t, truth.position, truth.orientation);
@@ -457,11 +482,14 @@ fn run_once(input: &RunInput<'_>, log: Option<PathBuf>, tick: &dyn Fn(u64)) -> R
     let sim_s = last_t - kick_off;
     let wall_s = wall_start.elapsed().as_secs_f64();
     let machine_load = load_average();
+    let at_stop: Vec<Option<(f64, f64)>> = robots.iter().map(status_frames).collect();
     for robot in &mut robots {
         robot.interrupt();
     }
     let mut out = Vec::new();
-    for ((robot, spec), walk) in robots.iter_mut().zip(&scenario.robots).zip(&walks) {
+    for (i, ((robot, spec), walk)) in
+        robots.iter_mut().zip(&scenario.robots).zip(&walks).enumerate()
+    {
         let (report, status) = robot.finish(STOP_PATIENCE);
         let Some(report) = report else {
             bail!(
@@ -471,7 +499,13 @@ fn run_once(input: &RunInput<'_>, log: Option<PathBuf>, tick: &dyn Fn(u64)) -> R
                 robot.stderr_tail(5)
             );
         };
-        out.push(robot_run(&report, spec.player, (kick_off, last_t), walk)?);
+        let mut run = robot_run(&report, spec.player, (kick_off, last_t), walk)?;
+        if let (Some(Some((t0, f0))), Some(Some((t1, f1)))) = (at_kick_off.get(i), at_stop.get(i))
+            && t1 > t0
+        {
+            run.window_frames_hz = (f1 - f0) / (t1 - t0);
+        }
+        out.push(run);
     }
     drop(server);
     Ok(RunResult {
@@ -485,6 +519,12 @@ fn run_once(input: &RunInput<'_>, log: Option<PathBuf>, tick: &dyn Fn(u64)) -> R
         placements: trainer.placements,
         restarts: trainer.restarts,
     })
+}
+
+/// The robot's clock and perceived server cycles in its newest status line.
+fn status_frames(robot: &T1Process) -> Option<(f64, f64)> {
+    let status = robot.latest("status")?;
+    Some((status.get("t")?.as_f64()?, status.get("sensor_frames")?.as_f64()?))
 }
 
 fn truth_of(
@@ -524,6 +564,7 @@ fn robot_run(
         layers: figures(&host, &modules),
         role: report.get("role").and_then(serde_json::Value::as_str).map(str::to_owned),
         sensor_frames: report.get("sensor_frames").and_then(serde_json::Value::as_u64).unwrap_or(0),
+        window_frames_hz: f64::NAN,
         walking_s: walk.walking_s(),
         upright_s: walk.upright_s(),
         observed_s: walk.observed_s(),
@@ -681,15 +722,17 @@ fn robot_summary(spec: &RobotSpec, load: f64, runs: &[&RobotRun]) -> RobotSummar
     let mut assigned: Vec<String> = runs.iter().filter_map(|r| r.role.clone()).collect();
     assigned.sort();
     assigned.dedup();
+    let per_frame = |r: &RobotRun| {
+        let cycles = r.layers.iter().find(|(l, _)| l == "reactive").map_or(0, |(_, f)| f.cycles);
+        if r.sensor_frames > 0 { cycles as f64 / r.sensor_frames as f64 } else { f64::NAN }
+    };
     RobotSummary {
         role: spec.role.clone(),
         load_s: load,
         assigned_roles: assigned,
-        reactive_per_frame: e(&|r| {
-            let cycles =
-                r.layers.iter().find(|(l, _)| l == "reactive").map_or(0, |(_, f)| f.cycles);
-            if r.sensor_frames > 0 { cycles as f64 / r.sensor_frames as f64 } else { f64::NAN }
-        }),
+        reactive_per_frame: e(&per_frame),
+        window_frames_hz: e(&|r| r.window_frames_hz),
+        window_reactive_hz: e(&|r| r.window_frames_hz * per_frame(r)),
         walking_min: runs.iter().map(|r| r.walking_s).sum::<f64>() / 60.0,
         upright_min: runs.iter().map(|r| r.upright_s).sum::<f64>() / 60.0,
         path_m: e(&|r| r.path_m),

@@ -121,6 +121,7 @@ fn write_robots_csv(scenario: &Scenario, ctx: &mut Ctx<'_>, results: &[RunResult
                 spec.player.to_string(),
                 robot.role.clone().unwrap_or_default(),
                 robot.sensor_frames.to_string(),
+                num(robot.window_frames_hz),
                 num(robot.walking_s),
                 num(robot.upright_s),
                 num(robot.observed_s),
@@ -148,6 +149,7 @@ fn write_robots_csv(scenario: &Scenario, ctx: &mut Ctx<'_>, results: &[RunResult
             "player",
             "assigned_role",
             "sensor_frames",
+            "window_frames_hz",
             "walking_s",
             "upright_s",
             "observed_s",
@@ -287,8 +289,8 @@ fn report_setup(scenario: &Scenario, s: &Summary, md: &mut Markdown) {
             .to_owned(),
         format!(
             "{} s of simulation per run and condition from the kick-off (after {} s of the \
-             game's Ready), {} runs, conditions alternating within a run; loads per \
-             deliberative cycle: {}",
+             game's Ready), runs per condition: {}, conditions alternating within a run; \
+             loads per deliberative cycle: {}",
             scenario.duration,
             scenario.ready,
             s.runs,
@@ -308,10 +310,10 @@ fn report_setup(scenario: &Scenario, s: &Summary, md: &mut Markdown) {
         ),
         format!(
             "Walking, from the ground truth: a 1 s window in which the torso stayed upright \
-             (tilt under 20 degrees, the platform's fall onset) and moved at least {} m/s; falls \
-             are the platform's ground-truth onsets (tilt past 20 degrees) between the kick-off \
-             and the stop",
-            scenario.walking_speed
+             (tilt under 20 degrees, the platform's fall onset) and moved at least {} m/s or \
+             turned at least {} rad/s; falls are the platform's ground-truth onsets (tilt past 20 \
+             degrees) between the kick-off and the stop",
+            scenario.walking_speed, scenario.turning_speed
         ),
         format!(
             "Real-time factor (simulated over wall-clock seconds, kick-off to stop): {}",
@@ -406,14 +408,24 @@ fn report_targets(s: &Summary, md: &mut Markdown) {
         .robots
         .iter()
         .map(|r| {
-            format!("{}, {}: {}", r.role, load_label(r.load_s), r.reactive_per_frame.show(1.0, 3))
+            format!(
+                "{}, {}: {} cycles per perception, {} Hz",
+                r.role,
+                load_label(r.load_s),
+                r.reactive_per_frame.show(1.0, 3),
+                r.window_reactive_hz.show(1.0, 2)
+            )
         })
         .collect();
     md.paragraph(&format!(
-        "The reactive layer is triggered by each perception, one per 20 ms server cycle, so its \
-         rate in Hz is also the server's pace: a machine that slows the server slows it in both \
-         conditions. Reactive cycles per perceived server cycle, which the machine's speed does \
-         not change: {}.",
+        "The reactive layer is triggered by each perception, one per 20 ms server cycle, and \
+         the server steps when every robot has answered: the reactive rate in Hz is also the \
+         pace at which the machine lets the server and the robots' connection threads run. Two \
+         figures the whole-run rates above do not show: reactive cycles per perceived server \
+         cycle (1: the layer acted on every perception, whatever the pace), and the reactive \
+         rate over the measured window only, kick-off to stop (the perceived server cycles per \
+         second of the robot's clock, from its status lines, times the cycles per perception; \
+         the whole-run rates include the start and the Ready): {}.",
         frames.join("; ")
     ));
 }
@@ -520,6 +532,7 @@ fn report_robots(s: &Summary, md: &mut Markdown) {
                 r.path_m.show(1.0, 1),
                 format!("{} ({} caught)", r.falls, r.falls_caught),
                 r.reactive_per_frame.show(1.0, 3),
+                r.window_frames_hz.show(1.0, 2),
                 r.compute_p50_us.show(1.0, 0),
                 r.compute_p99_us.show(1.0, 0),
                 r.cycle_share_p50.show(100.0, 1),
@@ -536,6 +549,7 @@ fn report_robots(s: &Summary, md: &mut Markdown) {
             "path per run (m)",
             "falls (protective fall ordered)",
             "reactive cycles per server cycle",
+            "server cycles per s, kick-off to stop",
             "process CPU per cycle p50 (us)",
             "p99 (us)",
             "share of the 20 ms cycle, p50 (%)",
