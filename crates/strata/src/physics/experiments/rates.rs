@@ -343,22 +343,29 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
         team_files.push(path);
     }
-    let mut results = Vec::new();
+    // `--log` records the first robot of the first run (each robot is a process of its own).
     let mut log = ctx.options.log.clone();
-    for run in 0..runs {
-        for (load, team_file) in scenario.loads.iter().zip(&team_files) {
-            let seed = ctx.seed(run);
-            bar.set_message(format!("run {}/{runs}, load {:.0} ms", run + 1, load * 1000.0));
-            let input = RunInput { scenario, exe: &exe, team_file, load: *load, seed };
-            let result = run_once(&input, log.take(), &|n| bar.inc(n))
-                .with_context(|| format!("run {run}, load {load} s"))?;
-            results.push(RunResult { run, ..result });
+    let mut all_runs = || -> Result<Vec<RunResult>> {
+        let mut results = Vec::new();
+        for run in 0..runs {
+            for (load, team_file) in scenario.loads.iter().zip(&team_files) {
+                let seed = ctx.seed(run);
+                bar.set_message(format!("run {}/{runs}, load {:.0} ms", run + 1, load * 1000.0));
+                let input = RunInput { scenario, exe: &exe, team_file, load: *load, seed };
+                let result = run_once(&input, log.take(), &|n| bar.inc(n))
+                    .with_context(|| format!("run {run}, load {load} s"))?;
+                results.push(RunResult { run, ..result });
+            }
         }
-    }
+        Ok(results)
+    };
+    let results = all_runs();
     bar.finish_and_clear();
+    // The team files go whether the runs succeeded or not.
     for path in &team_files {
         let _ = std::fs::remove_file(path);
     }
+    let results = results?;
     let sim = run_sim_comparison(scenario, ctx)?;
     let summary = summarize(scenario, ctx, runs, &results, sim);
     report::write_outputs(scenario, ctx, &results, &summary)?;
