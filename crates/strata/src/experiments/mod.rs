@@ -14,6 +14,7 @@
 //! Lockstep experiments are deterministic for a seed: run `k` of a condition uses seed
 //! `seed + k`, the same for every method compared.
 
+pub mod counts;
 pub mod fall;
 pub mod goal_covering;
 pub mod plot;
@@ -384,7 +385,7 @@ impl std::fmt::Debug for Ctx<'_> {
 }
 
 impl<'a> Ctx<'a> {
-    fn new(name: &'a str, options: &'a Options, out_dir: PathBuf) -> Ctx<'a> {
+    pub(crate) fn new(name: &'a str, options: &'a Options, out_dir: PathBuf) -> Ctx<'a> {
         Ctx {
             name,
             options,

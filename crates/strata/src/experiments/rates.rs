@@ -171,7 +171,8 @@ pub fn keeps_rate(unloaded_hz: f64, loaded_hz: f64, tolerance: f64) -> bool {
     loaded_hz >= tolerance * unloaded_hz
 }
 
-const LAYERS: [&str; 5] = ["reactive", "deliberative", "planning", "perception", "world"];
+pub(crate) const LAYERS: [&str; 5] =
+    ["reactive", "deliberative", "planning", "perception", "world"];
 
 fn module_of<'a>(modules: &'a RobotModules, layer: &str) -> &'a str {
     match layer {
@@ -328,7 +329,7 @@ impl strata_runtime::Tap for NoTap {
     fn package(&self, _: &strata_runtime::TapRecord<'_>) {}
 }
 
-fn figures(stats: &HostStats, modules: &RobotModules) -> Vec<(String, LayerFigures)> {
+pub(crate) fn figures(stats: &HostStats, modules: &RobotModules) -> Vec<(String, LayerFigures)> {
     LAYERS
         .iter()
         .filter_map(|layer| {

@@ -3,6 +3,7 @@
 //! (`crate::experiments`), with each report placing the 2D figures beside the physics ones.
 //! Scenarios: `crates/strata/scenarios/rcssservermj/NAME.toml`.
 
+pub mod rates;
 pub mod team;
 
 use anyhow::{Result, bail};
@@ -12,6 +13,10 @@ use crate::experiments::{Ctx, EXPERIMENTS};
 /// Runs experiment `name` in physics; its summary is what `--json` prints.
 pub fn run(name: &str, ctx: &mut Ctx<'_>) -> Result<serde_json::Value> {
     let summary = match name {
+        crate::experiments::rates::NAME => {
+            let scenario = ctx.scenario::<rates::Scenario>(rates::DEFAULT_SCENARIO)?;
+            to_json(&rates::run(&scenario, ctx)?)?
+        }
         team::NAME => {
             let scenario = ctx.scenario::<team::Scenario>(team::DEFAULT_SCENARIO)?;
             to_json(&team::run(&scenario, ctx)?)?
