@@ -57,6 +57,11 @@ pub struct FallRecord {
     /// lying, a get-up nor a kick). `None`: not standing again (yet).
     #[serde(default)]
     pub upright: Option<f64>,
+    /// From the arrival of the newest perception when the order came to the order, s: the
+    /// architecture's own reaction to its newest data (the fall detector may have seen the
+    /// fall in an earlier perception: this is a lower bound of its share).
+    #[serde(default)]
+    pub reaction: Option<f64>,
     #[serde(skip)]
     onset_at: Option<Instant>,
 }
@@ -68,10 +73,14 @@ pub struct FallLog {
     tilted: bool,
     /// The newest perception's server time and tilt, for the crossing's interpolation.
     last: Option<(f64, f64)>,
+    /// When the newest perception arrived.
+    last_arrival: Option<Instant>,
     falls: Vec<FallRecord>,
     /// A protective-fall order that came with no fall begun: the server's time then, and the
     /// order's instant.
     early_order: Option<(Option<f64>, Instant)>,
+    /// The newest order's reaction time, for a fall it predicted.
+    early_reaction: Option<f64>,
     /// Orders given with the torso under the onset tilt, waiting for a tilt past it to confirm
     /// them: the server's time then, and the order's instant.
     unconfirmed: Vec<(Option<f64>, Instant)>,
@@ -113,6 +122,7 @@ impl FallLog {
                     latency,
                     onset_to_order: latency.map(|l| time - crossing + l),
                     upright: None,
+                    reaction: latency.and(self.early_reaction),
                     onset_at: Some(arrived),
                 });
                 self.upright_since = None;
@@ -124,6 +134,7 @@ impl FallLog {
             self.last = Some((time, tilt));
         }
         self.tilted = tilted;
+        self.last_arrival = Some(arrived);
     }
 
     /// Standing again after the newest fall: [`UPRIGHT_HOLD`] s upright in no special motion.
@@ -168,6 +179,7 @@ impl FallLog {
         if !tilted {
             self.unconfirmed.push((time, now));
         }
+        let reaction = self.last_arrival.map(|at| now.saturating_duration_since(at).as_secs_f64());
         match self.falls.last_mut() {
             // The fall under way (a stumble that came upright again was not ordered).
             Some(fall) if fall.ordered.is_none() && tilted => {
@@ -176,9 +188,13 @@ impl FallLog {
                     fall.onset_at.map(|at| now.saturating_duration_since(at).as_secs_f64());
                 fall.onset_to_order =
                     fall.latency.zip(fall.crossing).map(|(l, c)| fall.onset - c + l);
+                fall.reaction = reaction;
             }
             // Ordered before the tilt passed the onset: the fall detector predicted it.
-            _ => self.early_order = Some((time, now)),
+            _ => {
+                self.early_order = Some((time, now));
+                self.early_reaction = reaction;
+            }
         }
     }
 
@@ -262,6 +278,8 @@ mod tests {
         assert!((crossing - 1.01).abs() < 1e-9, "half way between 0.25 and 0.45 rad: {fall:?}");
         let onset_to_order = fall.onset_to_order.unwrap_or_default();
         assert!((onset_to_order - 0.017).abs() < 1e-9, "10 ms + 7 ms: {fall:?}");
+        let reaction = fall.reaction.unwrap_or_default();
+        assert!((reaction - 0.007).abs() < 1e-9, "from the newest perception: {fall:?}");
         assert!(log.false_falls().is_empty());
     }
 
