@@ -463,6 +463,12 @@ impl RcssPlatform {
         lock(&self.shared).falls.falls().to_vec()
     }
 
+    /// The server's time of every protective-fall order that no fall followed (false alarms,
+    /// see [`crate::falls::FallLog::false_falls`]).
+    pub fn false_falls(&self) -> Vec<f64> {
+        lock(&self.shared).falls.false_falls().to_vec()
+    }
+
     /// The robot's compute per server cycle since `connect` or the last
     /// [`RcssPlatform::restart_compute`] (see [`crate::compute`]).
     pub fn compute(&self) -> ComputeReport {

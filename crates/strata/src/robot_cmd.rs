@@ -518,11 +518,17 @@ pub fn run(args: RobotArgs) -> Result<()> {
     );
     let t1 = platform.t1.as_ref().map(|t1| t1.lock().unwrap_or_else(PoisonError::into_inner));
     let falls = t1.as_ref().map(|t1| t1.inner.falls()).unwrap_or_default();
+    let false_falls = t1.as_ref().map(|t1| t1.inner.false_falls()).unwrap_or_default();
     let compute = t1.as_ref().map(|t1| Compute::new(t1.inner.compute(), &report.host));
     let lost_server = t1.as_ref().and_then(|t1| t1.inner.lost_mid_game());
     drop(t1);
-    let report =
-        Report { localization: accuracy.and_then(|a| a.snapshot()), falls, compute, ..report };
+    let report = Report {
+        localization: accuracy.and_then(|a| a.snapshot()),
+        falls,
+        false_falls,
+        compute,
+        ..report
+    };
     out.report(&report);
     match (failure, lost_server) {
         (Some(error), _) => Err(error).context("a module of the robot failed"),
@@ -1257,6 +1263,10 @@ struct Report {
     /// (rcssservermj only).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     falls: Vec<FallRecord>,
+    /// The server's time of every protective-fall order that no fall followed: false alarms
+    /// (rcssservermj only; `strata_rcssmj::falls::FallLog::false_falls`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    false_falls: Vec<f64>,
     /// The robot's compute per server cycle (rcssservermj only).
     #[serde(skip_serializing_if = "Option::is_none")]
     compute: Option<Compute>,
@@ -1332,6 +1342,7 @@ impl Report {
             host,
             localization: None,
             falls: Vec::new(),
+            false_falls: Vec::new(),
             compute: None,
         }
     }
@@ -1491,6 +1502,20 @@ impl Output {
                     fall.onset
                 ),
             }
+            if let Some(upright) = fall.upright {
+                println!(
+                    "{}: standing again {:.2} s after the fall at {:.2} s",
+                    self.name,
+                    upright - fall.onset,
+                    fall.onset
+                );
+            }
+        }
+        for t in &report.false_falls {
+            println!(
+                "{}: protective fall ordered at {t:.2} s (server time) with no fall",
+                self.name
+            );
         }
         if let Some(c) = &report.compute {
             let p = &c.per_cycle;

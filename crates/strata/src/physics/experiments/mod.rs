@@ -3,6 +3,7 @@
 //! (`crate::experiments`), with each report placing the 2D figures beside the physics ones.
 //! Scenarios: `crates/strata/scenarios/rcssservermj/NAME.toml`.
 
+pub mod fall;
 pub mod rates;
 pub mod team;
 
@@ -13,6 +14,10 @@ use crate::experiments::{Ctx, EXPERIMENTS};
 /// Runs experiment `name` in physics; its summary is what `--json` prints.
 pub fn run(name: &str, ctx: &mut Ctx<'_>) -> Result<serde_json::Value> {
     let summary = match name {
+        fall::NAME => {
+            let scenario = ctx.scenario::<fall::Scenario>(fall::DEFAULT_SCENARIO)?;
+            to_json(&fall::run(&scenario, ctx)?)?
+        }
         crate::experiments::rates::NAME => {
             let scenario = ctx.scenario::<rates::Scenario>(rates::DEFAULT_SCENARIO)?;
             to_json(&rates::run(&scenario, ctx)?)?
