@@ -3,6 +3,7 @@
 //! (`crate::experiments`), with each report placing the 2D figures beside the physics ones.
 //! Scenarios: `crates/strata/scenarios/rcssservermj/NAME.toml`.
 
+pub mod goal_covering;
 pub mod team;
 
 use anyhow::{Result, bail};
@@ -12,6 +13,11 @@ use crate::experiments::{Ctx, EXPERIMENTS};
 /// Runs experiment `name` in physics; its summary is what `--json` prints.
 pub fn run(name: &str, ctx: &mut Ctx<'_>) -> Result<serde_json::Value> {
     let summary = match name {
+        goal_covering::NAME => {
+            let scenario =
+                ctx.scenario::<goal_covering::Scenario>(goal_covering::DEFAULT_SCENARIO)?;
+            to_json(&goal_covering::run(&scenario, ctx)?)?
+        }
         team::NAME => {
             let scenario = ctx.scenario::<team::Scenario>(team::DEFAULT_SCENARIO)?;
             to_json(&team::run(&scenario, ctx)?)?
