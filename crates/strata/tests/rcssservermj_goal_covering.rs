@@ -23,14 +23,14 @@ fn server_installed() -> bool {
     installed
 }
 
-/// One method, one rate, one 2.4 m trajectory: about 10 s of play.
+/// One method, one rate, one 2.4 m trajectory: about 12 s of play.
 const SCENARIO: &str = r#"
 runs = 1
 ball_speed = 0.8
 deliberative_hz = [2.0]
-keeper_beam = [-25.0, 0.0, 0.0]
-ready = 4.0
-warmup = 1.0
+keeper_beam = [-27.2, 0.0, 0.0]
+ready = 5.0
+warmup = 3.0
 settle = 1.0
 placement_period = 0.1
 status_interval = 0.1
