@@ -50,6 +50,7 @@ use strata_soccer::field::TeamField;
 use strata_soccer::game::GameDirective;
 use strata_soccer::primitives::MotionModel;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot, robot_world_config};
+use strata_soccer::world_config::BALL;
 use strata_spl::Field;
 use strata_spl::gamecontroller::GameControlData;
 
@@ -1063,6 +1064,9 @@ struct LocalizationAccuracy {
     /// Whether the world model said its pose was lost, last.
     #[serde(skip)]
     last_lost: bool,
+    /// The world model's ball, last (team frame).
+    #[serde(skip)]
+    last_ball: Option<BallStatus>,
     /// Headings last, degrees (estimate, truth).
     #[serde(skip)]
     last_headings_deg: [f64; 2],
@@ -1139,6 +1143,11 @@ impl Tap for Accuracy {
         accuracy.truth = [tx, ty];
         accuracy.estimate = [pose.x, pose.y];
         accuracy.last_lost = estimate.lost;
+        accuracy.last_ball = package.value.object(BALL).map(|b| BallStatus {
+            known: b.known,
+            confidence: b.confidence,
+            estimate: b.known.then_some([b.field_position.x, b.field_position.y]),
+        });
         accuracy.last_headings_deg =
             [pose.theta.to_degrees(), normalize_angle(heading).to_degrees()];
     }
@@ -1186,6 +1195,19 @@ struct Status {
     /// The newest self-localization against the ground truth (platforms that have one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pose: Option<PoseStatus>,
+    /// The world model's ball (platforms with a ground truth): what goal-covering experiments
+    /// compare with the server's ball.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ball: Option<BallStatus>,
+}
+
+/// Whether the world model knows where the ball is, and where it puts it (team frame, m).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+struct BallStatus {
+    known: bool,
+    confidence: f64,
+    /// `None` while the ball is not known.
+    estimate: Option<[f64; 2]>,
 }
 
 /// Where the world model puts the robot and where it is, in the team frame, m.
@@ -1228,6 +1250,7 @@ impl Status {
                 error_m: a.last_error_m,
                 lost: a.last_lost,
             }),
+            ball: accuracy.and_then(|a| a.last_ball),
         }
     }
 }
