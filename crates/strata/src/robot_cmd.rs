@@ -234,8 +234,8 @@ pub fn run(args: RobotArgs) -> Result<()> {
     let mut config = TeamConfig::resolve(&args.team_config)
         .with_context(|| format!("team configuration `{}`", args.team_config))?;
     if args.platform == PlatformKind::Rcssservermj && config.motion == MotionModel::default() {
-        // The team file's primitives assume a NAO unless it says otherwise: a T1 is taller,
-        // faster and kicks from further away.
+        // The team file's primitives assume a NAO unless it says otherwise: a T1's camera is
+        // twice as high, its neck pitches further and it kicks from further away.
         config.motion = MotionModel::booster_t1();
     }
     let field = resolve_field(args.field.as_deref().unwrap_or(match args.platform {
