@@ -106,6 +106,57 @@ impl Trajectory {
             .map(|w| ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt())
             .sum()
     }
+
+    /// Where the ball is `s` metres along the path, and its direction there (unit vector).
+    pub fn at(&self, s: f64) -> ([f64; 2], [f64; 2]) {
+        let mut left = s.max(0.0);
+        let mut last = ([0.0; 2], [0.0; 2]);
+        for w in self.waypoints.windows(2) {
+            let (d, e) = (w[1][0] - w[0][0], w[1][1] - w[0][1]);
+            let length = d.hypot(e);
+            if length <= 0.0 {
+                continue;
+            }
+            let direction = [d / length, e / length];
+            if left <= length {
+                return ([w[0][0] + direction[0] * left, w[0][1] + direction[1] * left], direction);
+            }
+            left -= length;
+            last = (w[1], direction);
+        }
+        last
+    }
+}
+
+/// The checks both goal-covering scenarios (2D and physics) make of their methods, reference
+/// and trajectories; the methods' teams, resolved.
+pub(crate) fn check_methods_and_trajectories(
+    check: &Check<'_>,
+    dir: Option<&Path>,
+    methods: &[Method],
+    reference: &str,
+    trajectories: &[Trajectory],
+) -> Result<Vec<TeamConfig>, ScenarioError> {
+    check.not_empty("methods", methods)?;
+    let mut resolved = Vec::with_capacity(methods.len());
+    for (i, m) in methods.iter().enumerate() {
+        resolved.push(check.team(&format!("methods[{i}].team"), &m.team, dir)?);
+    }
+    if !methods.iter().any(|m| m.name == reference) {
+        return Err(check.fail("reference", format!("`{reference}` is not one of the methods")));
+    }
+    check.not_empty("trajectories", trajectories)?;
+    for (i, t) in trajectories.iter().enumerate() {
+        if t.waypoints.len() < 2 {
+            return Err(
+                check.fail(&format!("trajectories[{i}].waypoints"), "needs at least two points")
+            );
+        }
+        if t.waypoints.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(check.fail(&format!("trajectories[{i}].waypoints"), "must be finite"));
+        }
+    }
+    Ok(resolved)
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize)]
@@ -138,26 +189,13 @@ impl Validate for Scenario {
         if !self.keeper_start.iter().all(|v| v.is_finite()) {
             return Err(check.fail("keeper_start", "must be three finite numbers"));
         }
-        check.not_empty("methods", &self.methods)?;
-        self.resolved.clear();
-        for (i, m) in self.methods.iter().enumerate() {
-            self.resolved.push(check.team(&format!("methods[{i}].team"), &m.team, dir)?);
-        }
-        if !self.methods.iter().any(|m| m.name == self.reference) {
-            return Err(
-                check.fail("reference", format!("`{}` is not one of the methods", self.reference))
-            );
-        }
-        check.not_empty("trajectories", &self.trajectories)?;
-        for (i, t) in self.trajectories.iter().enumerate() {
-            if t.waypoints.len() < 2 {
-                return Err(check
-                    .fail(&format!("trajectories[{i}].waypoints"), "needs at least two points"));
-            }
-            if t.waypoints.iter().flatten().any(|v| !v.is_finite()) {
-                return Err(check.fail(&format!("trajectories[{i}].waypoints"), "must be finite"));
-            }
-        }
+        self.resolved = check_methods_and_trajectories(
+            check,
+            dir,
+            &self.methods,
+            &self.reference,
+            &self.trajectories,
+        )?;
         for (i, row) in self.paper.iter().enumerate() {
             check.fraction(&format!("paper[{i}].observe_ball"), row.observe_ball)?;
             check.fraction(&format!("paper[{i}].ball_unknown"), row.ball_unknown)?;

@@ -688,7 +688,7 @@ fn write_outputs(
 }
 
 /// How a load per deliberative cycle is named in figures and tables.
-fn load_label(l: f64) -> String {
+pub(crate) fn load_label(l: f64) -> String {
     if l == 0.0 { "no load".to_owned() } else { format!("+{:.0} ms load", l * 1000.0) }
 }
 
@@ -838,7 +838,7 @@ fn write_report(
     );
     report_setup(scenario, s, runs, &mut md);
     report_table6(scenario, s, &mut md);
-    report_layers(s, &mut md);
+    report_layers(&s.layers, &mut md);
     report_claim(scenario, s, &mut md);
     md.heading("Figures");
     md.image("Reactive rate", &reactive_png);
@@ -917,11 +917,10 @@ fn report_table6(scenario: &Scenario, s: &Summary, md: &mut Markdown) {
     );
 }
 
-/// Every layer under every load.
-fn report_layers(s: &Summary, md: &mut Markdown) {
+/// Every layer under every load (the 2D and the physics reports).
+pub(crate) fn report_layers(layers: &[LayerSummary], md: &mut Markdown) {
     md.heading("Every layer");
-    let rows: Vec<Vec<String>> = s
-        .layers
+    let rows: Vec<Vec<String>> = layers
         .iter()
         .map(|l| {
             vec![

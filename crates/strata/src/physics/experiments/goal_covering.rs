@@ -27,6 +27,8 @@ use strata_rcssmj::protocol::monitor::{MonitorCommand, MonitorState};
 use strata_rcssmj::server::{ServerOptions, ServerProcess};
 use strata_soccer::team::TeamConfig;
 
+use crate::experiments::goal_covering::check_methods_and_trajectories;
+pub use crate::experiments::goal_covering::{Method, Trajectory};
 use crate::experiments::plot::Bars;
 use crate::experiments::report::{Markdown, num, pct, verdict, write_csv};
 use crate::experiments::stats::Estimate;
@@ -83,48 +85,6 @@ pub struct Scenario {
 
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct Method {
-    pub name: String,
-    /// A built-in team or a team TOML file.
-    pub team: String,
-}
-
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct Trajectory {
-    pub name: String,
-    /// Polyline in the keeper's team frame, m.
-    pub waypoints: Vec<[f64; 2]>,
-}
-
-impl Trajectory {
-    pub fn length(&self) -> f64 {
-        self.waypoints.windows(2).map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1])).sum()
-    }
-
-    /// Where the ball is `s` metres along the path, and its direction there (unit vector).
-    pub fn at(&self, s: f64) -> ([f64; 2], [f64; 2]) {
-        let mut left = s.max(0.0);
-        let mut last = ([0.0; 2], [0.0; 2]);
-        for w in self.waypoints.windows(2) {
-            let (d, e) = (w[1][0] - w[0][0], w[1][1] - w[0][1]);
-            let length = d.hypot(e);
-            if length <= 0.0 {
-                continue;
-            }
-            let direction = [d / length, e / length];
-            if left <= length {
-                return ([w[0][0] + direction[0] * left, w[0][1] + direction[1] * left], direction);
-            }
-            left -= length;
-            last = (w[1], direction);
-        }
-        last
-    }
-}
-
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
 pub struct PaperRow {
     pub deliberative_hz: f64,
     pub observe_ball: f64,
@@ -156,26 +116,13 @@ impl Validate for Scenario {
         check.non_negative("settle", self.settle)?;
         check.positive("placement_period", self.placement_period)?;
         check.positive("status_interval", self.status_interval)?;
-        check.not_empty("methods", &self.methods)?;
-        self.resolved.clear();
-        for (i, m) in self.methods.iter().enumerate() {
-            self.resolved.push(check.team(&format!("methods[{i}].team"), &m.team, dir)?);
-        }
-        if !self.methods.iter().any(|m| m.name == self.reference) {
-            return Err(
-                check.fail("reference", format!("`{}` is not one of the methods", self.reference))
-            );
-        }
-        check.not_empty("trajectories", &self.trajectories)?;
-        for (i, t) in self.trajectories.iter().enumerate() {
-            if t.waypoints.len() < 2 {
-                return Err(check
-                    .fail(&format!("trajectories[{i}].waypoints"), "needs at least two points"));
-            }
-            if t.waypoints.iter().flatten().any(|v| !v.is_finite()) {
-                return Err(check.fail(&format!("trajectories[{i}].waypoints"), "must be finite"));
-            }
-        }
+        self.resolved = check_methods_and_trajectories(
+            check,
+            dir,
+            &self.methods,
+            &self.reference,
+            &self.trajectories,
+        )?;
         for (i, row) in self.paper.iter().enumerate() {
             check.fraction(&format!("paper[{i}].ball_unknown"), row.ball_unknown)?;
             check.fraction(&format!("paper[{i}].target_ball_unknown"), row.target_ball_unknown)?;

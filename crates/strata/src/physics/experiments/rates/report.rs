@@ -7,7 +7,7 @@ use anyhow::Result;
 use super::{RunResult, Scenario, Summary};
 use crate::experiments::Ctx;
 use crate::experiments::plot::Bars;
-use crate::experiments::rates::LayerSummary;
+use crate::experiments::rates::{LayerSummary, load_label, report_layers};
 use crate::experiments::report::{Markdown, num, verdict, write_csv};
 use crate::experiments::stats::Estimate;
 
@@ -26,11 +26,6 @@ pub(super) fn write_outputs(
         figures.push((layer, plot_layer(scenario, ctx, s, layer)?));
     }
     write_report(scenario, ctx, s, &figures)
-}
-
-/// How a load per deliberative cycle is named in figures and tables.
-fn load_label(load: f64) -> String {
-    if load == 0.0 { "no load".to_owned() } else { format!("+{:.0} ms load", load * 1000.0) }
 }
 
 fn find<'a>(
@@ -232,7 +227,7 @@ fn write_report(
     report_setup(scenario, s, &mut md);
     report_targets(s, &mut md);
     report_table6(scenario, s, &mut md);
-    report_layers(s, &mut md);
+    report_layers(&s.layers, &mut md);
     report_robots(s, &mut md);
     report_sim(s, &mut md);
     md.heading("Figures");
@@ -471,45 +466,6 @@ fn report_table6(scenario: &Scenario, s: &Summary, md: &mut Markdown) {
          T1's perception, world modeling and reactive layer follow the server's 20 ms cycle \
          (50 Hz); the 2D simulator's sensors run at the NAO's 83 Hz; the paper's robot was a \
          NAO with a 500 MHz processor.",
-    );
-}
-
-fn report_layers(s: &Summary, md: &mut Markdown) {
-    md.heading("Every layer");
-    let rows: Vec<Vec<String>> = s
-        .layers
-        .iter()
-        .map(|l| {
-            vec![
-                l.role.clone(),
-                l.layer.clone(),
-                load_label(l.load_s),
-                l.max_hz.show(1.0, 2),
-                l.mean_hz.show(1.0, 2),
-                l.min_hz.show(1.0, 2),
-                l.compute_p50_ms.show(1.0, 2),
-                l.compute_p99_ms.show(1.0, 2),
-                l.period_p50_ms.show(1.0, 1),
-                l.period_p99_ms.show(1.0, 1),
-                l.jitter_p99_ms.show(1.0, 1),
-            ]
-        })
-        .collect();
-    md.table(
-        &[
-            "role",
-            "layer",
-            "condition",
-            "max Hz",
-            "mean Hz",
-            "min Hz",
-            "compute p50 (ms)",
-            "compute p99 (ms)",
-            "period p50 (ms)",
-            "period p99 (ms)",
-            "jitter p99 (ms)",
-        ],
-        &rows,
     );
 }
 
