@@ -149,6 +149,25 @@ pub struct LayerFigures {
     pub jitter_p99_ms: f64,
 }
 
+impl LayerFigures {
+    /// The columns of `runs.csv` after the run's and robot's (2D and physics alike).
+    pub(crate) fn csv_fields(&self) -> [String; 11] {
+        [
+            self.cycles.to_string(),
+            num(self.min_hz),
+            num(self.mean_hz),
+            num(self.max_hz),
+            num(self.compute_p50_ms),
+            num(self.compute_p99_ms),
+            num(self.compute_max_ms),
+            num(self.period_p50_ms),
+            num(self.period_p99_ms),
+            num(self.period_max_ms),
+            num(self.jitter_p99_ms),
+        ]
+    }
+}
+
 pub fn layer_figures(m: &ModuleStats) -> LayerFigures {
     LayerFigures {
         cycles: m.cycles,
@@ -511,6 +530,29 @@ pub struct LayerSummary {
     pub jitter_p99_ms: Estimate,
 }
 
+impl LayerSummary {
+    /// One layer's figures over runs (the 2D and the physics experiments).
+    pub(crate) fn of(role: &str, layer: &str, load_s: f64, figures: &[&LayerFigures]) -> Self {
+        let e = |f: &dyn Fn(&LayerFigures) -> f64| {
+            Estimate::of(&figures.iter().map(|x| f(x)).collect::<Vec<_>>())
+        };
+        LayerSummary {
+            role: role.to_owned(),
+            layer: layer.to_owned(),
+            load_s,
+            runs: figures.len(),
+            min_hz: e(&|x| x.min_hz),
+            mean_hz: e(&|x| x.mean_hz),
+            max_hz: e(&|x| x.max_hz),
+            compute_p50_ms: e(&|x| x.compute_p50_ms),
+            compute_p99_ms: e(&|x| x.compute_p99_ms),
+            period_p50_ms: e(&|x| x.period_p50_ms),
+            period_p99_ms: e(&|x| x.period_p99_ms),
+            jitter_p99_ms: e(&|x| x.jitter_p99_ms),
+        }
+    }
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct Claim {
     pub role: String,
@@ -600,23 +642,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
                 if figures.is_empty() {
                     continue;
                 }
-                let e = |f: &dyn Fn(&LayerFigures) -> f64| {
-                    Estimate::of(&figures.iter().map(|x| f(x)).collect::<Vec<_>>())
-                };
-                layers.push(LayerSummary {
-                    role: robot.role.clone(),
-                    layer: layer.to_owned(),
-                    load_s: *load,
-                    runs: figures.len(),
-                    min_hz: e(&|x| x.min_hz),
-                    mean_hz: e(&|x| x.mean_hz),
-                    max_hz: e(&|x| x.max_hz),
-                    compute_p50_ms: e(&|x| x.compute_p50_ms),
-                    compute_p99_ms: e(&|x| x.compute_p99_ms),
-                    period_p50_ms: e(&|x| x.period_p50_ms),
-                    period_p99_ms: e(&|x| x.period_p99_ms),
-                    jitter_p99_ms: e(&|x| x.jitter_p99_ms),
-                });
+                layers.push(LayerSummary::of(&robot.role, layer, *load, &figures));
             }
         }
     }
@@ -698,26 +724,16 @@ fn write_runs_csv(scenario: &Scenario, ctx: &mut Ctx<'_>, results: &[RunResult])
     for r in results {
         for (i, robot) in r.robots.iter().enumerate() {
             for (layer, f) in robot {
-                rows.push(vec![
+                let mut row = vec![
                     num(r.load),
                     r.run.to_string(),
                     r.seed.to_string(),
                     scenario.robots.get(i).map_or(String::new(), |x| x.role.clone()),
                     layer.clone(),
-                    f.cycles.to_string(),
-                    num(f.min_hz),
-                    num(f.mean_hz),
-                    num(f.max_hz),
-                    num(f.compute_p50_ms),
-                    num(f.compute_p99_ms),
-                    num(f.compute_max_ms),
-                    num(f.period_p50_ms),
-                    num(f.period_p99_ms),
-                    num(f.period_max_ms),
-                    num(f.jitter_p99_ms),
-                    num(r.wall_s),
-                    r.machine_load.map_or(String::new(), num),
-                ]);
+                ];
+                row.extend(f.csv_fields());
+                row.extend([num(r.wall_s), r.machine_load.map_or(String::new(), num)]);
+                rows.push(row);
             }
         }
     }

@@ -649,23 +649,7 @@ fn summarize(
                 if figures.is_empty() {
                     continue;
                 }
-                let e = |f: &dyn Fn(&LayerFigures) -> f64| {
-                    Estimate::of(&figures.iter().map(|x| f(x)).collect::<Vec<_>>())
-                };
-                layers.push(LayerSummary {
-                    role: spec.role.clone(),
-                    layer: layer.to_owned(),
-                    load_s: *load,
-                    runs: figures.len(),
-                    min_hz: e(&|x| x.min_hz),
-                    mean_hz: e(&|x| x.mean_hz),
-                    max_hz: e(&|x| x.max_hz),
-                    compute_p50_ms: e(&|x| x.compute_p50_ms),
-                    compute_p99_ms: e(&|x| x.compute_p99_ms),
-                    period_p50_ms: e(&|x| x.period_p50_ms),
-                    period_p99_ms: e(&|x| x.period_p99_ms),
-                    jitter_p99_ms: e(&|x| x.jitter_p99_ms),
-                });
+                layers.push(LayerSummary::of(&spec.role, layer, *load, &figures));
             }
             robots.push(robot_summary(spec, *load, &runs_of));
         }

@@ -55,25 +55,16 @@ fn write_layers_csv(scenario: &Scenario, ctx: &mut Ctx<'_>, results: &[RunResult
     for r in results {
         for (spec, robot) in scenario.robots.iter().zip(&r.robots) {
             for (layer, f) in &robot.layers {
-                rows.push(vec![
+                let mut row = vec![
                     num(r.load),
                     r.run.to_string(),
                     r.seed.to_string(),
                     spec.role.clone(),
                     spec.player.to_string(),
                     layer.clone(),
-                    f.cycles.to_string(),
-                    num(f.min_hz),
-                    num(f.mean_hz),
-                    num(f.max_hz),
-                    num(f.compute_p50_ms),
-                    num(f.compute_p99_ms),
-                    num(f.compute_max_ms),
-                    num(f.period_p50_ms),
-                    num(f.period_p99_ms),
-                    num(f.period_max_ms),
-                    num(f.jitter_p99_ms),
-                ]);
+                ];
+                row.extend(f.csv_fields());
+                rows.push(row);
             }
         }
     }
