@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::cli::{run, stderr, strata, temp_dir};
+use common::cli::{physics_experiment, rcssservermj_installed};
 
 /// Two pushes (front, back) of one robot, then one robot chasing the ball for 15 s; the 2D
 /// experiment is not run (its figures come from the docs).
@@ -64,33 +64,10 @@ fn figure(value: &serde_json::Value, pointer: &str) -> f64 {
 
 #[test]
 fn pushed_t1s_fall_are_caught_by_the_reactive_layer_and_the_report_says_so() {
-    if strata_rcssmj::server::find_server().is_none() {
-        assert!(
-            std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none(),
-            "STRATA_REQUIRE_RCSSSERVERMJ is set but rcssservermj is not installed"
-        );
-        eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
+    if !rcssservermj_installed() {
         return;
     }
-    let dir = temp_dir("rcss-fall");
-    let scenario = dir.join("fall.toml");
-    std::fs::write(&scenario, SCENARIO).expect("the scenario is written");
-    let out = dir.join("out");
-    let output = run(&mut strata(&[
-        "experiment",
-        "fall",
-        "--engine",
-        "rcssservermj",
-        "--scenario",
-        scenario.to_str().expect("a UTF-8 path"),
-        "--json",
-        "--out",
-        out.to_str().expect("a UTF-8 path"),
-    ]));
-    let errors = stderr(&output);
-    assert!(output.status.success(), "the experiment failed: {errors}");
-    let summary: serde_json::Value =
-        serde_json::from_slice(&output.stdout).expect("--json prints one JSON object");
+    let (out, summary) = physics_experiment("fall", SCENARIO, &[]);
     println!("{}", serde_json::to_string_pretty(&summary).unwrap_or_default());
 
     assert_eq!(summary["engine"], "rcssservermj");
@@ -133,5 +110,5 @@ fn pushed_t1s_fall_are_caught_by_the_reactive_layer_and_the_report_says_so() {
     }
     let falls = std::fs::read_to_string(out.join("falls.csv")).expect("falls.csv");
     assert!(falls.lines().any(|l| l.contains("push front") || l.contains("push back")), "{falls}");
-    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(out.parent().unwrap_or(&out));
 }

@@ -8,20 +8,7 @@
 
 mod common;
 
-use common::cli::{run, stderr, strata};
-use strata_rcssmj::server::find_server;
-
-fn server_installed() -> bool {
-    let installed = find_server().is_some_and(|p| p.is_file());
-    if !installed {
-        assert!(
-            std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none(),
-            "rcssservermj is required (STRATA_REQUIRE_RCSSSERVERMJ) but not installed"
-        );
-        eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
-    }
-    installed
-}
+use common::cli::{physics_experiment, rcssservermj_installed};
 
 /// One method, one rate, one 2.4 m trajectory: about 12 s of play.
 const SCENARIO: &str = r#"
@@ -53,27 +40,10 @@ target_ball_unknown = 0.03
 
 #[test]
 fn the_keeper_runs_in_physics_and_its_ball_perception_is_reported() {
-    if !server_installed() {
+    if !rcssservermj_installed() {
         return;
     }
-    let dir = common::cli::temp_dir("goal-covering-3d");
-    let scenario = dir.join("goal-covering.toml");
-    std::fs::write(&scenario, SCENARIO).expect("a scenario file");
-    let out = dir.join("out");
-    let output = run(&mut strata(&[
-        "experiment",
-        "goal-covering",
-        "--engine",
-        "rcssservermj",
-        "--scenario",
-        scenario.to_str().expect("a UTF-8 path"),
-        "--out",
-        out.to_str().expect("a UTF-8 path"),
-        "--json",
-    ]));
-    assert!(output.status.success(), "the experiment failed: {}", stderr(&output));
-    let summary: serde_json::Value =
-        serde_json::from_slice(&output.stdout).expect("--json prints one JSON object");
+    let (out, summary) = physics_experiment("goal-covering", SCENARIO, &[]);
     println!("{summary:#}");
     let runs = summary["runs"].as_array().expect("runs");
     assert_eq!(runs.len(), 1);

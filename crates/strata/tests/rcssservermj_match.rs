@@ -7,24 +7,11 @@
 
 mod common;
 
-use common::cli::{run, stderr, strata};
-use strata_rcssmj::server::find_server;
-
-fn server_installed() -> bool {
-    let installed = find_server().is_some_and(|p| p.is_file());
-    if !installed {
-        assert!(
-            std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none(),
-            "rcssservermj is required (STRATA_REQUIRE_RCSSSERVERMJ) but not installed"
-        );
-        eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
-    }
-    installed
-}
+use common::cli::{physics_experiment, rcssservermj_installed, run, stderr, strata};
 
 #[test]
 fn a_short_game_plays_both_halves_and_reports_like_a_2d_match() {
-    if !server_installed() {
+    if !rcssservermj_installed() {
         return;
     }
     let output = run(&mut strata(&[
@@ -109,32 +96,15 @@ fn options_of_the_built_in_simulator_are_refused_with_the_option_named() {
 
 #[test]
 fn the_team_experiment_plays_its_games_in_physics_beside_the_2d_ones() {
-    if !server_installed() {
+    if !rcssservermj_installed() {
         return;
     }
-    let dir = common::cli::temp_dir("team-3d");
-    let scenario = dir.join("team.toml");
-    std::fs::write(
-        &scenario,
+    let (out, summary) = physics_experiment(
+        "team",
         "players = 1\nhalf = 8.0\nruns = 1\nreference = \"full\"\n\
          baseline = \"no-coordination\"\nfield_2d = \"spl\"\n",
-    )
-    .expect("a scenario file");
-    let out = dir.join("out");
-    let output = run(&mut strata(&[
-        "experiment",
-        "team",
-        "--engine",
-        "rcssservermj",
-        "--scenario",
-        scenario.to_str().expect("a UTF-8 path"),
-        "--out",
-        out.to_str().expect("a UTF-8 path"),
-        "--json",
-    ]));
-    assert!(output.status.success(), "the experiment failed: {}", stderr(&output));
-    let summary: serde_json::Value =
-        serde_json::from_slice(&output.stdout).expect("--json prints one JSON object");
+        &[],
+    );
     println!("{summary:#}");
     let games = summary["games"].as_array().expect("games");
     assert_eq!(games.len(), 1);

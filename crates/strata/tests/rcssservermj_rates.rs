@@ -12,7 +12,7 @@ mod common;
 
 use std::collections::BTreeSet;
 
-use common::cli::{run, stderr, strata, temp_dir};
+use common::cli::{physics_experiment, rcssservermj_installed};
 
 const SCENARIO: &str = r#"
 description = "a short rates run for the tests"
@@ -40,19 +40,6 @@ beam = [-3.0, 0.0, 0.0]
 
 const LAYERS: [&str; 5] = ["reactive", "deliberative", "planning", "perception", "world"];
 
-fn installed() -> bool {
-    if strata_rcssmj::server::find_server().is_some() {
-        return true;
-    }
-    assert!(
-        std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none(),
-        "rcssservermj is not installed (scripts/setup-rcssservermj) and \
-         STRATA_REQUIRE_RCSSSERVERMJ is set"
-    );
-    eprintln!("rcssservermj is not installed (scripts/setup-rcssservermj): test skipped");
-    false
-}
-
 fn number(value: &serde_json::Value, pointer: &str) -> f64 {
     value
         .pointer(pointer)
@@ -79,29 +66,10 @@ fn layer<'a>(
 
 #[test]
 fn rates_in_physics_measure_every_layer_of_every_robot_under_both_conditions() {
-    if !installed() {
+    if !rcssservermj_installed() {
         return;
     }
-    let dir = temp_dir("rates-rcssservermj");
-    let scenario = dir.join("rates.toml");
-    std::fs::write(&scenario, SCENARIO).expect("the scenario is written");
-    let out = dir.join("out");
-    let output = run(&mut strata(&[
-        "experiment",
-        "rates",
-        "--engine",
-        "rcssservermj",
-        "--scenario",
-        scenario.to_str().expect("a UTF-8 path"),
-        "--runs",
-        "1",
-        "--json",
-        "--out",
-        out.to_str().expect("a UTF-8 path"),
-    ]));
-    assert!(output.status.success(), "the experiment failed: {}", stderr(&output));
-    let summary: serde_json::Value =
-        serde_json::from_slice(&output.stdout).expect("--json prints one JSON object");
+    let (out, summary) = physics_experiment("rates", SCENARIO, &["--runs", "1"]);
     println!("{summary:#}");
     assert_eq!(summary["engine"], "rcssservermj");
 
@@ -182,5 +150,5 @@ fn rates_in_physics_measure_every_layer_of_every_robot_under_both_conditions() {
     let report = std::fs::read_to_string(out.join("report.md")).expect("report.md");
     assert!(report.contains("## Targets") && report.contains("--engine rcssservermj"), "{report}");
     assert!(!out.join("team-load-0.8.toml").exists(), "the team files are cleaned up");
-    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(out.parent().unwrap_or(&out));
 }
