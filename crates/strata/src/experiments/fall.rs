@@ -29,7 +29,7 @@ use strata_soccer::team::TeamConfig;
 
 use super::plot::{Bars, Panel, Series, Stack};
 use super::report::{Markdown, num, pct, verdict, write_csv};
-use super::stats::{Estimate, percentile};
+use super::stats::{Distribution, Estimate, percentile};
 use super::{
     Check, Ctx, ExperimentLog, HostKind, ScenarioError, Scene, SceneRobot, Validate, parallel,
 };
@@ -593,27 +593,6 @@ fn run_one(
 
 // ---------------------------------------------------------------------------------------------
 // The experiment.
-
-#[derive(Clone, Debug, Serialize)]
-pub struct Distribution {
-    pub n: usize,
-    pub median: f64,
-    pub p95: f64,
-    pub max: f64,
-    pub mean: f64,
-}
-
-impl Distribution {
-    fn of(values: &[f64]) -> Distribution {
-        Distribution {
-            n: values.len(),
-            median: percentile(values, 0.5),
-            p95: percentile(values, 0.95),
-            max: values.iter().copied().fold(f64::NAN, f64::max),
-            mean: super::stats::mean(values),
-        }
-    }
-}
 
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {

@@ -159,3 +159,27 @@ mod tests {
         assert!(fraction_true([]).is_nan());
     }
 }
+
+/// A within-run sample's spread: count, median, 95th percentile, extremes and mean.
+#[derive(Clone, Debug, Serialize)]
+pub struct Distribution {
+    pub n: usize,
+    pub median: f64,
+    pub p95: f64,
+    pub min: f64,
+    pub max: f64,
+    pub mean: f64,
+}
+
+impl Distribution {
+    pub fn of(values: &[f64]) -> Distribution {
+        Distribution {
+            n: values.len(),
+            median: percentile(values, 0.5),
+            p95: percentile(values, 0.95),
+            min: values.iter().copied().fold(f64::NAN, f64::min),
+            max: values.iter().copied().fold(f64::NAN, f64::max),
+            mean: mean(values),
+        }
+    }
+}

@@ -29,7 +29,7 @@ use strata_rcssmj::protocol::monitor::{
 use strata_rcssmj::server::{ServerOptions, ServerProcess};
 
 use crate::experiments::fall as fall2d;
-use crate::experiments::stats::{Estimate, mean, percentile};
+use crate::experiments::stats::{Distribution, Estimate, mean, percentile};
 use crate::experiments::{
     Check, Ctx, HostKind, Options, ScenarioError, Validate, load_average, parse_scenario,
 };
@@ -849,29 +849,6 @@ fn run_walking(
 
 // ---------------------------------------------------------------------------------------------
 // The experiment.
-
-#[derive(Clone, Debug, Serialize)]
-pub struct Distribution {
-    pub n: usize,
-    pub median: f64,
-    pub p95: f64,
-    pub min: f64,
-    pub max: f64,
-    pub mean: f64,
-}
-
-impl Distribution {
-    fn of(values: &[f64]) -> Distribution {
-        Distribution {
-            n: values.len(),
-            median: percentile(values, 0.5),
-            p95: percentile(values, 0.95),
-            min: values.iter().copied().fold(f64::NAN, f64::min),
-            max: values.iter().copied().fold(f64::NAN, f64::max),
-            mean: mean(values),
-        }
-    }
-}
 
 /// A target, what was measured against it, and whether it is met.
 #[derive(Clone, Debug, Serialize)]

@@ -4,11 +4,12 @@
 use anyhow::Result;
 use strata_rcssmj::falls::{FALL_ONSET_TILT, UPRIGHT_HOLD};
 
-use super::{Distribution, Fall, Push, PushMethod, RunResult, Scenario, Summary, Target};
+use super::{Fall, Push, PushMethod, RunResult, Scenario, Summary, Target};
 use crate::experiments::Ctx;
 use crate::experiments::describe_load;
 use crate::experiments::plot::{Bars, Panel, Series, Stack};
 use crate::experiments::report::{Markdown, num, write_csv};
+use crate::experiments::stats::Distribution;
 use crate::experiments::stats::Estimate;
 
 fn opt(v: Option<f64>) -> String {
