@@ -541,15 +541,9 @@ impl HalfRun<'_> {
             progress((t / total).clamp(0.0, 1.0), &line);
             let over = game.play_mode == Some(PlayMode::GameOver);
             if over || played >= self.play + 0.5 {
-                let goals = [0, 1].map(|i| {
-                    let (side, goals) = if self.left.index == i {
-                        (self.left, score.0)
-                    } else {
-                        (self.right, score.1)
-                    };
-                    debug_assert_eq!(side.index, i);
-                    u8::try_from(goals).unwrap_or(u8::MAX)
-                });
+                let mut goals = [0u8; 2];
+                goals[self.left.index] = u8::try_from(score.0).unwrap_or(u8::MAX);
+                goals[self.right.index] = u8::try_from(score.1).unwrap_or(u8::MAX);
                 return Ok(HalfReport {
                     half: self.half + 1,
                     left: self.left.config.name.clone(),
@@ -568,9 +562,9 @@ impl HalfRun<'_> {
     fn describe(&self, mode: PlayMode) -> String {
         let name = mode.as_str();
         let lower = name.to_ascii_lowercase();
-        let side = if lower.ends_with("_left") || lower.ends_with("left") {
+        let side = if lower.ends_with("left") {
             Some(self.left)
-        } else if lower.ends_with("_right") || lower.ends_with("right") {
+        } else if lower.ends_with("right") {
             Some(self.right)
         } else {
             None
