@@ -12,7 +12,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
-use strata_robot::platform::{Detection, ObjectClass};
+use strata_robot::platform::{Detection, Footprint, ObjectClass};
 
 use crate::kinematics::{CameraPose, polar_to_camera};
 
@@ -26,6 +26,10 @@ pub struct DetectorRange {
     pub near_probability: f64,
     pub far_probability: f64,
 }
+
+/// How far inside the image's upper and lower edges an object must be to count as surely in
+/// view, degrees: objects at the border are often missed without being absent.
+const EDGE_MARGIN_DEG: f64 = 3.0;
 
 /// The camera and detector the platform simulates on top of the server's ideal vision.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -205,6 +209,31 @@ impl CameraModel {
             .fold(0.0, f64::max)
     }
 
+    /// The stretch of ground the image covers along its optical axis, from the torso: a T1
+    /// looking at its feet sees about 2 m ahead, one looking ahead nothing nearer than about
+    /// 1 m. World modeling expects to see only what lies inside it.
+    pub fn footprint(&self, pose: &CameraPose) -> Footprint {
+        let half_v = (self.config.vertical_fov_deg / 2.0 - EDGE_MARGIN_DEG).max(0.0).to_radians();
+        let reach = self.max_range();
+        let origin = pose.camera_to_ground([0.0; 3]);
+        // Where a ray of the image's centre column at `elevation` meets the ground, if it does.
+        let ground = |elevation: f64| -> Option<f64> {
+            let p = pose.camera_to_ground(polar_to_camera(1.0, 0.0, elevation));
+            let down = origin[2] - p[2];
+            if origin[2] <= 0.0 || down <= 0.0 {
+                return None;
+            }
+            let t = origin[2] / down;
+            let x = origin[0] + t * (p[0] - origin[0]);
+            let y = origin[1] + t * (p[1] - origin[1]);
+            Some(x.hypot(y))
+        };
+        let far = ground(half_v).map_or(reach, |d| d.min(reach));
+        // A lower edge that never meets the ground (the camera looks up): no ground in view.
+        let near = ground(-half_v).map_or(far, |d| d.min(far));
+        Footprint { near, far }
+    }
+
     fn range_of(&self, kind: DetectorKind) -> DetectorRange {
         match kind {
             DetectorKind::Ball => self.config.ball,
@@ -381,6 +410,31 @@ mod tests {
         // Beside the robot, the ball is seen.
         let beside = [marker(DetectorKind::Robot, 2.0, 0.0), marker(DetectorKind::Ball, 5.0, 15.0)];
         assert_eq!(occluding.detect(&level(), 0.0, &beside).len(), 2);
+    }
+
+    #[test]
+    fn the_footprint_follows_the_head_pitch() {
+        let camera = CameraModel::new(CameraConfig::default(), 1);
+        let pitched = |pitch: f64| {
+            let pose = CameraPose::new(NeckGeometry::T1, 0.0, pitch, Quaternion::IDENTITY, 0.67);
+            camera.footprint(&pose)
+        };
+        // Looking ahead: the horizon is in the image, the feet are not.
+        let ahead = pitched(0.0);
+        assert_eq!(ahead.far, camera.max_range());
+        assert!(ahead.near > 1.0 && ahead.near < 3.0, "{ahead:?}");
+        // Looking down as far as the neck goes: a ball within kicking reach is in view, the far
+        // field is not.
+        let down = pitched(1.2);
+        assert!(down.near < 0.2, "{down:?}");
+        assert!(down.far > 1.0 && down.far < 3.0, "{down:?}");
+        // Halfway: both edges in between.
+        let half = pitched(0.5);
+        assert!(half.near > down.near && half.near < ahead.near, "{half:?}");
+        assert!(half.far > down.far, "{half:?}");
+        // Looking up with the torso on its back: no ground at all.
+        let up = pitched(-1.5);
+        assert_eq!(up.near, up.far, "{up:?}");
     }
 
     #[test]

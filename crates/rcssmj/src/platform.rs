@@ -734,6 +734,7 @@ fn cycle(
             stamp: Time::ZERO,
             head,
             detections: session.camera.detect(&pose, head.yaw, &sightings),
+            footprint: Some(session.camera.footprint(&pose)),
         }
     });
     let frame = SensorFrame {

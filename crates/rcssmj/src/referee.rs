@@ -6,7 +6,8 @@
 //!
 //! | rcssservermj | GameController |
 //! |---|---|
-//! | `BeforeKickOff`, `Goal_Left/Right` | Ready (robots take their kick-off positions) |
+//! | `BeforeKickOff` | Ready, the left team kicking off (as `strata match` starts each half) |
+//! | `Goal_Left/Right` | Ready, the team that conceded kicking off |
 //! | `KickOff_Left/Right` | Playing, that team kicking off |
 //! | `PlayOn` | Playing |
 //! | `KickIn_*` | Playing, set play kick-in |
@@ -79,7 +80,8 @@ pub fn control_data(
         FieldSide::Right => right,
     };
     let (state, set_play, kicking) = match game.play_mode {
-        None | Some(PlayMode::BeforeKickOff) => (GameState::Ready, SetPlay::None, None),
+        None => (GameState::Ready, SetPlay::None, None),
+        Some(PlayMode::BeforeKickOff) => (GameState::Ready, SetPlay::None, Some(FieldSide::Left)),
         Some(PlayMode::GoalLeft) => (GameState::Ready, SetPlay::None, Some(FieldSide::Right)),
         Some(PlayMode::GoalRight) => (GameState::Ready, SetPlay::None, Some(FieldSide::Left)),
         Some(PlayMode::GameOver) => (GameState::Finished, SetPlay::None, None),
@@ -235,6 +237,8 @@ mod tests {
         assert_eq!(data.state, GameState::Ready);
         assert_eq!(data.teams[0].team_number, 10);
         assert_eq!(data.teams[0].score, 2);
+        // The left team takes the game's kick-off: its kicker walks to the ball.
+        assert_eq!(data.kicking_team, Some(10));
         // Listed first in the first half: we attack +x, as the server's left team does.
         assert!(data.first_half);
 

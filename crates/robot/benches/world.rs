@@ -76,7 +76,8 @@ fn frames(n: usize) -> Vec<Percepts> {
     (0..n)
         .map(|k| {
             let t = k as f64 * DT;
-            let view = ViewCone { direction: 2.6 * (t * 1.3).sin(), fov: 1.6, range: 7.0 };
+            let view =
+                ViewCone { direction: 2.6 * (t * 1.3).sin(), fov: 1.6, range: 7.0, near: 0.0 };
             let observations = all
                 .iter()
                 .filter_map(|&(class, m)| {
@@ -164,7 +165,7 @@ fn bench(c: &mut Criterion) {
             black_box(&out);
         })
     });
-    let view = ViewCone { direction: 0.3, fov: 1.0, range: 7.0 };
+    let view = ViewCone { direction: 0.3, fov: 1.0, range: 7.0, near: 0.0 };
     c.bench_function("world/sensing_candidate_and_expected_update", |b| {
         b.iter(|| {
             let candidate = state.sensing_candidate(black_box(&view), 0.1);

@@ -37,8 +37,12 @@ pub struct ViewCone {
     pub direction: f64,
     /// Horizontal field of view, rad.
     pub fov: f64,
-    /// Detection range, m.
+    /// Detection range, m: the detector's, or less where the image's upper edge meets the
+    /// ground sooner.
     pub range: f64,
+    /// Nearest ground distance the image showed, m (0 for a camera that sees the feet).
+    #[serde(default)]
+    pub near: f64,
 }
 
 impl ViewCone {
@@ -52,7 +56,9 @@ impl ViewCone {
     /// them at hand (world modeling computes them for every filter anyway).
     pub fn contains_polar(&self, range: f64, bearing: f64, margin: f64) -> bool {
         let angle = crate::geometry::normalize_angle(bearing - self.direction);
-        range <= self.range && angle.abs() <= (self.fov / 2.0 - margin).max(0.0)
+        range >= self.near
+            && range <= self.range
+            && angle.abs() <= (self.fov / 2.0 - margin).max(0.0)
     }
 }
 

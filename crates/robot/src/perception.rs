@@ -67,7 +67,8 @@ pub fn percepts_from_frame(
             view: ViewCone {
                 direction: camera.head.yaw,
                 fov: info.camera_fov,
-                range: info.camera_range,
+                range: camera.footprint.map_or(info.camera_range, |f| f.far.min(info.camera_range)),
+                near: camera.footprint.map_or(0.0, |f| f.near),
             },
             observations,
         }
@@ -188,6 +189,7 @@ mod tests {
                 stamp: Time::from_nanos(5),
                 head: HeadAngles { yaw: 0.5, pitch: 0.2 },
                 detections: vec![detection(0.2, 2.0), detection(f64::NAN, 1.0)],
+                footprint: None,
             }),
             ..SensorFrame::default()
         };

@@ -82,6 +82,18 @@ pub struct CameraFrame {
     /// Head joint angles when the image was taken (bearings are relative to this gaze).
     pub head: HeadAngles,
     pub detections: Vec<Detection>,
+    /// The stretch of ground the image covered along its axis, for platforms whose camera
+    /// looks down at the ground (a tall robot cannot see its own feet while it looks far, nor
+    /// far while it looks at its feet); `None` when the platform does not model it.
+    #[serde(default)]
+    pub footprint: Option<Footprint>,
+}
+
+/// Ground distances from the robot between which an image could show an object, m.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Footprint {
+    pub near: f64,
+    pub far: f64,
 }
 
 /// Everything the platform measured in one sensor cycle.

@@ -65,7 +65,7 @@ fn the_one_pass_view_update_equals_the_prediction_and_the_expected_update() {
             for (fov, range, min) in
                 [(1.06, 6.0, 0.05), (0.5, 6.0, 0.0), (2.0, 6.0, 0.6), (1.06, 6.0, 1e-13)]
             {
-                let view = ViewCone { direction, fov, range };
+                let view = ViewCone { direction, fov, range, near: 0.0 };
                 check(world, &mut within, &view, min);
                 check(world, &mut other, &view, min);
                 check(world, &mut bare, &view, min);
@@ -100,7 +100,7 @@ fn priors_left_out_for_a_range_are_those_no_view_of_it_observes() {
             for step in -80..=80 {
                 let direction = f64::from(step) * 0.025;
                 for fov in [1.06, 0.5, 2.0] {
-                    let view = ViewCone { direction, fov, range };
+                    let view = ViewCone { direction, fov, range, near: 0.0 };
                     // Those left out are observed by no view of that range...
                     let mut sensing = SensingCandidate::default();
                     world.sensing_candidate_into(&left_out, &view, min, &mut sensing);
@@ -149,7 +149,8 @@ fn an_update_for_some_objects_has_the_full_updates_pose_and_their_covariances() 
         let mut twice: Vec<ObservationPrior> =
             priors.iter().chain(priors.iter()).copied().collect();
         for step in -40..=40 {
-            let view = ViewCone { direction: f64::from(step) * 0.05, fov: 1.06, range: 6.0 };
+            let view =
+                ViewCone { direction: f64::from(step) * 0.05, fov: 1.06, range: 6.0, near: 0.0 };
             for ids in &sets {
                 check_only(world, &mut priors, &view, ids);
                 check_only(world, &mut twice, &view, ids);
@@ -165,7 +166,7 @@ fn an_object_listed_twice_builds_on_its_first_observation_as_in_the_expected_upd
     world.observation_priors_within_into(6.0, &mut priors);
     let twice: Vec<ObservationPrior> = priors.iter().chain(priors.iter()).copied().collect();
     for direction in [-1.5, -0.4, 0.0, 0.9, 2.0] {
-        let view = ViewCone { direction, fov: 1.06, range: 6.0 };
+        let view = ViewCone { direction, fov: 1.06, range: 6.0, near: 0.0 };
         let mut sensing = SensingCandidate::default();
         world.sensing_candidate_into(&twice, &view, 0.05, &mut sensing);
         let belief = world.expected_update(&sensing);
@@ -206,6 +207,7 @@ fn an_evaluation_into_a_used_report_is_a_fresh_evaluation() {
             .map(|i| GazeCandidate {
                 label: format!("{tag}{i}"),
                 direction: -2.2 + 4.4 * i as f64 / n as f64,
+                footprint: None,
             })
             .collect()
     };
@@ -229,7 +231,7 @@ fn candidates_looked_at_from_the_same_limit_are_evaluated_as_each_alone() {
     let gazes: Vec<GazeCandidate> = directions
         .iter()
         .enumerate()
-        .map(|(i, d)| GazeCandidate { label: format!("g{i}"), direction: *d })
+        .map(|(i, d)| GazeCandidate { label: format!("g{i}"), direction: *d, footprint: None })
         .collect();
     let mut vision = ActiveVision::new(ActiveVisionConfig::default());
     for world in &states {

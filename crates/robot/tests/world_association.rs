@@ -117,7 +117,7 @@ fn percepts(t: f64, observations: Vec<Observation>) -> Percepts {
         stamp,
         camera: Some(CameraPercepts {
             stamp,
-            view: ViewCone { direction: 0.0, fov: 1.0, range: 6.0 },
+            view: ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 },
             observations,
         }),
         ..Percepts::default()

@@ -27,7 +27,7 @@ fn frame(t: f64, direction: f64, ball: Option<Point<strata_robot::geometry::Robo
         stamp,
         camera: Some(CameraPercepts {
             stamp,
-            view: ViewCone { direction, fov: 1.0, range: 6.0 },
+            view: ViewCone { direction, fov: 1.0, range: 6.0, near: 0.0 },
             observations,
         }),
         ..Percepts::default()

@@ -57,7 +57,11 @@ fn pose_update_with_a_landmark_to_the_left_matches_hand_computation() {
 }
 
 fn frame(stamp: Time, direction: f64, observations: Vec<Observation>) -> CameraPercepts {
-    CameraPercepts { stamp, view: ViewCone { direction, fov: 1.0, range: 6.0 }, observations }
+    CameraPercepts {
+        stamp,
+        view: ViewCone { direction, fov: 1.0, range: 6.0, near: 0.0 },
+        observations,
+    }
 }
 
 fn observation(
@@ -179,8 +183,8 @@ fn predicted_observation_and_sensing_candidate_follow_the_view() {
     let (world, _) = tracked_world();
     let state = world.state();
     let ball = world.object_id("ball").expect("configured");
-    let ahead = ViewCone { direction: 0.0, fov: 1.0, range: 6.0 };
-    let behind = ViewCone { direction: std::f64::consts::PI, fov: 1.0, range: 9.0 };
+    let ahead = ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 };
+    let behind = ViewCone { direction: std::f64::consts::PI, fov: 1.0, range: 9.0, near: 0.0 };
     let seen = state.predicted_observation(ball, &ahead).expect("the ball is tracked");
     assert!(seen.in_view && seen.visibility > 0.8, "{seen:?}");
     let unseen = state.predicted_observation(ball, &behind).expect("the ball is tracked");

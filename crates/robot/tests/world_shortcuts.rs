@@ -34,7 +34,7 @@ fn state() -> WorldState {
             range_sigma: 0.1,
             bearing_sigma: 0.03,
         }];
-        let view = ViewCone { direction: 0.0, fov: 1.0, range: 6.0 };
+        let view = ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 };
         let camera = Some(CameraPercepts { stamp, view, observations });
         world.process(Odometry::ZERO, &Percepts { stamp, camera, ..Percepts::default() });
     }
@@ -98,7 +98,7 @@ fn sensing_candidates_from_shared_priors_match_per_object_predictions() {
     let mut reused = SensingCandidate::default();
     for direction in [-2.0, -0.7, 0.0, 0.3, 1.1, 2.0] {
         for (fov, range, min_visibility) in [(1.06, 6.0, 0.05), (0.5, 3.0, 0.0), (2.0, 9.0, 0.5)] {
-            let view = ViewCone { direction, fov, range };
+            let view = ViewCone { direction, fov, range, near: 0.0 };
             let expected = plain_sensing_candidate(&world, &view, min_visibility).observations;
             assert_eq!(world.sensing_candidate(&view, min_visibility).observations, expected);
             world.sensing_candidate_into(&priors, &view, min_visibility, &mut reused);
@@ -171,7 +171,7 @@ fn published_confidences_are_worked_out_afresh_after_any_change() {
             2 => world.note_frame_without_image(&Percepts::default()),
             3 => world.update(&CameraPercepts {
                 stamp: Time::from_secs_f64(sim.time + 0.7 * DT),
-                view: ViewCone { direction: sim.head_yaw(), fov: sim.fov, range: 6.0 },
+                view: ViewCone { direction: sim.head_yaw(), fov: sim.fov, range: 6.0, near: 0.0 },
                 observations: Vec::new(),
             }),
             4 if frame == 100 => {

@@ -19,7 +19,7 @@ fn ball_percepts(t: f64, ball: Point<Field>) -> Percepts {
         stamp,
         camera: Some(CameraPercepts {
             stamp,
-            view: ViewCone { direction: 0.0, fov: 1.0, range: 6.0 },
+            view: ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 },
             observations: vec![Observation {
                 class: BALL,
                 variant: None,

@@ -74,7 +74,7 @@ fn world(field: &TeamField) -> WorldState {
             stamp: Time::from_nanos(frame * 33_000_000),
             camera: Some(CameraPercepts {
                 stamp: Time::from_nanos(frame * 33_000_000),
-                view: ViewCone { direction: 0.0, fov: 1.06, range: 6.0 },
+                view: ViewCone { direction: 0.0, fov: 1.06, range: 6.0, near: 0.0 },
                 observations: vec![
                     observe(ObjectKind::Ball, Point::new(-2.0, 0.8)),
                     observe(ObjectKind::GoalPost, Point::new(4.525, 0.8)),
@@ -190,7 +190,11 @@ fn main() {
     let value = GoalCoveringValue { field: Arc::clone(&field), ball, reach: 0.3 };
     let mut vision = ActiveVision::new(ActiveVisionConfig::default());
     let candidates: Vec<GazeCandidate> = (0..8)
-        .map(|i| GazeCandidate { label: format!("c{i}"), direction: -1.6 + 0.45 * f64::from(i) })
+        .map(|i| GazeCandidate {
+            label: format!("c{i}"),
+            direction: -1.6 + 0.45 * f64::from(i),
+            footprint: None,
+        })
         .collect();
     let evaluation = measure(
         || {
@@ -199,7 +203,7 @@ fn main() {
         batch / 10 + 1,
         rounds,
     );
-    let view = ViewCone { direction: 0.4, fov: 1.06, range: 6.0 };
+    let view = ViewCone { direction: 0.4, fov: 1.06, range: 6.0, near: 0.0 };
     let sensing = world.sensing_candidate(&view, 0.05);
     let update_base = measure(
         || {

@@ -21,7 +21,7 @@ use strata_robot::control::active_vision::{
     ActiveVision, ActiveVisionConfig, ActiveVisionReport, Criterion, GazeCandidate, ValueFunction,
 };
 use strata_robot::control::bt::{
-    Status, Tree, action, condition, reactive_selector, reactive_sequence, sequence,
+    Status, Tree, action, condition, force_failure, reactive_selector, reactive_sequence, sequence,
 };
 use strata_robot::control::deliberative::{
     DeliberativeInput, DeliberativeOutput, DeliberativePolicy,
@@ -39,7 +39,7 @@ use crate::catalog::{GOALKEEPER_NUMBER, Mission, Role};
 use crate::field::TeamField;
 use crate::game::{GameDirective, Kicking};
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
-use crate::primitives::{facing, names};
+use crate::primitives::{MotionModel, facing, names, together_range};
 use crate::situation::{ball, best_instance, obstacle_ahead};
 use crate::value::{GoToBallValue, GoalCoveringValue, PositionValue};
 use crate::world_config::{BALL, landmark_groups};
@@ -114,6 +114,8 @@ pub struct Ctx {
     gaze_looks: Vec<Looks>,
     ball_unknown_since: Option<Time>,
     landmark_groups: Vec<String>,
+    /// The body's camera geometry, for what each gaze candidate would show.
+    motion: Arc<MotionModel>,
 }
 
 impl std::fmt::Debug for Ctx {
@@ -275,13 +277,17 @@ fn gaze_candidates(
 ) {
     looks.clear();
     let mut n = 0;
-    let mut out = |direction: f64, label: &[&str], what: Looks| {
+    // `range`: how far the gazed point is, which sets the head's pitch and so the stretch of
+    // ground the image shows.
+    let mut out = |direction: f64, range: f64, label: &[&str], what: Looks| {
+        let footprint = ctx.motion.footprint(range);
         match gazes.get_mut(n) {
             Some(kept) => {
                 kept.label.clear();
                 kept.direction = direction;
+                kept.footprint = footprint;
             }
-            None => gazes.push(GazeCandidate { label: String::new(), direction }),
+            None => gazes.push(GazeCandidate { label: String::new(), direction, footprint }),
         }
         for part in label {
             gazes[n].label.push_str(part);
@@ -289,11 +295,12 @@ fn gaze_candidates(
         looks.push(what);
         n += 1;
     };
-    let ball_id = world.object(BALL).map(|o| o.id);
+    let ball = world.object(BALL);
+    let ball_id = ball.map(|o| o.id);
     if let Some(id) = ball_id
         && let Some(direction) = GazeCandidate::toward_direction(world, id)
     {
-        out(direction, &[BALL], Looks::Ball);
+        out(direction, ball.map_or(0.0, |b| b.position.range()), &[BALL], Looks::Ball);
     }
     let mut landmarks: Vec<_> = ctx
         .landmark_groups
@@ -303,14 +310,19 @@ fn gaze_candidates(
         .collect();
     landmarks.sort_by(|a, b| a.position.range().total_cmp(&b.position.range()));
     for landmark in landmarks.iter().take(6) {
+        let range = landmark.position.range();
         if let Some(direction) = GazeCandidate::toward_direction(world, landmark.id) {
-            out(direction, &[landmark.name.as_str()], Looks::Landmark);
+            out(direction, range, &[landmark.name.as_str()], Looks::Landmark);
         }
-        if let Some(ball) = ball_id
-            && let Some(direction) =
-                GazeCandidate::covering_direction(world, [ball, landmark.id], ctx.config.fov * 0.8)
+        if let Some(ball) = ball
+            && let Some(direction) = GazeCandidate::covering_direction(
+                world,
+                [ball.id, landmark.id],
+                ctx.config.fov * 0.8,
+            )
         {
-            out(direction, &[BALL, "+", landmark.name.as_str()], Looks::Together);
+            let aim = together_range([ball.position.range(), range]);
+            out(direction, aim, &[BALL, "+", landmark.name.as_str()], Looks::Together);
         }
     }
     gazes.truncate(n);
@@ -395,6 +407,7 @@ fn entropy_scores(
                 direction: g.direction.clamp(config.yaw_limits.0, config.yaw_limits.1),
                 fov: config.fov,
                 range: config.range,
+                near: 0.0,
             };
             let candidate = world.sensing_candidate(&view, config.min_visibility);
             let belief = world.expected_update(&candidate);
@@ -462,6 +475,12 @@ fn avoiding_obstacle(ctx: &mut Ctx) -> Status {
     ctx.set_body(BodyGoal::GoToPosition { pose: facing(pose.position(), waypoint) });
     gaze(ctx, None);
     Status::Running
+}
+
+/// The striker localizes only when it is lost and does not see the ball (chasing a seen ball
+/// needs no field pose).
+fn striker_lost(ctx: &Ctx) -> bool {
+    ctx.lost() && !ctx.ball_known()
 }
 
 fn obstacle_in_the_way(ctx: &Ctx) -> bool {
@@ -763,35 +782,44 @@ fn field_player_states(mut builder: Builder<S, Ctx>) -> Builder<S, Ctx> {
         }
         s = match state {
             // The striker's guards are memory sequences: once it searches for the ball (or
-            // localizes, or detours), it keeps at it until its state is left (a role or mission
-            // change) instead of re-checking the guard every tick as goal covering does. Both
-            // were measured against the no-coordination baseline (docs/results.md): reactive
-            // guards lost 15 of 20 games, memory guards won 16 of 20. Why is not understood yet:
-            // a striker searches or detours only a few seconds per game either way.
+            // localizes, or detours), it keeps at it until that behavior says it is done (the
+            // ball seen, the pose found, the way clear) instead of re-checking the guard every
+            // tick as goal covering does, so a ball glimpsed once does not end a search that
+            // would have found it for good. `force_failure` hands a finished guard over to the
+            // next child in the same tick: a finished search is no reason to stand still for a
+            // deliberative cycle.
             S::Striker => s.tree(Tree::new(reactive_selector(
                 "go to ball",
                 [
-                    sequence(
+                    force_failure(sequence(
                         "localizing",
                         [
-                            condition("lost", |ctx: &Ctx| ctx.lost() && !ctx.ball_known()),
-                            action("look for landmarks", |ctx: &mut Ctx, _| localizing(ctx)),
+                            condition("lost", striker_lost),
+                            action("look for landmarks", |ctx: &mut Ctx, _| {
+                                if striker_lost(ctx) { localizing(ctx) } else { Status::Success }
+                            }),
                         ],
-                    ),
-                    sequence(
+                    )),
+                    force_failure(sequence(
                         "searching for object",
                         [
                             condition("ball unknown", |ctx: &Ctx| !ctx.ball_known()),
-                            action("search ball", |ctx: &mut Ctx, _| searching_for_object(ctx)),
+                            action("search ball", |ctx: &mut Ctx, _| {
+                                if ctx.ball_known() {
+                                    Status::Success
+                                } else {
+                                    searching_for_object(ctx)
+                                }
+                            }),
                         ],
-                    ),
-                    sequence(
+                    )),
+                    force_failure(sequence(
                         "avoiding obstacle",
                         [
                             condition("obstacle in the way", obstacle_in_the_way),
                             action("detour", |ctx: &mut Ctx, _| avoiding_obstacle(ctx)),
                         ],
-                    ),
+                    )),
                     action("kick to goal", |ctx: &mut Ctx, _| go_to_ball(ctx)),
                 ],
             ))),
@@ -831,6 +859,7 @@ impl SoccerBehavior {
         field: Arc<TeamField>,
         config: BehaviorConfig,
         vision: ActiveVisionConfig,
+        motion: Arc<MotionModel>,
     ) -> Result<SoccerBehavior, String> {
         let machine = build_machine(player == GOALKEEPER_NUMBER).map_err(|e| format!("{e:?}"))?;
         let groups = landmark_groups(&field);
@@ -852,6 +881,7 @@ impl SoccerBehavior {
                 gaze_looks: Vec::new(),
                 ball_unknown_since: None,
                 landmark_groups: groups,
+                motion,
             },
         })
     }
@@ -919,8 +949,14 @@ mod tests {
     fn behavior(player: u8) -> SoccerBehavior {
         let field =
             Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
-        SoccerBehavior::new(player, field, BehaviorConfig::default(), ActiveVisionConfig::default())
-            .expect("behavior")
+        SoccerBehavior::new(
+            player,
+            field,
+            BehaviorConfig::default(),
+            ActiveVisionConfig::default(),
+            Arc::new(MotionModel::default()),
+        )
+        .expect("behavior")
     }
 
     #[test]
@@ -951,6 +987,83 @@ mod tests {
             assert_eq!(b.machine.active_leaf(), Some(S::Penalized));
             decide(&mut b, role, GameState::Playing, 0.2);
             assert_eq!(b.machine.active_leaf(), Some(leaf), "{role:?} after a penalty");
+        }
+    }
+
+    /// A striker that started searching for the ball ends the search when it sees the ball and
+    /// goes for it in the same deliberative tick, with its role unchanged (a memory guard whose
+    /// action never finished kept a lone striker searching beside the ball for good).
+    #[test]
+    fn a_striker_ends_its_search_when_it_sees_the_ball() {
+        use strata_robot::control::deliberative::{DeliberativeInput, DeliberativePolicy};
+        use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
+        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+        let field =
+            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
+        let mut b = behavior(3);
+        let mut model =
+            WorldModel::new(crate::world_config::world_config(&field)).expect("valid config");
+        let prior = PosePrior { pose: Pose::new(-1.0, 0.0, 0.0), sigma: [0.05, 0.05, 0.02] };
+        model.command(WorldCommand::SetPose { prior }).expect("pose");
+        let decision = Decision {
+            assignment: strata_robot::control::planning::Assignment {
+                mission: Mission::Attack,
+                role: Role::Striker,
+                alone: false,
+            },
+            directive: GameDirective { state: GameState::Playing, ..GameDirective::default() },
+            teammates: Vec::new(),
+            stats: Default::default(),
+        };
+        let ball_class = crate::world_config::world_config(&field)
+            .objects
+            .iter()
+            .find(|o| o.name == BALL)
+            .map(|o| o.class)
+            .expect("a ball class");
+        let mut paths = Vec::new();
+        for k in 0..40u32 {
+            let now = Time::from_secs_f64(0.1 * f64::from(k));
+            // The ball comes into view two seconds in, 1 m ahead.
+            let observations = if k >= 20 {
+                vec![Observation {
+                    class: ball_class,
+                    variant: None,
+                    range: 1.0,
+                    bearing: 0.0,
+                    orientation: None,
+                    range_sigma: 0.05,
+                    bearing_sigma: 0.02,
+                }]
+            } else {
+                Vec::new()
+            };
+            let camera = Some(CameraPercepts {
+                stamp: now,
+                view: ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 },
+                observations,
+            });
+            model.process(
+                strata_robot::geometry::Odometry::default(),
+                &Percepts { stamp: now, camera, ..Percepts::default() },
+            );
+            let world = model.state();
+            let out = b.tick(&DeliberativeInput {
+                now,
+                world: Some(&world),
+                assignment: Some(&decision),
+                stability: Stability::default(),
+            });
+            paths.push((k, out.behavior_path, !out.body.is_empty()));
+        }
+        let searching = |path: &str| path.contains("searching for object");
+        assert!(paths[..20].iter().skip(1).all(|(_, p, _)| searching(p)), "{paths:#?}");
+        let found = paths.iter().position(|(k, p, _)| *k >= 20 && !searching(p));
+        let Some(found) = found else { panic!("the search never ended: {paths:#?}") };
+        assert!(found <= 22, "the search ended only at tick {found}: {paths:#?}");
+        for (_, path, body) in &paths[found..] {
+            assert!(path.ends_with("kick to goal"), "{path}");
+            assert!(body, "no body goal at {path}");
         }
     }
 
@@ -1018,6 +1131,7 @@ mod tests {
             Arc::clone(&field),
             BehaviorConfig::default(),
             ActiveVisionConfig::default(),
+            Arc::new(MotionModel::default()),
         )
         .expect("behavior");
         let mut model =

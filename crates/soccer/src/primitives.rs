@@ -2,6 +2,7 @@
 //! percepts into one command for their resource. They know nothing of the consequences of their
 //! actions; the multiplexers choose among them.
 
+use std::f64::consts::FRAC_PI_2;
 use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
@@ -10,7 +11,7 @@ use strata_robot::control::active_vision::GazeCandidate;
 pub use strata_robot::control::primitives::{HeadSender, Stand, StandUp, WalkSender};
 use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput};
 use strata_robot::geometry::{Point, Pose, Robot, Velocity, normalize_angle};
-use strata_robot::platform::{HeadAngles, SpecialMotion};
+use strata_robot::platform::{Footprint, HeadAngles, SpecialMotion};
 use strata_robot::world::WorldState;
 
 use crate::field::TeamField;
@@ -64,6 +65,11 @@ pub struct MotionModel {
     /// The ball search's head pitch, rad: [centre, amplitude] of its ellipse (a taller robot
     /// looks further down to see the ground at its feet).
     pub ball_search_pitch: [f64; 2],
+    /// The camera's vertical field of view, rad, less a margin at each edge where objects are
+    /// often missed: with the camera height and the gaze's pitch it says which stretch of
+    /// ground a gaze shows ([`MotionModel::footprint`]). 0: not modelled (the 2D simulator's
+    /// camera sees everything within its range).
+    pub vertical_fov: f64,
 }
 
 impl Default for MotionModel {
@@ -84,6 +90,7 @@ impl Default for MotionModel {
             near_gaze_offset: 0.6,
             head_pitch_limits: [-0.6, 0.5],
             ball_search_pitch: [0.15, 0.2],
+            vertical_fov: 0.0,
         }
     }
 }
@@ -93,6 +100,32 @@ impl MotionModel {
     pub fn booster_t1() -> MotionModel {
         // Embedded and checked by a test: it cannot fail at run time.
         toml::from_str(BOOSTER_T1).unwrap_or_default()
+    }
+}
+
+impl MotionModel {
+    /// The stretch of ground a gaze at something `range` metres away shows (from the camera's
+    /// foot, ignoring the torso's lean), for active vision to predict what each gaze would
+    /// see. `None` when the vertical field of view is not modelled.
+    pub fn footprint(&self, range: f64) -> Option<Footprint> {
+        if self.vertical_fov <= 0.0 {
+            return None;
+        }
+        let pitch = gaze_pitch(self, range);
+        let half = self.vertical_fov / 2.0;
+        // Where an edge of the image meets the ground, by its angle below the horizon; an
+        // edge at or above the horizon never does (f64::MAX: a finite "beyond any range").
+        let ground = |depression: f64| {
+            if depression >= FRAC_PI_2 {
+                0.0
+            } else if depression > 0.0 {
+                self.camera_height / depression.tan()
+            } else {
+                f64::MAX
+            }
+        };
+        let far = ground(pitch - half);
+        Some(Footprint { near: ground(pitch + half).min(far), far })
     }
 }
 
@@ -126,7 +159,12 @@ pub fn walk_velocity(model: &MotionModel, target: Point<Robot>, heading: f64) ->
 
 /// Head angles that put a robot-frame point in the middle of the image.
 fn gaze_at(model: &MotionModel, point: Point<Robot>) -> HeadAngles {
-    let range = point.range().max(0.05);
+    HeadAngles { yaw: point.bearing().clamp(-2.0, 2.0), pitch: gaze_pitch(model, point.range()) }
+}
+
+/// The head pitch that keeps an object `range` metres away in view.
+fn gaze_pitch(model: &MotionModel, range: f64) -> f64 {
+    let range = range.max(0.05);
     // Look down at near objects so they stay above the lower edge of the image.
     let pitch = if range < model.near_gaze_range {
         (model.camera_height / range).atan() - model.near_gaze_offset
@@ -134,7 +172,7 @@ fn gaze_at(model: &MotionModel, point: Point<Robot>) -> HeadAngles {
         0.0
     };
     let [up, down] = model.head_pitch_limits;
-    HeadAngles { yaw: point.bearing().clamp(-2.0, 2.0), pitch: pitch.clamp(up, down) }
+    pitch.clamp(up, down)
 }
 
 fn head_command(model: &MotionModel, target: HeadAngles) -> HeadCommand {
@@ -260,6 +298,16 @@ impl LookAtTarget {
     }
 }
 
+/// How far along its direction a gaze at several objects together aims, from their ranges:
+/// at the nearest, which a tall robot must pitch its head down to keep in the image (the
+/// farther ones are nearer the image's centre or beyond its upper edge either way).
+pub fn together_range(ranges: impl IntoIterator<Item = f64>) -> f64 {
+    ranges.into_iter().fold(f64::INFINITY, f64::min).min(TOGETHER_MAX_RANGE)
+}
+
+/// A gaze at objects together aims no farther than this, m.
+const TOGETHER_MAX_RANGE: f64 = 2.0;
+
 /// Where a head goal that is about a place rather than a tracked object looks.
 pub fn look_target(
     field: &TeamField,
@@ -270,12 +318,16 @@ pub fn look_target(
     let pose = world.pose.pose;
     match goal {
         HeadGoal::ObserveTogether { objects } => {
-            let ids: Vec<_> = head_goal_objects(world, goal).iter().map(|o| o.id).collect();
+            let seen = head_goal_objects(world, goal);
+            let ids: Vec<_> = seen.iter().map(|o| o.id).collect();
             if ids.len() != objects.len() {
                 return None;
             }
             let candidate = GazeCandidate::covering(world, &ids, fov * 0.8, "together")?;
-            Some(Point::from_polar(2.0, candidate.direction))
+            Some(Point::from_polar(
+                together_range(seen.iter().map(|o| o.position.range())),
+                candidate.direction,
+            ))
         }
         HeadGoal::ObservePartner { position, .. } => Some(pose.to_robot(*position)),
         HeadGoal::ObserveFieldLine { line } => {
@@ -600,6 +652,21 @@ mod tests {
     use strata_runtime::Time;
 
     use crate::world_config::{BALL, world_config};
+
+    #[test]
+    fn a_t1_gaze_shows_near_or_far_ground_and_a_nao_gaze_all_of_it() {
+        let t1 = MotionModel::booster_t1();
+        // Looking at the ball at its feet: the ball is in the image, the field beyond 3 m not.
+        let Some(down) = t1.footprint(0.25) else { panic!("the T1 models its camera") };
+        assert!(down.near < 0.25 && down.far > 0.5 && down.far < 3.0, "{down:?}");
+        // Looking at a far landmark: the head is level and nothing within 1.5 m is seen.
+        let Some(level) = t1.footprint(10.0) else { panic!("the T1 models its camera") };
+        assert!(level.near > 1.5 && level.far == f64::MAX, "{level:?}");
+        // Looking at two objects together: in between.
+        let Some(together) = t1.footprint(together_range([2.0, 6.0])) else { panic!("modelled") };
+        assert!(together.near > down.near && together.near < level.near, "{together:?}");
+        assert_eq!(MotionModel::default().footprint(0.25), None);
+    }
 
     #[test]
     fn the_t1_looks_down_at_a_ball_at_its_feet_and_the_nao_as_before() {

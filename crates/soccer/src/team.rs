@@ -289,8 +289,13 @@ pub fn add_soccer_robot(
         yaw_limits: info.head_yaw_limits,
         ..ActiveVisionConfig::default()
     };
-    let deliberative =
-        SoccerBehavior::new(spec.player, Arc::clone(&field), config.behavior.clone(), vision)?;
+    let deliberative = SoccerBehavior::new(
+        spec.player,
+        Arc::clone(&field),
+        config.behavior.clone(),
+        vision,
+        Arc::new(config.motion.clone()),
+    )?;
     let planner = Planner::new(
         SoccerPlanning::new((*field).clone(), config.soccer_planning.clone()),
         config.planning.clone(),

@@ -74,7 +74,7 @@ fn states(field: &TeamField) -> Vec<WorldState> {
             Vec::new()
         };
         let stamp = Time::from_nanos(frame * 33_000_000);
-        let view = ViewCone { direction: 0.0, fov: 1.06, range: 6.0 };
+        let view = ViewCone { direction: 0.0, fov: 1.06, range: 6.0, near: 0.0 };
         let camera = Some(CameraPercepts { stamp, view, observations });
         model.process(
             strata_robot::Odometry::ZERO,

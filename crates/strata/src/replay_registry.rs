@@ -87,7 +87,9 @@ pub fn soccer() -> ModuleRegistry {
             yaw_limits: info.head_yaw_limits,
             ..ActiveVisionConfig::default()
         };
-        let policy = SoccerBehavior::new(robot.player, field, team.behavior.clone(), vision)?;
+        let motion = Arc::new(team.motion.clone());
+        let policy =
+            SoccerBehavior::new(robot.player, field, team.behavior.clone(), vision, motion)?;
         let timing = team.timing.resolved();
         let load = Duration::try_from_secs_f64(team.deliberative_load).unwrap_or_default();
         graph.add(spec.name, |p| {

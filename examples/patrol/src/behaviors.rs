@@ -186,7 +186,11 @@ impl Ctx {
         for (id, goal) in targets {
             match world.get(*id) {
                 Some(o) if o.tracked => candidates.push((
-                    GazeCandidate { label: o.name.to_string(), direction: o.position.bearing() },
+                    GazeCandidate {
+                        label: o.name.to_string(),
+                        direction: o.position.bearing(),
+                        footprint: None,
+                    },
                     goal.clone(),
                     o.name.to_string(),
                 )),
@@ -211,6 +215,7 @@ impl Ctx {
                         GazeCandidate {
                             label: o.name.to_string(),
                             direction: o.position.bearing(),
+                            footprint: None,
                         },
                         HeadGoal::ObserveLandmark { name: o.name.to_string() },
                         o.name.to_string(),

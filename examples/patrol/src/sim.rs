@@ -601,7 +601,8 @@ impl Building {
         };
         if sees {
             let detections = self.detections(i);
-            frame.camera = Some(CameraFrame { stamp: self.time, head, detections });
+            frame.camera =
+                Some(CameraFrame { stamp: self.time, head, detections, footprint: None });
         }
         frame
     }

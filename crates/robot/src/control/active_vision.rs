@@ -29,6 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
 use crate::percept::ViewCone;
+use crate::platform::Footprint;
 use crate::world::{ExpectedBelief, ObjectId, ObservationPrior, SensingCandidate, WorldState};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
@@ -94,6 +95,11 @@ pub trait ValueFunction: Send + Sync {
 pub struct GazeCandidate {
     pub label: String,
     pub direction: f64,
+    /// The stretch of ground this gaze would show, for a body whose camera cannot see near
+    /// and far at once (a tall robot pitches its head down to look at something close, and
+    /// then sees nothing far); `None`: everything out to the camera's range.
+    #[serde(default)]
+    pub footprint: Option<Footprint>,
 }
 
 impl GazeCandidate {
@@ -104,7 +110,7 @@ impl GazeCandidate {
         label: impl Into<String>,
     ) -> Option<GazeCandidate> {
         let direction = Self::toward_direction(world, id)?;
-        Some(GazeCandidate { label: label.into(), direction })
+        Some(GazeCandidate { label: label.into(), direction, footprint: None })
     }
 
     /// The direction [`GazeCandidate::toward`] would look along, without making a candidate.
@@ -121,7 +127,7 @@ impl GazeCandidate {
         label: impl Into<String>,
     ) -> Option<GazeCandidate> {
         let direction = Self::covering_direction(world, ids.iter().copied(), usable_fov)?;
-        Some(GazeCandidate { label: label.into(), direction })
+        Some(GazeCandidate { label: label.into(), direction, footprint: None })
     }
 
     /// The direction [`GazeCandidate::covering`] would look along, without making a
@@ -352,14 +358,22 @@ impl ActiveVision {
             e.direction = direction;
             // Candidates beyond a yaw limit are all looked at from the limit: the same view,
             // simulated once.
-            if let Some(same) = done.iter().find(|d| d.direction.to_bits() == direction.to_bits()) {
+            let same = done.iter().zip(candidates).find(|(d, c)| {
+                d.direction.to_bits() == direction.to_bits() && c.footprint == candidate.footprint
+            });
+            if let Some((same, _)) = same {
                 e.observed.clone_from(&same.observed);
                 e.value_variance = same.value_variance;
                 e.expected_value = same.expected_value;
                 e.improvement = same.improvement;
                 continue;
             }
-            let view = ViewCone { direction, fov: self.config.fov, range: self.config.range };
+            let view = ViewCone {
+                direction,
+                fov: self.config.fov,
+                range: candidate.footprint.map_or(range, |f| f.far.min(range)),
+                near: candidate.footprint.map_or(0.0, |f| f.near),
+            };
             world.expected_view_update_of_into(
                 &mut self.priors,
                 &view,

@@ -232,7 +232,7 @@ mod tests {
         for (direction, fov) in
             [(0.0, 1.06), (0.7, 1.06), (-2.9, 1.06), (3.1, 2.0), (1.0, 0.2), (0.0, 6.5)]
         {
-            let view = ViewCone { direction, fov, range: 8.0 };
+            let view = ViewCone { direction, fov, range: 8.0, near: 0.0 };
             let bound = BearingBound::new(&view, view_margin);
             let limit = (fov / 2.0 - view_margin).max(0.0);
             // Points all around, and bearings right at the widest accepted one.
@@ -261,7 +261,8 @@ mod tests {
         }
         // And it does spare most points of a narrow camera.
         assert!(outside * 2 > total, "{outside} of {total}");
-        let nan = BearingBound::new(&ViewCone { direction: 0.0, fov: 1.0, range: 8.0 }, 0.1);
+        let nan =
+            BearingBound::new(&ViewCone { direction: 0.0, fov: 1.0, range: 8.0, near: 0.0 }, 0.1);
         assert!(!nan.certainly_outside(Vector2::new(f64::NAN, 1.0), f64::NAN));
     }
 

@@ -791,7 +791,7 @@ mod tests {
             }
             let camera = Some(CameraPercepts {
                 stamp,
-                view: ViewCone { direction: 0.0, fov: 1.2, range: 6.0 },
+                view: ViewCone { direction: 0.0, fov: 1.2, range: 6.0, near: 0.0 },
                 observations,
             });
             let odometry = Odometry { dx: 0.01, dy: 0.002, dtheta: 0.004 };

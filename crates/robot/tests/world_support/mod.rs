@@ -217,7 +217,12 @@ impl Sim {
 
     /// One camera frame at the current time.
     pub fn camera_frame(&mut self) -> Percepts {
-        let view = ViewCone { direction: self.head_yaw(), fov: self.fov, range: self.view_range };
+        let view = ViewCone {
+            direction: self.head_yaw(),
+            fov: self.fov,
+            range: self.view_range,
+            near: 0.0,
+        };
         let mut observations = Vec::new();
         if self.see_landmarks {
             for k in 0..self.landmarks.len() {

@@ -701,7 +701,7 @@ impl Simulation {
                 &mut detections,
             );
             robot.outbox.camera =
-                Some(CameraFrame { stamp: now, head: robot.encoders, detections });
+                Some(CameraFrame { stamp: now, head: robot.encoders, detections, footprint: None });
         }
         self.scratch = Some(scratch);
     }

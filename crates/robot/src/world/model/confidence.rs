@@ -33,7 +33,8 @@ impl WorldModel {
             // trigonometry.
             let position = track.filter.position_vector();
             let range = position.norm();
-            if range < MIN_VISIBLE_RANGE
+            let nearest = MIN_VISIBLE_RANGE.max(view.near);
+            if range < nearest
                 || range > view.range
                 || bearing_bound.certainly_outside(position, range)
             {
@@ -42,7 +43,7 @@ impl WorldModel {
             let (z, h) = polar(position);
             let s = h * track.filter.position_covariance() * h.transpose();
             let (sr, sb) = (s[(0, 0)].max(0.0).sqrt(), s[(1, 1)].max(0.0).sqrt());
-            if z.x < MIN_VISIBLE_RANGE || z.x + 2.0 * sr > view.range {
+            if z.x < nearest || z.x + 2.0 * sr > view.range {
                 continue;
             }
             let margin = k.view_margin + 2.0 * sb;
