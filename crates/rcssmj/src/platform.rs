@@ -363,8 +363,11 @@ impl RcssPlatform {
         let stop = Arc::new(AtomicBool::new(false));
         let first_timeout = config.first_perception_timeout;
         let stall_timeout = config.stall_timeout;
-        let rules =
-            RefereeRules { half_time: config.half_time, message_budget: config.message_budget };
+        let rules = RefereeRules {
+            half_time: config.half_time,
+            message_budget: config.message_budget,
+            ..RefereeRules::default()
+        };
         let players_per_team = config.players_per_team;
         let game: SharedGame = Arc::default();
         let truth = TruthSource::default();

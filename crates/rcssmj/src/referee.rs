@@ -39,11 +39,14 @@ pub struct RefereeRules {
     pub half_time: f64,
     /// Team messages per team and game.
     pub message_budget: u16,
+    /// Play seconds after which the referee gives the ball free when a kick-off was not taken
+    /// (rcsssmj 0.2.1's `kick_off_time`: 15).
+    pub kick_off_time: f64,
 }
 
 impl Default for RefereeRules {
     fn default() -> Self {
-        RefereeRules { half_time: 300.0, message_budget: 1200 }
+        RefereeRules { half_time: 300.0, message_budget: 1200, kick_off_time: 15.0 }
     }
 }
 
@@ -158,6 +161,8 @@ pub struct RefereeLink {
     rules: RefereeRules,
     last: Option<(GameControlData, Time)>,
     packet_number: u8,
+    /// The play mode last seen and the play time it was first seen at.
+    mode_since: Option<(Option<PlayMode>, f64)>,
 }
 
 impl RefereeLink {
@@ -176,6 +181,7 @@ impl RefereeLink {
             rules,
             last: None,
             packet_number: 0,
+            mode_since: None,
         }
     }
 }
@@ -183,11 +189,27 @@ impl RefereeLink {
 impl ExternalLink for RefereeLink {
     fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
         let game = self.game.lock().unwrap_or_else(PoisonError::into_inner).clone();
-        let Some(data) = game.and_then(|g| {
-            control_data(&g, &self.team_name, self.numbers, self.players_per_team, self.rules)
-        }) else {
+        let Some(game) = game else { return Ok(Vec::new()) };
+        let since = match self.mode_since {
+            Some((mode, since)) if mode == game.play_mode => since,
+            _ => {
+                self.mode_since = Some((game.play_mode, game.play_time));
+                game.play_time
+            }
+        };
+        let Some(mut data) =
+            control_data(&game, &self.team_name, self.numbers, self.players_per_team, self.rules)
+        else {
             return Ok(Vec::new());
         };
+        if matches!(game.play_mode, Some(PlayMode::KickOffLeft | PlayMode::KickOffRight)) {
+            // As an SPL GameController counts down to the free ball after a kick-off: the
+            // server gives it free at the kicker's touch (the play mode changes) or when
+            // `kick_off_time` has passed. Until then the other team must keep out of the
+            // centre circle and the kicking team's others out of the opponent half.
+            let left = self.rules.kick_off_time - (game.play_time - since);
+            data.secondary_time = left.ceil().clamp(1.0, f64::from(i16::MAX)) as i16;
+        }
         let due = match &self.last {
             None => true,
             Some((last, at)) => {
@@ -274,7 +296,7 @@ mod tests {
     #[test]
     fn the_play_time_gives_the_half_and_the_seconds_left_in_it() {
         let numbers = TeamNumbers::new(1);
-        let rules = RefereeRules { half_time: 300.0, message_budget: 500 };
+        let rules = RefereeRules { message_budget: 500, ..RefereeRules::default() };
         let at = |t: f64| {
             let game =
                 GameStatePerceptor { play_time: t, ..gs(PlayMode::PlayOn, Some("Us"), None) };
@@ -289,6 +311,36 @@ mod tests {
         // team attacking +x in the second half.
         assert_eq!(second.teams[1].team_number, 1);
         assert_eq!(second.teams[1].score, 2);
+    }
+
+    #[test]
+    fn a_kick_off_counts_down_to_the_free_ball() {
+        let game: SharedGame = Arc::new(Mutex::new(None));
+        let mut link = RefereeLink::new(
+            Arc::clone(&game),
+            "Us",
+            TeamNumbers::new(3),
+            3,
+            RefereeRules::default(),
+        );
+        let mut at_play_time = |play_time: f64, mode: PlayMode, ms: u64| {
+            *game.lock().expect("not poisoned") =
+                Some(GameStatePerceptor { play_time, ..gs(mode, Some("Us"), Some("Them")) });
+            let sent = link.receive(Time::from_nanos(ms * 1_000_000)).expect("never fails");
+            let packet = sent.last().expect("a changed state is sent at once");
+            GameControlData::decode(&packet.bytes).expect("a valid packet")
+        };
+        let start = at_play_time(0.0, PlayMode::KickOffLeft, 0);
+        assert_eq!(
+            (start.state, start.kicking_team, start.secondary_time),
+            (GameState::Playing, Some(3), 15)
+        );
+        assert_eq!(at_play_time(5.5, PlayMode::KickOffLeft, 5500).secondary_time, 10);
+        // The kicker touched the ball: free.
+        let free = at_play_time(6.0, PlayMode::PlayOn, 6000);
+        assert_eq!((free.kicking_team, free.secondary_time), (None, 0));
+        // The next kick-off counts from its own start.
+        assert_eq!(at_play_time(40.0, PlayMode::KickOffRight, 40000).secondary_time, 15);
     }
 
     #[test]

@@ -33,13 +33,13 @@ use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::geometry::{Field as FieldFrame, Point, Pose};
 use strata_robot::world::{ObjectCategory, WorldState};
 use strata_runtime::Time;
-use strata_spl::gamecontroller::GameState;
+use strata_spl::gamecontroller::{GameState, SetPlay};
 
 use crate::catalog::{GOALKEEPER_NUMBER, Mission, Role};
 use crate::field::TeamField;
 use crate::game::{GameDirective, Kicking};
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
-use crate::primitives::{MotionModel, facing, names, together_range};
+use crate::primitives::{MotionModel, TOGETHER_RANGE, facing, names};
 use crate::situation::{ball, best_instance, obstacle_ahead};
 use crate::value::{GoToBallValue, GoalCoveringValue, PositionValue};
 use crate::world_config::{BALL, landmark_groups};
@@ -80,6 +80,12 @@ pub struct BehaviorConfig {
     pub active_search_after: f64,
     /// Camera field of view for gaze candidates, rad.
     pub fov: f64,
+    /// How far from the ball every robot keeps while the other team takes a set play (kick-in,
+    /// corner, goal kick, free kick), m; 0: no such rule. rcssservermj's referee moves a robot
+    /// nearer than its centre circle's radius (5.5 m) off the field, so `strata robot
+    /// --platform rcssservermj` sets the radius plus half a metre when the team file leaves it
+    /// at 0; the built-in simulator's referee has no such rule.
+    pub set_play_distance: f64,
 }
 
 impl Default for BehaviorConfig {
@@ -91,6 +97,7 @@ impl Default for BehaviorConfig {
             dribble_distance: 0.9,
             active_search_after: 4.0,
             fov: 1.06,
+            set_play_distance: 0.0,
         }
     }
 }
@@ -178,6 +185,7 @@ pub enum S {
     Playing,
     Finished,
     Penalized,
+    KeepingDistance,
     GoaliePlaying,
     GoalCovering,
     Clearing,
@@ -189,7 +197,8 @@ pub enum S {
     DefenderPositioning,
 }
 
-const TOP: [S; 6] = [S::Initial, S::Ready, S::Set, S::Playing, S::Finished, S::Penalized];
+const TOP: [S; 7] =
+    [S::Initial, S::Ready, S::Set, S::Playing, S::Finished, S::Penalized, S::KeepingDistance];
 const FIELD_ROLES: [(S, Role); 5] = [
     (S::Striker, Role::Striker),
     (S::StrikerCover, Role::StrikerCover),
@@ -207,9 +216,36 @@ fn phase(ctx: &Ctx) -> S {
         GameState::Initial | GameState::Standby => S::Initial,
         GameState::Ready => S::Ready,
         GameState::Set => S::Set,
+        GameState::Playing if waits_for_kick_off(&d, ctx.player) => S::Ready,
+        GameState::Playing
+            if ctx.config.set_play_distance > 0.0
+                && d.set_play != SetPlay::None
+                && d.kicking == Kicking::Them =>
+        {
+            S::KeepingDistance
+        }
         GameState::Playing => S::Playing,
         GameState::Finished => S::Finished,
     }
+}
+
+/// The player who takes the kick-off (the one [`kickoff_pose`] puts at the ball).
+const KICKER_NUMBER: u8 = 2;
+
+/// While a kick-off is being taken — Playing, no set play, the GameController's secondary time
+/// counting down to the free ball — every field player but the kicker keeps to its kick-off
+/// position (the Ready behavior): the other team may not enter the centre circle, nor the
+/// kicker's teammates the opponent half. rcssservermj's referee moves a robot that does to the
+/// side line, where it is lost. The goalkeeper, far from both, covers its goal.
+fn waits_for_kick_off(d: &GameDirective, player: u8) -> bool {
+    let pending = d.set_play == SetPlay::None && d.secondary_time > 0;
+    pending
+        && player != GOALKEEPER_NUMBER
+        && match d.kicking {
+            Kicking::Them => true,
+            Kicking::Us => player != KICKER_NUMBER,
+            Kicking::Nobody => false,
+        }
 }
 
 fn role_state(role: Role) -> S {
@@ -321,8 +357,8 @@ fn gaze_candidates(
                 ctx.config.fov * 0.8,
             )
         {
-            let aim = together_range([ball.position.range(), range]);
-            out(direction, aim, &[BALL, "+", landmark.name.as_str()], Looks::Together);
+            // The look-at-target primitive aims at a point this far along the direction.
+            out(direction, TOGETHER_RANGE, &[BALL, "+", landmark.name.as_str()], Looks::Together);
         }
     }
     gazes.truncate(n);
@@ -606,8 +642,8 @@ pub fn kickoff_pose(field: &TeamField, player: u8, kicking: bool) -> Pose {
     let centre = Point::new(0.0, 0.0);
     let spot = match player {
         1 => Point::new(-hl + 0.3, 0.0),
-        2 if kicking => Point::new(-0.25, 0.0),
-        2 => Point::new(-circle - 0.25, 0.0),
+        KICKER_NUMBER if kicking => Point::new(-0.25, 0.0),
+        KICKER_NUMBER => Point::new(-circle - 0.25, 0.0),
         3 => Point::new(-1.2, 1.5),
         4 => Point::new(-1.2, -1.5),
         5 => Point::new(-hl * 0.6, 0.7),
@@ -618,13 +654,37 @@ pub fn kickoff_pose(field: &TeamField, player: u8, kicking: bool) -> Pose {
     // (rcssservermj's referee moves a defender inside it off the field).
     let clear = circle + 0.25;
     let distance = spot.x.hypot(spot.y);
-    let kicker = kicking && player == 2;
+    let kicker = kicking && player == KICKER_NUMBER;
     let spot = if !kicker && distance < clear && distance > 0.0 {
         Point::new(spot.x * clear / distance, spot.y * clear / distance)
     } else {
         spot
     };
     facing(spot, centre)
+}
+
+/// Keeping distance during the other team's set play: between the ball and the own goal, the
+/// rule's distance from the ball (and a little more), facing it. Nearer than that already, the
+/// robot walks straight back out; farther, it stays where it is.
+fn keeping_distance(ctx: &mut Ctx) -> Status {
+    let pose = ctx.pose();
+    let Some(ball) = ctx.ball_field() else {
+        ctx.set_body(BodyGoal::Stand);
+        ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+        return Status::Running;
+    };
+    let radius = ctx.config.set_play_distance;
+    let here = pose.position();
+    if here.distance(ball) >= radius {
+        ctx.set_body(BodyGoal::GoToPosition { pose: facing(here, ball) });
+    } else {
+        let goal = ctx.field.own_goal();
+        let away = (goal - ball).normalized();
+        let spot = ball + away * radius;
+        ctx.set_body(BodyGoal::GoToPosition { pose: facing(spot, ball) });
+    }
+    ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+    Status::Running
 }
 
 fn should_clear(ctx: &Ctx) -> bool {
@@ -653,6 +713,7 @@ fn game_states(mut builder: Builder<S, Ctx>, goalie: bool) -> Builder<S, Ctx> {
         (S::Playing, "Playing"),
         (S::Finished, "Finished"),
         (S::Penalized, "Penalized"),
+        (S::KeepingDistance, "Keeping distance"),
     ];
     for (state, name) in top_names {
         let mut s = State::new(state).name(name);
@@ -691,6 +752,7 @@ fn game_states(mut builder: Builder<S, Ctx>, goalie: bool) -> Builder<S, Ctx> {
                 ctx.out.head = ScoreVector::single(HeadGoal::Scan);
                 Status::Running
             }),
+            S::KeepingDistance => s.behavior(|ctx: &mut Ctx, _| keeping_distance(ctx)),
             S::Playing => s.initial_child(if goalie { S::GoaliePlaying } else { S::FieldPlaying }),
             _ => s,
         };
@@ -1065,6 +1127,68 @@ mod tests {
             assert!(path.ends_with("kick to goal"), "{path}");
             assert!(body, "no body goal at {path}");
         }
+    }
+
+    #[test]
+    fn only_the_kicker_plays_until_the_kick_off_is_taken() {
+        let kick_off = |b: &mut SoccerBehavior, kicking: Kicking, secondary_time: i16, at: f64| {
+            decide(b, Role::Striker, GameState::Playing, at);
+            let mut d = b.ctx.decision.clone().expect("decided");
+            d.directive.kicking = kicking;
+            d.directive.secondary_time = secondary_time;
+            b.ctx.decision = Some(d);
+            b.machine.tick(&mut b.ctx, Time::from_secs_f64(at + 0.01));
+            b.machine.active_leaf()
+        };
+        // The other team's kick-off: everyone keeps to the kick-off positions until it is free.
+        for player in [2, 3] {
+            let mut b = behavior(player);
+            assert_eq!(kick_off(&mut b, Kicking::Them, 12, 0.0), Some(S::Ready), "{player}");
+            assert_eq!(kick_off(&mut b, Kicking::Them, 0, 1.0), Some(S::Striker), "{player}");
+        }
+        // Ours: the kicker plays at once, its teammates wait.
+        assert_eq!(kick_off(&mut behavior(2), Kicking::Us, 12, 0.0), Some(S::Striker));
+        assert_eq!(kick_off(&mut behavior(3), Kicking::Us, 12, 0.0), Some(S::Ready));
+        // The goalkeeper covers its goal either way.
+        let mut keeper = behavior(GOALKEEPER_NUMBER);
+        decide(&mut keeper, Role::Goalie, GameState::Playing, 0.0);
+        let mut d = keeper.ctx.decision.clone().expect("decided");
+        d.directive.kicking = Kicking::Them;
+        d.directive.secondary_time = 12;
+        keeper.ctx.decision = Some(d);
+        keeper.machine.tick(&mut keeper.ctx, Time::from_secs_f64(0.01));
+        assert_eq!(keeper.machine.active_leaf(), Some(S::GoalCovering));
+        // A set play's countdown is not a kick-off's.
+        let mut b = behavior(3);
+        decide(&mut b, Role::Striker, GameState::Playing, 0.0);
+        let mut d = b.ctx.decision.clone().expect("decided");
+        d.directive.set_play = SetPlay::KickIn;
+        d.directive.kicking = Kicking::Them;
+        d.directive.secondary_time = 20;
+        b.ctx.decision = Some(d);
+        b.machine.tick(&mut b.ctx, Time::from_secs_f64(0.01));
+        assert_eq!(b.machine.active_leaf(), Some(S::Striker));
+    }
+
+    #[test]
+    fn robots_keep_their_distance_during_the_other_teams_set_play_where_the_rule_is_set() {
+        let set_play = |b: &mut SoccerBehavior, kicking: Kicking, at: f64| {
+            decide(b, Role::Striker, GameState::Playing, at);
+            let mut d = b.ctx.decision.clone().expect("decided");
+            d.directive.set_play = SetPlay::KickIn;
+            d.directive.kicking = kicking;
+            b.ctx.decision = Some(d);
+            b.machine.tick(&mut b.ctx, Time::from_secs_f64(at + 0.01));
+            b.machine.active_leaf()
+        };
+        let mut b = behavior(3);
+        b.ctx.config.set_play_distance = 6.0;
+        assert_eq!(set_play(&mut b, Kicking::Them, 0.0), Some(S::KeepingDistance));
+        // Ours: play it.
+        assert_eq!(set_play(&mut b, Kicking::Us, 1.0), Some(S::Striker));
+        // No rule (the built-in simulator's referee): play on.
+        let mut b = behavior(3);
+        assert_eq!(set_play(&mut b, Kicking::Them, 0.0), Some(S::Striker));
     }
 
     #[test]

@@ -298,15 +298,9 @@ impl LookAtTarget {
     }
 }
 
-/// How far along its direction a gaze at several objects together aims, from their ranges:
-/// at the nearest, which a tall robot must pitch its head down to keep in the image (the
-/// farther ones are nearer the image's centre or beyond its upper edge either way).
-pub fn together_range(ranges: impl IntoIterator<Item = f64>) -> f64 {
-    ranges.into_iter().fold(f64::INFINITY, f64::min).min(TOGETHER_MAX_RANGE)
-}
-
-/// A gaze at objects together aims no farther than this, m.
-const TOGETHER_MAX_RANGE: f64 = 2.0;
+/// How far along its direction a gaze at several objects together aims, m (it sets the
+/// head's pitch).
+pub const TOGETHER_RANGE: f64 = 2.0;
 
 /// Where a head goal that is about a place rather than a tracked object looks.
 pub fn look_target(
@@ -318,16 +312,12 @@ pub fn look_target(
     let pose = world.pose.pose;
     match goal {
         HeadGoal::ObserveTogether { objects } => {
-            let seen = head_goal_objects(world, goal);
-            let ids: Vec<_> = seen.iter().map(|o| o.id).collect();
+            let ids: Vec<_> = head_goal_objects(world, goal).iter().map(|o| o.id).collect();
             if ids.len() != objects.len() {
                 return None;
             }
             let candidate = GazeCandidate::covering(world, &ids, fov * 0.8, "together")?;
-            Some(Point::from_polar(
-                together_range(seen.iter().map(|o| o.position.range())),
-                candidate.direction,
-            ))
+            Some(Point::from_polar(TOGETHER_RANGE, candidate.direction))
         }
         HeadGoal::ObservePartner { position, .. } => Some(pose.to_robot(*position)),
         HeadGoal::ObserveFieldLine { line } => {
@@ -663,7 +653,7 @@ mod tests {
         let Some(level) = t1.footprint(10.0) else { panic!("the T1 models its camera") };
         assert!(level.near > 1.5 && level.far == f64::MAX, "{level:?}");
         // Looking at two objects together: in between.
-        let Some(together) = t1.footprint(together_range([2.0, 6.0])) else { panic!("modelled") };
+        let Some(together) = t1.footprint(TOGETHER_RANGE) else { panic!("modelled") };
         assert!(together.near > down.near && together.near < level.near, "{together:?}");
         assert_eq!(MotionModel::default().footprint(0.25), None);
     }

@@ -174,6 +174,20 @@ impl TeamConfig {
         }
         positive("planning.message_interval", self.planning.message_interval)?;
         positive("behavior.fov", self.behavior.fov)?;
+        let distance = self.behavior.set_play_distance;
+        if !(distance.is_finite() && distance >= 0.0) {
+            return Err(invalid(
+                "behavior.set_play_distance",
+                format!("must be >= 0 (0: no rule), got {distance}"),
+            ));
+        }
+        let fov = self.motion.vertical_fov;
+        if !(fov.is_finite() && (0.0..std::f64::consts::PI).contains(&fov)) {
+            return Err(invalid(
+                "motion.vertical_fov",
+                format!("must be in [0, pi) rad (0: not modelled), got {fov}"),
+            ));
+        }
         if !(0.0..=1.0).contains(&self.multiplexer.hysteresis) {
             return Err(invalid(
                 "multiplexer.hysteresis",

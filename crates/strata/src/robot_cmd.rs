@@ -242,6 +242,11 @@ pub fn run(args: RobotArgs) -> Result<()> {
         PlatformKind::Rcssservermj => "rcssservermj",
         PlatformKind::Sim | PlatformKind::Nao => "spl",
     }))?;
+    if args.platform == PlatformKind::Rcssservermj && config.behavior.set_play_distance == 0.0 {
+        // The server's referee moves a robot within its centre circle's radius of the ball
+        // during the other team's set play off the field.
+        config.behavior.set_play_distance = field.dimensions().center_circle_diameter / 2.0 + 0.5;
+    }
     let out = Output { json: args.json, name: format!("robot {}/{}", args.team, args.player) };
 
     // The body.
