@@ -663,9 +663,9 @@ pub fn kickoff_pose(field: &TeamField, player: u8, kicking: bool) -> Pose {
     facing(spot, centre)
 }
 
-/// Keeping distance during the other team's set play: between the ball and the own goal, the
-/// rule's distance from the ball (and a little more), facing it. Nearer than that already, the
-/// robot walks straight back out; farther, it stays where it is.
+/// Keeping distance during the other team's set play: a robot nearer the ball than
+/// `set_play_distance` walks to the point that far from the ball towards its own goal; one
+/// farther away stays where it is. Both face the ball.
 fn keeping_distance(ctx: &mut Ctx) -> Status {
     let pose = ctx.pose();
     let Some(ball) = ctx.ball_field() else {
