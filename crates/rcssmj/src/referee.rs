@@ -313,16 +313,22 @@ mod tests {
         assert_eq!(second.teams[1].score, 2);
     }
 
-    #[test]
-    fn a_kick_off_counts_down_to_the_free_ball() {
+    /// A link for team "Us" (number 3) and the game state it reads.
+    fn link_for_us(players_per_team: u8) -> (SharedGame, RefereeLink) {
         let game: SharedGame = Arc::new(Mutex::new(None));
-        let mut link = RefereeLink::new(
+        let link = RefereeLink::new(
             Arc::clone(&game),
             "Us",
             TeamNumbers::new(3),
-            3,
+            players_per_team,
             RefereeRules::default(),
         );
+        (game, link)
+    }
+
+    #[test]
+    fn a_kick_off_counts_down_to_the_free_ball() {
+        let (game, mut link) = link_for_us(3);
         let mut at_play_time = |play_time: f64, mode: PlayMode, ms: u64| {
             *game.lock().expect("not poisoned") =
                 Some(GameStatePerceptor { play_time, ..gs(mode, Some("Us"), Some("Them")) });
@@ -345,14 +351,7 @@ mod tests {
 
     #[test]
     fn the_link_sends_on_change_and_twice_a_second() {
-        let game: SharedGame = Arc::new(Mutex::new(None));
-        let mut link = RefereeLink::new(
-            Arc::clone(&game),
-            "Us",
-            TeamNumbers::new(3),
-            5,
-            RefereeRules::default(),
-        );
+        let (game, mut link) = link_for_us(5);
         let at = |ms: u64| Time::from_nanos(ms * 1_000_000);
         assert!(link.receive(at(0)).expect("never fails").is_empty());
         *game.lock().expect("not poisoned") = Some(gs(PlayMode::BeforeKickOff, Some("Us"), None));

@@ -217,13 +217,7 @@ fn phase(ctx: &Ctx) -> S {
         GameState::Ready => S::Ready,
         GameState::Set => S::Set,
         GameState::Playing if waits_for_kick_off(&d, ctx.player) => S::Ready,
-        GameState::Playing
-            if ctx.config.set_play_distance > 0.0
-                && d.set_play != SetPlay::None
-                && d.kicking == Kicking::Them =>
-        {
-            S::KeepingDistance
-        }
+        GameState::Playing if keeps_distance(&d, &ctx.config) => S::KeepingDistance,
         GameState::Playing => S::Playing,
         GameState::Finished => S::Finished,
     }
@@ -246,6 +240,11 @@ fn waits_for_kick_off(d: &GameDirective, player: u8) -> bool {
             Kicking::Us => player != KICKER_NUMBER,
             Kicking::Nobody => false,
         }
+}
+
+/// During the other team's set play, where the rule sets a distance to keep from the ball.
+fn keeps_distance(d: &GameDirective, config: &BehaviorConfig) -> bool {
+    config.set_play_distance > 0.0 && d.set_play != SetPlay::None && d.kicking == Kicking::Them
 }
 
 fn role_state(role: Role) -> S {
@@ -332,11 +331,10 @@ fn gaze_candidates(
         n += 1;
     };
     let ball = world.object(BALL);
-    let ball_id = ball.map(|o| o.id);
-    if let Some(id) = ball_id
-        && let Some(direction) = GazeCandidate::toward_direction(world, id)
+    if let Some(ball) = ball
+        && let Some(direction) = GazeCandidate::toward_direction(world, ball.id)
     {
-        out(direction, ball.map_or(0.0, |b| b.position.range()), &[BALL], Looks::Ball);
+        out(direction, ball.position.range(), &[BALL], Looks::Ball);
     }
     let mut landmarks: Vec<_> = ctx
         .landmark_groups
