@@ -6,7 +6,7 @@
 //! Initial | Ready (going to field position) | Set | Finished | Penalized
 //! Playing
 //!   Goalie playing: Goal covering (tree: localizing / searching for object / cover) | Clearing (go to ball)
-//!   Field playing:  Striker (tree: localizing / searching for object / avoiding obstacle / go to ball)
+//!   Field playing:  Striker (tree: localizing / letting go / searching for object / avoiding obstacle / go to ball)
 //!                   Striker cover (partner following) | Pass receiver | Active defender (go to ball)
 //!                   Defender going to position (goal covering from the penalty area's edge)
 //! ```
@@ -86,6 +86,14 @@ pub struct BehaviorConfig {
     /// --platform rcssservermj` sets the radius plus half a metre when the team file leaves it
     /// at 0; the built-in simulator's referee has no such rule.
     pub set_play_distance: f64,
+    /// The robot that takes a kick-off or a set play may not touch the ball again before
+    /// another robot has: it keeps `let_go_distance` from the ball until the ball moves
+    /// without it. rcssservermj's referee gives the other team a free kick for the second
+    /// touch (rcsssmj's double-touch rule), so `strata robot --platform rcssservermj` turns
+    /// this on; the built-in simulator's referee has no such rule.
+    pub no_second_touch: bool,
+    /// How far from the ball the taker keeps while it may not touch it, m.
+    pub let_go_distance: f64,
 }
 
 impl Default for BehaviorConfig {
@@ -98,6 +106,8 @@ impl Default for BehaviorConfig {
             active_search_after: 4.0,
             fov: 1.06,
             set_play_distance: 0.0,
+            no_second_touch: false,
+            let_go_distance: 0.8,
         }
     }
 }
@@ -123,6 +133,11 @@ pub struct Ctx {
     landmark_groups: Vec<String>,
     /// The body's camera geometry, for what each gaze candidate would show.
     motion: Arc<MotionModel>,
+    /// Whether this robot was at the ball, in the last tick, while its team's kick-off or set
+    /// play waited to be taken.
+    at_own_restart: bool,
+    /// Set while this robot, having taken the restart, may not touch the ball again.
+    let_go: Option<LetGo>,
 }
 
 impl std::fmt::Debug for Ctx {
@@ -225,6 +240,10 @@ fn phase(ctx: &Ctx) -> S {
 
 /// The player who takes the kick-off (the one [`kickoff_pose`] puts at the ball).
 const KICKER_NUMBER: u8 = 2;
+/// How far behind the ball the kicker waits for the kick-off under the second-touch rule, m
+/// (a T1 beamed 0.25 m behind it touched it within 1.3 s of the kick-off in 3 of 4 halves,
+/// barely moving it).
+const KICKER_WAIT: f64 = 0.6;
 
 /// While a kick-off is being taken — Playing, no set play, the GameController's secondary time
 /// counting down to the free ball — every field player but the kicker keeps to its kick-off
@@ -245,6 +264,108 @@ fn waits_for_kick_off(d: &GameDirective, player: u8) -> bool {
 /// During the other team's set play, where the rule sets a distance to keep from the ball.
 fn keeps_distance(d: &GameDirective, config: &BehaviorConfig) -> bool {
     config.set_play_distance > 0.0 && d.set_play != SetPlay::None && d.kicking == Kicking::Them
+}
+
+/// The second-touch rule's memory: since when this robot, having taken its team's kick-off or
+/// set play, has kept off the ball, and where the ball came to rest after its touch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LetGo {
+    since: Time,
+    rest: Option<Point<FieldFrame>>,
+}
+
+/// The ball rolls this long after a kick before where it lies says anything about who touches
+/// it next, s.
+const LET_GO_SETTLE: f64 = 3.0;
+/// A ball this far from where it came to rest was moved by another robot, m (well beyond the
+/// estimate's noise at a few metres).
+const LET_GO_MOVED: f64 = 0.6;
+/// Within this distance of the ball while the restart waits, a robot is its taker, m.
+const TAKER_RANGE: f64 = 0.8;
+/// Nobody touching the ball for this long releases the taker anyway, s: a ball left alone
+/// for good would stop the game, which costs more than the free kick.
+const LET_GO_LIMIT: f64 = 20.0;
+
+/// Whether this robot's team has a kick-off or set play waiting to be taken. Ready and Set
+/// count: a kick-off can be taken within a deliberative cycle of Playing (rcssservermj's
+/// starts as the kicker walks up to the ball), and then Playing never showed it pending.
+fn own_restart_pending(d: &GameDirective) -> bool {
+    d.kicking == Kicking::Us
+        && match d.state {
+            GameState::Ready | GameState::Set => true,
+            GameState::Playing => d.set_play != SetPlay::None || d.secondary_time > 0,
+            _ => false,
+        }
+}
+
+/// Keeps the second-touch rule's memory current, once per tick before the machine runs: the
+/// robot at the ball when its team's restart ends (the server ends it at the first touch)
+/// took it, and keeps off the ball until the ball moves without it, a new restart begins, or
+/// `LET_GO_LIMIT` passes.
+fn track_second_touch(ctx: &mut Ctx) {
+    if !ctx.config.no_second_touch {
+        return;
+    }
+    let d = ctx.directive();
+    let ball = ctx.world.as_ref().and_then(ball).filter(|b| b.known);
+    let restart = own_restart_pending(&d);
+    let free_play = d.state == GameState::Playing
+        && d.set_play == SetPlay::None
+        && d.secondary_time <= 0
+        && !d.penalized;
+    if !free_play {
+        ctx.let_go = None;
+    } else if ctx.at_own_restart {
+        ctx.let_go = Some(LetGo { since: ctx.now, rest: None });
+    } else if let Some(let_go) = &mut ctx.let_go {
+        let waited = (ctx.now - let_go.since).as_secs_f64();
+        // Only what this robot sees itself: the team's ball lags, and may be this robot's.
+        let seen = ball.filter(|b| !b.from_team);
+        let moved = match (let_go.rest, seen) {
+            (Some(rest), Some(b)) => b.field.distance(rest) > LET_GO_MOVED,
+            (None, Some(b)) if waited >= LET_GO_SETTLE => {
+                let_go.rest = Some(b.field);
+                false
+            }
+            _ => false,
+        };
+        if moved || waited > LET_GO_LIMIT {
+            ctx.let_go = None;
+        }
+    }
+    ctx.at_own_restart = restart && ball.is_some_and(|b| b.robot.range() < TAKER_RANGE);
+}
+
+/// The longest step back letting go orders, m: the walk side-steps and backs up to targets
+/// within 0.5 m and turns towards farther ones, and a 0.4 m step plus the pose's noise turned
+/// a T1 beside the ball.
+const LET_GO_STEP: f64 = 0.25;
+
+/// Letting go of the ball after taking a restart: back away to `let_go_distance` from it,
+/// facing it and watching it, so the next touch is somebody else's.
+fn letting_go(ctx: &mut Ctx) -> Status {
+    let Some(ball) = ctx.ball_field() else {
+        ctx.set_body(BodyGoal::Stand);
+        ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+        return Status::Running;
+    };
+    let here = ctx.pose().position();
+    let distance = here.distance(ball);
+    let spot = if distance >= ctx.config.let_go_distance {
+        here
+    } else {
+        // Straight back from the ball, a short step at a time: a farther target would turn
+        // the robot first, and a robot turning beside the ball touches it.
+        let back = (here - ball).normalized();
+        here + back * (ctx.config.let_go_distance - distance).min(LET_GO_STEP)
+    };
+    ctx.set_body(BodyGoal::GoToPosition { pose: facing(spot, ball) });
+    ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+    Status::Running
+}
+
+fn letting_go_guard(ctx: &Ctx) -> bool {
+    ctx.let_go.is_some()
 }
 
 fn role_state(role: Role) -> S {
@@ -543,6 +664,9 @@ fn shot_target(ctx: &Ctx) -> Point<FieldFrame> {
 /// Go to ball: evaluates the ball's target by role (a shot for the striker, a clearance for a
 /// defender or the keeper), then kicks or dribbles.
 fn go_to_ball(ctx: &mut Ctx) -> Status {
+    if letting_go_guard(ctx) {
+        return letting_go(ctx);
+    }
     let Some(ball_field) = ctx.ball_field() else { return Status::Failure };
     let target = shot_target(ctx);
     let near_goal = ball_field.distance(ctx.field.opponent_goal())
@@ -559,12 +683,22 @@ fn go_to_ball(ctx: &mut Ctx) -> Status {
         let target = if ctx.role() == Role::Striker { target } else { ctx.field.opponent_goal() };
         ctx.set_body(BodyGoal::GoToBallAndKick { kick, target });
     }
-    if let Some(ball_id) = ctx.ball_id() {
+    let ball_range = ctx.world.as_ref().and_then(ball).map(|b| b.robot.range());
+    if ctx.motion.vertical_fov > 0.0 && ball_range.is_some_and(|r| r < WATCH_BALL_RANGE) {
+        // A camera that cannot show the feet and the landmarks at once (the T1's) loses a
+        // ball this near whenever it looks up, and the kick needs it to a few centimetres:
+        // the last metre of the approach watches the ball.
+        ctx.out.head = ScoreVector::single(HeadGoal::ObserveBall);
+    } else if let Some(ball_id) = ctx.ball_id() {
         let value = GoToBallValue { field: Arc::clone(&ctx.field), ball: ball_id };
         gaze(ctx, Some(&value));
     }
     Status::Running
 }
+
+/// Within this distance of the ball, going to it watches the ball on a body whose camera
+/// cannot see near and far at once, m (the approach circles to the kicking pose from 0.8 m).
+const WATCH_BALL_RANGE: f64 = 1.0;
 
 /// The keeper's covering position: on the bisector of the goal's angle seen from the ball, at
 /// `keeper_depth` in front of the goal line, facing the ball.
@@ -633,13 +767,16 @@ fn pass_receiving(ctx: &mut Ctx) -> Status {
     going_to_field_position(ctx, facing(Point::new(x, y), ball_field))
 }
 
-/// Kick-off positions (team frame), legal for the kicking and the defending team.
-pub fn kickoff_pose(field: &TeamField, player: u8, kicking: bool) -> Pose {
+/// Kick-off positions (team frame), legal for the kicking and the defending team. Under the
+/// second-touch rule (`no_second_touch`) the kicker waits further back: a touch while it
+/// settles at its spot would take the kick-off and bar it from the ball.
+pub fn kickoff_pose(field: &TeamField, player: u8, kicking: bool, no_second_touch: bool) -> Pose {
     let hl = field.half_length;
     let circle = field.center_circle_radius;
     let centre = Point::new(0.0, 0.0);
     let spot = match player {
         1 => Point::new(-hl + 0.3, 0.0),
+        KICKER_NUMBER if kicking && no_second_touch => Point::new(-KICKER_WAIT, 0.0),
         KICKER_NUMBER if kicking => Point::new(-0.25, 0.0),
         KICKER_NUMBER => Point::new(-circle - 0.25, 0.0),
         3 => Point::new(-1.2, 1.5),
@@ -737,7 +874,8 @@ fn game_states(mut builder: Builder<S, Ctx>, goalie: bool) -> Builder<S, Ctx> {
             }),
             S::Ready => s.behavior(|ctx: &mut Ctx, _| {
                 let kicking = ctx.directive().kicking == Kicking::Us;
-                let target = kickoff_pose(&ctx.field, ctx.player, kicking);
+                let rule = ctx.config.no_second_touch;
+                let target = kickoff_pose(&ctx.field, ctx.player, kicking, rule);
                 going_to_field_position(ctx, target)
             }),
             S::Set | S::Finished => s.behavior(|ctx: &mut Ctx, _| {
@@ -860,6 +998,13 @@ fn field_player_states(mut builder: Builder<S, Ctx>) -> Builder<S, Ctx> {
                             }),
                         ],
                     )),
+                    reactive_sequence(
+                        "letting go",
+                        [
+                            condition("may not touch the ball again", letting_go_guard),
+                            action("keep off the ball", |ctx: &mut Ctx, _| letting_go(ctx)),
+                        ],
+                    ),
                     force_failure(sequence(
                         "searching for object",
                         [
@@ -942,6 +1087,8 @@ impl SoccerBehavior {
                 ball_unknown_since: None,
                 landmark_groups: groups,
                 motion,
+                at_own_restart: false,
+                let_go: None,
             },
         })
     }
@@ -977,6 +1124,7 @@ impl DeliberativePolicy for SoccerBehavior {
         } else if ctx.ball_unknown_since.is_none() {
             ctx.ball_unknown_since = Some(input.now);
         }
+        track_second_touch(ctx);
         self.machine.tick(&mut self.ctx, input.now);
         let mut out = std::mem::take(&mut self.ctx.out);
         out.behavior_path = self.machine.active_path();
@@ -1291,15 +1439,129 @@ mod tests {
     fn kickoff_positions_are_legal_on(preset: &str) {
         let field = TeamField::new(strata_spl::Field::preset(preset).expect("preset"), 1.0);
         for player in 1..=7 {
-            for kicking in [true, false] {
-                let p = kickoff_pose(&field, player, kicking).position();
+            for (kicking, rule) in [(true, false), (false, false), (true, true), (false, true)] {
+                let p = kickoff_pose(&field, player, kicking, rule).position();
                 assert!(p.x < 0.0 && field.is_inside(p, 0.0), "player {player}: {p:?}");
                 let in_circle = p.range() < field.center_circle_radius;
                 assert!(
                     !in_circle || (kicking && player == 2),
                     "{preset}: player {player} kicking {kicking}"
                 );
+                if kicking && player == 2 {
+                    // Under the second-touch rule, clear of a ball 0.11 m in radius and a
+                    // T1's feet.
+                    assert!(p.range() > if rule { 0.5 } else { 0.2 }, "{p:?}");
+                }
             }
         }
+    }
+
+    /// rcsssmj's double-touch rule: the robot at the ball when its team's kick-off is taken
+    /// keeps off the ball while it lies where the kick left it, and plays it again once the
+    /// ball has moved without it.
+    #[test]
+    fn the_kick_off_taker_lets_go_until_the_ball_moves_without_it() {
+        // The kick-off pending in Playing, and taken before Playing showed it (rcssservermj's
+        // kicker touches the ball walking up to it).
+        for pending in [GameState::Playing, GameState::Ready] {
+            kick_off_taker_lets_go(pending);
+        }
+    }
+
+    fn kick_off_taker_lets_go(pending: GameState) {
+        use strata_robot::control::deliberative::{DeliberativeInput, DeliberativePolicy};
+        use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
+        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+        let field =
+            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
+        let config = BehaviorConfig { no_second_touch: true, ..BehaviorConfig::default() };
+        let mut b = SoccerBehavior::new(
+            KICKER_NUMBER,
+            Arc::clone(&field),
+            config,
+            ActiveVisionConfig::default(),
+            Arc::new(MotionModel::default()),
+        )
+        .expect("behavior");
+        let world_config = crate::world_config::world_config(&field);
+        let ball_class =
+            world_config.objects.iter().find(|o| o.name == BALL).map(|o| o.class).expect("ball");
+        let mut model = WorldModel::new(world_config).expect("valid config");
+        let prior = PosePrior { pose: Pose::new(-0.25, 0.0, 0.0), sigma: [0.05, 0.05, 0.02] };
+        model.command(WorldCommand::SetPose { prior }).expect("pose");
+        let mut tick = |k: u32, state: GameState, secondary_time: i16, ball_range: f64| {
+            let now = Time::from_secs_f64(0.1 * f64::from(k));
+            let camera = Some(CameraPercepts {
+                stamp: now,
+                view: ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 },
+                observations: vec![Observation {
+                    class: ball_class,
+                    variant: None,
+                    range: ball_range,
+                    bearing: 0.0,
+                    orientation: None,
+                    range_sigma: 0.02,
+                    bearing_sigma: 0.02,
+                }],
+            });
+            model.process(
+                strata_robot::geometry::Odometry::default(),
+                &Percepts { stamp: now, camera, ..Percepts::default() },
+            );
+            let world = model.state();
+            let decision = Decision {
+                assignment: strata_robot::control::planning::Assignment {
+                    mission: Mission::Attack,
+                    role: Role::Striker,
+                    alone: false,
+                },
+                directive: GameDirective {
+                    state,
+                    kicking: Kicking::Us,
+                    secondary_time,
+                    ..GameDirective::default()
+                },
+                teammates: Vec::new(),
+                stats: Default::default(),
+            };
+            b.tick(&DeliberativeInput {
+                now,
+                world: Some(&world),
+                assignment: Some(&decision),
+                stability: Stability::default(),
+            })
+            .behavior_path
+        };
+        // The kick-off waits; the kicker stands at the ball (and goes for it once Playing).
+        for k in 0..10 {
+            let path = tick(k, pending, 10, 0.25);
+            // (The machine leaves its initial state in the first tick.)
+            let expected = if pending == GameState::Playing { "kick to goal" } else { "Ready" };
+            assert!(k == 0 || path.ends_with(expected), "{k}: {path}");
+        }
+        // Taken: the ball lies 0.6 m ahead (a weak kick), and the taker keeps off it.
+        for k in 10..60 {
+            let path = tick(k, GameState::Playing, 0, 0.6);
+            assert!(path.ends_with("keep off the ball"), "{pending:?} {k}: {path}");
+        }
+        // Someone else plays it: the ball lies 1.5 m further on, and the taker may go again.
+        let mut released = None;
+        for k in 60..80 {
+            let path = tick(k, GameState::Playing, 0, 2.1);
+            if path.ends_with("kick to goal") {
+                released.get_or_insert(k);
+            }
+        }
+        assert!(released.is_some_and(|k| k <= 70), "{pending:?}: released at tick {released:?}");
+    }
+
+    /// Without the rule (the built-in simulator), the kick-off taker plays on.
+    #[test]
+    fn without_the_rule_the_taker_plays_on() {
+        let mut b = behavior(KICKER_NUMBER);
+        b.ctx.at_own_restart = true;
+        decide(&mut b, Role::Striker, GameState::Playing, 0.0);
+        track_second_touch(&mut b.ctx);
+        assert_eq!(b.ctx.let_go, None);
     }
 }

@@ -49,8 +49,17 @@ pub struct MotionModel {
     pub kick_reach_y: [f64; 2],
     /// Alignment needed between the kick direction and the target, rad.
     pub kick_alignment: f64,
+    /// Where the forward kick and the pass send the ball, left of where [`Kick::direction`]
+    /// says, rad: the approach turns the robot so the ball goes to the target anyway.
+    pub kick_deviation: [f64; 2],
     /// Distance behind the ball the approach aims at, m.
     pub approach_distance: f64,
+    /// The fastest forward walk at the kicking pose, m/s: faster, a walking foot reaches the
+    /// ball before the kick does. Within the approach's last 0.8 m the limit rises by
+    /// `approach_speed_gain` for every metre still to walk to the kicking pose.
+    pub approach_speed: f64,
+    /// 1/s.
+    pub approach_speed_gain: f64,
     /// An obstacle closer than this, straight ahead, must be avoided, m.
     pub collision_distance: f64,
     /// How long each walk command lasts if no newer one replaces it, s.
@@ -83,7 +92,10 @@ impl Default for MotionModel {
             kick_reach_x: [0.08, 0.24],
             kick_reach_y: [-0.1, 0.1],
             kick_alignment: 0.25,
+            kick_deviation: [0.0, 0.0],
             approach_distance: 0.16,
+            approach_speed: 0.15,
+            approach_speed_gain: 0.0,
             collision_distance: 0.45,
             walk_command_duration: 0.4,
             near_gaze_range: 0.6,
@@ -104,6 +116,16 @@ impl MotionModel {
 }
 
 impl MotionModel {
+    /// Where `kick` sends the ball, relative to the robot's heading, rad.
+    pub fn kick_direction(&self, kick: Kick) -> f64 {
+        let deviation = match kick {
+            Kick::Forward => self.kick_deviation[0],
+            Kick::Pass => self.kick_deviation[1],
+            Kick::SideLeft | Kick::SideRight => 0.0,
+        };
+        kick.direction() + deviation
+    }
+
     /// The stretch of ground a gaze at something `range` metres away shows (from the camera's
     /// foot, ignoring the torso's lean), for active vision to predict what each gaze would
     /// see. `None` when the vertical field of view is not modelled.
@@ -414,10 +436,16 @@ pub fn approach_pose(
     let target_robot = pose.to_robot(target);
     let shot = (target_robot - ball.robot).angle();
     // The robot's heading such that the kick direction points along the shot.
-    let heading = normalize_angle(shot - kick.direction());
+    let heading = normalize_angle(shot - model.kick_direction(kick));
     let behind =
         Point::<Robot>::from_polar(model.approach_distance + 0.04, heading + std::f64::consts::PI);
-    let stand = Point::new(ball.robot.x + behind.x, ball.robot.y + behind.y);
+    // Sideways, the ball ends in the middle of the kick's reach (the T1's is off-centre).
+    let lateral = (model.kick_reach_y[0] + model.kick_reach_y[1]) / 2.0;
+    let (sin, cos) = heading.sin_cos();
+    let stand = Point::new(
+        ball.robot.x + behind.x + sin * lateral,
+        ball.robot.y + behind.y - cos * lateral,
+    );
     Some((stand, heading))
 }
 
@@ -433,7 +461,7 @@ pub fn kickable(
         && (model.kick_reach_y[0]..=model.kick_reach_y[1]).contains(&ball.robot.y);
     let target_robot = world.pose.pose.to_robot(target);
     let shot = (target_robot - ball.robot).angle();
-    in_reach && normalize_angle(shot - kick.direction()).abs() < model.kick_alignment
+    in_reach && normalize_angle(shot - model.kick_direction(kick)).abs() < model.kick_alignment
 }
 
 /// Go to ball: like go to position, but ends where the ball can be kicked toward the target.
@@ -469,7 +497,8 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToBall {
             walk_velocity(&self.model, ball.robot, ball.robot.bearing())
         } else {
             let mut v = walk_velocity(&self.model, stand, heading);
-            v.vx = v.vx.min(0.6 * self.model.max_forward);
+            let limit = self.model.approach_speed + self.model.approach_speed_gain * stand.range();
+            v.vx = v.vx.min(limit);
             v
         };
         self.sender.send(input.now, velocity, self.model.walk_command_duration)
@@ -677,6 +706,31 @@ mod tests {
             .map(|k| SearchObjectEllipse::point(&t1, &HeadGoal::ObserveBall, k).pitch)
             .fold(f64::NEG_INFINITY, f64::max);
         assert!((t1.camera_height / (lowest + 0.506).tan()) < 0.3, "{lowest}");
+    }
+
+    /// The approach ends with the ball inside the kick's reach, well clear of its edges (the
+    /// T1's approach once ended 1 cm beyond it, where the walk barely moves the robot).
+    #[test]
+    fn the_approach_ends_with_the_ball_within_reach() {
+        for model in [MotionModel::default(), MotionModel::booster_t1()] {
+            let world = world_with_ball(Point::new(1.0, 0.0));
+            let target = world.pose.pose.to_field(Point::new(5.0, 0.0));
+            let Some((stand, heading)) = approach_pose(&model, &world, Kick::Forward, target)
+            else {
+                panic!("the ball is known")
+            };
+            let ball_from_stand = (Point::<Robot>::new(1.0, 0.0) - stand).rotated(-heading);
+            let [near, far] = model.kick_reach_x;
+            let margin = (far - near) / 5.0;
+            assert!(
+                ball_from_stand.x > near + margin && ball_from_stand.x < far - margin,
+                "ball {ball_from_stand:?} ahead, reach {:?}",
+                model.kick_reach_x
+            );
+            let [right, left] = model.kick_reach_y;
+            let middle = (right + left) / 2.0;
+            assert!((ball_from_stand.y - middle).abs() < 1e-9, "ball {ball_from_stand:?}");
+        }
     }
 
     /// A robot at the centre facing +x that knows the ball at `ball` (robot frame).

@@ -163,6 +163,11 @@ impl TeamConfig {
             }
         }
         positive("motion.max_forward", self.motion.max_forward)?;
+        positive("motion.approach_speed", self.motion.approach_speed)?;
+        let gain = self.motion.approach_speed_gain;
+        if !(gain.is_finite() && gain >= 0.0) {
+            return Err(invalid("motion.approach_speed_gain", format!("must be >= 0, got {gain}")));
+        }
         positive("motion.head_speed", self.motion.head_speed)?;
         positive("motion.camera_height", self.motion.camera_height)?;
         let [up, down] = self.motion.head_pitch_limits;
@@ -180,6 +185,10 @@ impl TeamConfig {
                 "behavior.set_play_distance",
                 format!("must be >= 0 (0: no rule), got {distance}"),
             ));
+        }
+        let let_go = self.behavior.let_go_distance;
+        if !(let_go.is_finite() && let_go >= 0.0) {
+            return Err(invalid("behavior.let_go_distance", format!("must be >= 0, got {let_go}")));
         }
         let fov = self.motion.vertical_fov;
         if !(fov.is_finite() && (0.0..std::f64::consts::PI).contains(&fov)) {

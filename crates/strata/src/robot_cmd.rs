@@ -247,6 +247,11 @@ pub fn run(args: RobotArgs) -> Result<()> {
         // during the other team's set play off the field.
         config.behavior.set_play_distance = field.dimensions().center_circle_diameter / 2.0 + 0.5;
     }
+    if args.platform == PlatformKind::Rcssservermj {
+        // The server's referee gives the other team a free kick when a restart's taker touches
+        // the ball again before anyone else has.
+        config.behavior.no_second_touch = true;
+    }
     let out = Output { json: args.json, name: format!("robot {}/{}", args.team, args.player) };
 
     // The body.

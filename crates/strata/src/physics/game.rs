@@ -364,7 +364,7 @@ impl HalfRun<'_> {
             FieldSide::Right => -1.0,
         };
         let team_field = TeamField::new(self.field.clone(), attack_sign);
-        let pose = kickoff_pose(&team_field, player, field_side == FieldSide::Left);
+        let pose = kickoff_pose(&team_field, player, field_side == FieldSide::Left, true);
         // The server leaves a beam's y in its own frame: the right team's is mirrored.
         let beam = [pose.x, attack_sign * pose.y, pose.theta.to_degrees()];
         let name = format!("{}/{player}", if side.index == 0 { "home" } else { "away" });
