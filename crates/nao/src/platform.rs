@@ -425,6 +425,8 @@ pub fn sensor_frame(packet: &SensorPacket, stamp: Time) -> Result<SensorFrame, P
         },
         battery: charge.is_finite().then(|| f64::from(charge).clamp(0.0, 1.0)),
         camera: None,
+        // LoLA cannot tell: a carried NAO shows through its feet (`pose.kidnap_on_lift`).
+        placed: false,
     })
 }
 

@@ -28,8 +28,16 @@ use crate::policy::{LegState, WalkCommand, WalkPolicy};
 pub const CYCLE: f64 = 0.02;
 
 /// A heading change between two perceptions beyond this is a placement, not a turn, rad
-/// (15 rad/s; the policy turns at 1 rad/s at most).
+/// (15 rad/s; the policy turns at 1 rad/s at most). So is any change of the torso's
+/// orientation beyond it, which catches a robot lying too long that the server's referee puts
+/// back upright: a toppling T1 turns at about 5 rad/s, and no fall or get-up of the get-up
+/// test was taken for a placement (`tests/getup.rs`).
 const MAX_TURN_PER_CYCLE: f64 = 0.3;
+
+/// Perceptions after the platform's own beam ([`T1Controller::restart`]) in which a placement
+/// is that beam's (its perception arrives one or two cycles later): world modeling starts from
+/// the beam's pose already, so it is not reported.
+const OWN_BEAM_CYCLES: u32 = 10;
 
 /// How long a protective fall keeps the joints soft, s.
 const FALL_DURATION: f64 = 0.6;
@@ -141,6 +149,10 @@ pub struct T1Controller {
     tilted_cycles: u32,
     upright_cycles: u32,
     getup: GetUpMotions,
+    /// A placement seen since [`T1Controller::take_placement`] was last called.
+    placed: bool,
+    /// Perceptions left in which a placement is the platform's own beam.
+    own_beam_cycles: u32,
 }
 
 impl T1Controller {
@@ -156,6 +168,8 @@ impl T1Controller {
             tilted_cycles: 0,
             upright_cycles: 0,
             getup: GetUpMotions::default(),
+            placed: false,
+            own_beam_cycles: 0,
         }
     }
 
@@ -194,9 +208,10 @@ impl T1Controller {
         catalogue
     }
 
-    /// Starts over after the server put the robot somewhere with every joint at zero (a
-    /// beam): the policy forgets its previous actions, the body stands, the head is driven
-    /// from where it is.
+    /// Starts over after the server put the robot somewhere with every joint at zero (the
+    /// platform's own beam): the policy forgets its previous actions, the body stands, the head
+    /// is driven from where it is. The placement the next perceptions show is the beam's and is
+    /// not reported ([`T1Controller::take_placement`]): the robot knows where it put itself.
     pub fn restart(&mut self) {
         self.policy.reset();
         self.body = BodyMode::Standing;
@@ -204,6 +219,7 @@ impl T1Controller {
         self.measured = None;
         self.tilted_cycles = 0;
         self.upright_cycles = 0;
+        self.own_beam_cycles = OWN_BEAM_CYCLES;
     }
 
     /// Takes new orders; a `None` part keeps the previous one.
@@ -308,6 +324,7 @@ impl T1Controller {
     /// joint's command.
     pub fn step(&mut self, measured: MeasuredBody) -> JointArray<JointCommand> {
         let previous_yaw = self.measured.as_ref().map(|m| m.orientation.yaw());
+        let placed = self.track_placement(&measured);
         self.track_fall(&measured);
         let mut commands = self.hold_default_pose();
         let soft = self.config.soft_gain;
@@ -326,7 +343,7 @@ impl T1Controller {
                         tau: 0.0,
                     };
                 }
-                self.integrate_odometry(previous_yaw, &measured);
+                self.integrate_odometry(previous_yaw, &measured, placed);
             }
             BodyMode::Falling { elapsed } => {
                 *elapsed += CYCLE;
@@ -447,7 +464,30 @@ impl T1Controller {
         }
     }
 
-    fn integrate_odometry(&mut self, previous_yaw: Option<f64>, measured: &MeasuredBody) {
+    /// Whether the server placed the robot between the previous perception and this one (the
+    /// torso turned faster than any motion turns it); reported unless it was the platform's own
+    /// beam.
+    fn track_placement(&mut self, measured: &MeasuredBody) -> bool {
+        let placed = self
+            .measured
+            .as_ref()
+            .is_some_and(|m| m.orientation.angle_to(&measured.orientation) > MAX_TURN_PER_CYCLE);
+        if placed && self.own_beam_cycles > 0 {
+            self.own_beam_cycles = 0;
+        } else if placed {
+            self.placed = true;
+        } else {
+            self.own_beam_cycles = self.own_beam_cycles.saturating_sub(1);
+        }
+        placed
+    }
+
+    fn integrate_odometry(
+        &mut self,
+        previous_yaw: Option<f64>,
+        measured: &MeasuredBody,
+        placed: bool,
+    ) {
         let [sx, sy, st] = self.config.odometry_scale;
         let v = self.policy.smoothed_command();
         // Turning comes from the IMU's heading (what a real T1 integrates from its gyro); a
@@ -459,7 +499,7 @@ impl T1Controller {
                     strata_robot::geometry::normalize_angle(measured.orientation.yaw() - yaw);
                 // No step turns the body this fast: the server placed the robot (a beam, or a
                 // referee's move, whose perception can arrive a cycle after the restart).
-                if turned.abs() > MAX_TURN_PER_CYCLE { commanded } else { turned }
+                if placed || turned.abs() > MAX_TURN_PER_CYCLE { commanded } else { turned }
             }
             None => commanded,
         };
@@ -562,6 +602,14 @@ impl T1Controller {
     /// The motion since the last call.
     pub fn take_odometry(&mut self) -> Odometry {
         std::mem::replace(&mut self.odometry, Odometry::ZERO)
+    }
+
+    /// Whether the server placed the robot since the last call (a referee's move, a trainer's
+    /// through the monitor port; not the platform's own beam): something other than its own
+    /// motion moved it, to where it cannot know. Only a placement that turns the torso shows:
+    /// the IMU cannot see a move that keeps the orientation.
+    pub fn take_placement(&mut self) -> bool {
+        std::mem::take(&mut self.placed)
     }
 }
 
@@ -943,5 +991,81 @@ mod tests {
         };
         c.step(placed);
         assert!(c.take_odometry().dtheta.abs() < 1e-12);
+    }
+
+    fn yawed(yaw: f64) -> MeasuredBody {
+        MeasuredBody {
+            orientation: Quaternion { w: (yaw / 2.0).cos(), x: 0.0, y: 0.0, z: (yaw / 2.0).sin() },
+            ..upright()
+        }
+    }
+
+    #[test]
+    fn a_heading_jump_is_reported_as_a_placement_and_a_turn_is_not() {
+        let mut c = controller();
+        c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(0.3, 0.0, 1.0) })).expect("ok");
+        // Turning at the policy's fastest, 1 rad/s, and four times that: a turn, whole.
+        let mut yaw = 0.0;
+        for _ in 0..100 {
+            yaw += 4.0 * CYCLE;
+            c.step(yawed(yaw));
+            assert!(!c.take_placement(), "a turn at 4 rad/s is no placement");
+        }
+        // The first cycle, without a previous heading, counts the commanded turn (< 0.02).
+        let turned = c.take_odometry().dtheta;
+        assert!(normalize(turned - 4.0 * CYCLE * 99.0).abs() < 0.021, "turned {turned}");
+        // The referee's move: facing into the field (the robot faced along the line).
+        c.step(yawed(yaw + std::f64::consts::FRAC_PI_2));
+        assert!(c.take_placement(), "a quarter turn in one cycle is a placement");
+        assert!(!c.take_placement(), "reported once");
+        let turned = c.take_odometry().dtheta;
+        assert!(turned.abs() <= 1.0 * CYCLE + 1e-12, "not a turn: the commanded one, {turned}");
+    }
+
+    fn normalize(angle: f64) -> f64 {
+        strata_robot::geometry::normalize_angle(angle)
+    }
+
+    #[test]
+    fn a_lying_robot_put_upright_is_placed_and_a_fall_is_not() {
+        let mut c = controller();
+        c.step(upright());
+        // Falling forward at 6 rad/s, then lying.
+        let mut angle = 0.0;
+        while angle < 1.5 {
+            angle += 6.0 * CYCLE;
+            c.step(pitched(angle));
+            assert!(!c.take_placement(), "a fall at {angle:.2} rad is no placement");
+        }
+        for _ in 0..50 {
+            c.step(pitched(1.5));
+        }
+        assert!(matches!(c.body_state(), BodyMotionState::Fallen { .. }));
+        assert!(!c.take_placement());
+        // Down too long: the server's referee puts it at the side line, upright.
+        c.step(yawed(std::f64::consts::FRAC_PI_2));
+        assert!(c.take_placement());
+    }
+
+    #[test]
+    fn the_platforms_own_beam_is_not_reported_and_later_moves_are() {
+        let mut c = controller();
+        // Spawned at the side line facing into the field, then beamed facing along x: the
+        // beam's perception arrives a cycle after the beam order.
+        c.step(yawed(-std::f64::consts::FRAC_PI_2));
+        c.restart();
+        c.step(yawed(-std::f64::consts::FRAC_PI_2));
+        c.step(yawed(0.0));
+        assert!(!c.take_placement(), "the robot knows where it beamed itself");
+        c.step(yawed(0.0));
+        c.step(yawed(2.0));
+        assert!(c.take_placement(), "a move after the beam is the referee's");
+        // A beam that keeps the heading shows nothing; a move well after it is reported.
+        c.restart();
+        for _ in 0..=OWN_BEAM_CYCLES {
+            c.step(yawed(2.0));
+        }
+        c.step(yawed(0.5));
+        assert!(c.take_placement(), "the beam's window is over");
     }
 }

@@ -87,6 +87,12 @@ impl Quaternion {
         [roll, pitch]
     }
 
+    /// The angle of the rotation that takes this orientation to `other`, rad in [0, pi].
+    pub fn angle_to(&self, other: &Quaternion) -> f64 {
+        let dot = self.w * other.w + self.x * other.x + self.y * other.y + self.z * other.z;
+        2.0 * dot.abs().min(1.0).acos()
+    }
+
     /// The torso's tilt alone: this orientation with its heading taken out, so that it maps the
     /// torso frame into the ground frame.
     pub fn without_yaw(&self) -> Quaternion {

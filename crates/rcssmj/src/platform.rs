@@ -180,6 +180,9 @@ pub struct RcssStats {
     pub malformed: u64,
     /// Answers sent.
     pub answers: u64,
+    /// Placements by the server reported to world modeling (not the platform's own beam).
+    #[serde(default)]
+    pub placements: u64,
 }
 
 /// The server's view of the robot, for reports of accuracy only: the robot itself never uses
@@ -740,7 +743,7 @@ fn cycle(
             footprint: Some(session.camera.footprint(&pose)),
         }
     });
-    let frame = SensorFrame {
+    let mut frame = SensorFrame {
         stamp: Time::ZERO,
         inertial: InertialData {
             accelerometer: perception.accel.unwrap_or([0.0; 3]),
@@ -753,6 +756,7 @@ fn cycle(
         buttons: Default::default(),
         battery: None,
         camera,
+        placed: false,
     };
     if let Some(game) = &perception.game {
         *session.game.lock().unwrap_or_else(PoisonError::into_inner) = Some(game.clone());
@@ -776,6 +780,13 @@ fn cycle(
     if frame.camera.is_some() {
         guard.stats.images += 1;
     }
+    if guard.controller.take_placement() {
+        guard.stats.placements += 1;
+        tracing::info!(time = ?perception.time, "the server placed the robot (reported)");
+        frame.placed = true;
+    }
+    // A frame perception has not read yet is replaced: its placement must not go with it.
+    frame.placed |= guard.unread.as_ref().is_some_and(|f| f.placed);
     guard.unread = Some(frame);
     guard.last_at = Some(arrived);
     if let (Some(time), Some(position)) = (perception.time, perception.torso_position_truth) {

@@ -24,8 +24,11 @@
 
 use std::sync::{Arc, Mutex, PoisonError};
 
+use strata_robot::geometry::Pose;
 use strata_robot::platform::{ExternalLink, LinkError, ReceivedPacket};
+use strata_robot::world::PosePrior;
 use strata_runtime::Time;
+use strata_spl::FieldDimensions;
 use strata_spl::gamecontroller::{GameControlData, GameState, SetPlay, TeamInfo};
 
 use crate::protocol::{FieldSide, GameStatePerceptor, PlayMode};
@@ -147,6 +150,36 @@ fn set_play_of(mode: PlayMode) -> (SetPlay, FieldSide) {
     }
 }
 
+/// How far apart rcsssmj 0.2.1's referee tries the spots it puts a penalized robot on, m.
+const PENALTY_SPOT_STEP: f64 = 2.0;
+
+/// Where the server's referee may put a robot of ours without telling it (rcsssmj 0.2.1's
+/// `_penalize`: a robot in the way of the other team's set play, one lying too long, ...), in
+/// the team's frame: outside the side line at the field border's edge, on the side away from
+/// the ball, facing into the field, at the first free x of 2, 4, 6 ... m into its own half.
+/// No packet says the robot was moved, so world modeling needs these to find it there
+/// (`SymmetryHint::Relocations`).
+pub fn penalty_spots(field: &FieldDimensions) -> Vec<PosePrior> {
+    let y = field.field_width / 2.0 + field.border_strip_width;
+    let half_length = field.field_length / 2.0;
+    let mut spots = Vec::new();
+    let mut x = -PENALTY_SPOT_STEP;
+    while x > -half_length {
+        for side in [1.0, -1.0] {
+            spots.push(PosePrior {
+                pose: Pose::new(x, side * y, -side * std::f64::consts::FRAC_PI_2),
+                // The placement is exact, but the robot walks and turns on until its landmarks
+                // disagree, which is when world modeling starts carrying the spots along by
+                // odometry. Any wider, one landmark would tell neither two spots 2 m apart nor
+                // (by the heading) the two side lines apart.
+                sigma: [0.35, 0.35, 0.4],
+            });
+        }
+        x -= PENALTY_SPOT_STEP;
+    }
+    spots
+}
+
 /// The newest game state, shared by the platform's connection thread and the link.
 pub type SharedGame = Arc<Mutex<Option<GameStatePerceptor>>>;
 
@@ -237,6 +270,23 @@ impl ExternalLink for RefereeLink {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn penalty_spots_are_off_the_side_lines_of_the_own_half_facing_in() {
+        let field = strata_spl::Field::preset("rcssservermj").expect("the preset");
+        let spots = penalty_spots(field.dimensions());
+        // x = -2 ... -26 on both sides of the 55 m x 36 m field with its 3 m border.
+        assert_eq!(spots.len(), 26);
+        for spot in &spots {
+            let p = spot.pose;
+            assert!(p.x < 0.0 && p.x > -27.5 && (p.x / 2.0).fract() == 0.0, "{p:?}");
+            assert_eq!(p.y.abs(), 21.0, "{p:?}");
+            // Facing the centre line's direction into the field: towards y = 0.
+            assert!((p.theta.sin() + p.y.signum()).abs() < 1e-12, "{p:?}");
+        }
+        let first = spots.iter().find(|s| s.pose.y < 0.0).expect("the -y side");
+        assert_eq!((first.pose.x, first.pose.y), (-2.0, -21.0));
+    }
 
     fn gs(mode: PlayMode, left: Option<&str>, right: Option<&str>) -> GameStatePerceptor {
         GameStatePerceptor {

@@ -157,4 +157,9 @@ fn a_t1_laid_on_the_ground_stands_up_and_stands() {
         assert!(!times.is_empty(), "from the {side}: none of {attempts} get-ups succeeded");
     }
     assert!(tried > 0, "the T1's catalogue has no get-up");
+    // Each laying down is one placement at most (none when it lay that way already): a fall or
+    // a get-up taken for one would make the robot lost for nothing.
+    let placements = robot.stats().placements;
+    println!("placements reported: {placements} in {} layings", tried * attempts);
+    assert!(placements <= (tried * attempts) as u64, "a fall or get-up taken for a placement");
 }

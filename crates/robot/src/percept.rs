@@ -80,6 +80,10 @@ pub struct Percepts {
     pub buttons: Buttons,
     /// Present when the frame carried a new camera image.
     pub camera: Option<CameraPercepts>,
+    /// The platform saw the robot put somewhere since the previous frame
+    /// ([`crate::platform::SensorFrame::placed`]).
+    #[serde(default)]
+    pub placed: bool,
 }
 
 impl Percepts {

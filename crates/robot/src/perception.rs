@@ -80,6 +80,7 @@ pub fn percepts_from_frame(
         foot_contact: frame.foot_contact,
         buttons: frame.buttons,
         camera,
+        placed: frame.placed,
     };
     (percepts, rejected)
 }

@@ -110,6 +110,12 @@ pub struct SensorFrame {
     /// A camera image's detections, when one was completed since the last frame (cameras run
     /// slower than the inertial sensors).
     pub camera: Option<CameraFrame>,
+    /// The platform saw the robot moved by something other than its own motion since the last
+    /// frame: put somewhere by a referee or a trainer (rcssservermj's referee turns it in one
+    /// cycle), not a placement the robot knows the destination of (its own beam). World
+    /// modeling takes it as a kidnap. False when the platform cannot tell.
+    #[serde(default)]
+    pub placed: bool,
 }
 
 strata_runtime::text_and_binary_enum! {

@@ -165,6 +165,7 @@ fn symmetry_hints_are_tagged_in_text_and_positional_in_cdr() {
         },
         SymmetryHint::Heading { theta: 0.0, sigma: 0.5 },
         SymmetryHint::NearPoses { poses: vec![prior] },
+        SymmetryHint::Relocations { poses: vec![prior] },
     ];
     // As a configuration file writes them.
     let from_toml: toml::Table =

@@ -100,3 +100,43 @@ fn an_invalid_configuration_is_refused_when_the_module_is_added() {
     let error = add_world_module(&mut graph, "world", cfg).expect_err("threshold above 1");
     assert_eq!(error.field, "confidence.unknown_threshold");
 }
+
+#[test]
+fn a_placed_frame_without_an_image_is_filtered_and_published_at_once() {
+    let start = Pose::new(-2.0, 0.5, 0.0);
+    let mut graph = GraphBuilder::new();
+    let ports = add_world_module(
+        &mut graph,
+        "world",
+        config(Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.02] })),
+    )
+    .expect("valid config");
+    let states: States = Arc::default();
+    let keep = graph.add("keep", |p| {
+        let input = p.input("world", Policy::queue(1000));
+        (Keep { input, states: Arc::clone(&states) }, input)
+    });
+    graph.connect(ports.world_state, keep);
+    graph.external(ports.percepts);
+    graph.external(ports.odometry);
+    let mut host =
+        LockstepHost::new(graph.build().expect("a valid graph"), HostConfig::with_seed(2));
+    let mut sim = Sim::new(12, start);
+    for _ in 0..30 {
+        sim.time += DT;
+        let percepts = sim.camera_frame();
+        let stamp = percepts.stamp;
+        host.inject(ports.percepts, percepts, stamp, stamp).expect("external");
+    }
+    // 12 ms after the last image (no publication due): the platform saw the robot placed.
+    let at = Time::from_secs_f64(sim.time + 0.012);
+    let placed = Percepts { stamp: at, placed: true, ..Percepts::default() };
+    host.inject(ports.percepts, placed, at, at).expect("external");
+    host.run_for(Duration::from_secs_f64(30.0 * DT + 0.1)).expect("runs");
+    let states = states.lock().unwrap_or_else(|e| e.into_inner());
+    let (before, _) = states.split_at(states.len() - 1);
+    assert!(before.iter().all(|(_, s)| !s.pose.lost), "localized before the placement");
+    let (stamp, last) = states.last().expect("published");
+    assert_eq!(*stamp, at, "the placed frame was published");
+    assert!(last.pose.lost, "lost at once: {:?}", last.pose);
+}

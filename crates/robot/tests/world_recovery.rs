@@ -200,3 +200,169 @@ fn commands_set_the_pose_and_reset_the_model() {
     assert_eq!(world.lost(), Some(LostReason::Reset));
     assert!(world.state().pose.lost);
 }
+
+/// How a robot that a referee silently moved off the field, to where it sees a single
+/// landmark, fares.
+struct AfterTheMove {
+    /// Seconds from the move until the pose was lost, if it was.
+    noticed: Option<f64>,
+    /// Seconds from the move until the pose was found again, if it was.
+    found: Option<f64>,
+    lost: bool,
+    estimate: Pose,
+    truth: Pose,
+}
+
+/// `told`: the robot is told it was moved (`WorldCommand::Kidnapped`) and sees nothing for
+/// this long after.
+fn moved_to_the_side_line(
+    seed: u64,
+    one_landmark: bool,
+    relocations: bool,
+    told: Option<f64>,
+) -> AfterTheMove {
+    moved_to_the_side_line_seen(seed, one_landmark, relocations, told, false)
+}
+
+/// `placed`: the platform saw the move (`Percepts::placed` in the first frame after it).
+fn moved_to_the_side_line_seen(
+    seed: u64,
+    one_landmark: bool,
+    relocations: bool,
+    told: Option<f64>,
+    placed: bool,
+) -> AfterTheMove {
+    let start = Pose::new(-2.0, 0.5, 0.0);
+    let mut sim = Sim::new(600 + seed, start);
+    let mut cfg = config(Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.02] }));
+    cfg.pose.hints = vec![SymmetryHint::Region { region: own_half() }];
+    cfg.pose.kidnap_from_one_landmark = one_landmark;
+    if relocations {
+        // Off both side lines, facing into the field, 2 m apart (as rcssservermj's referee
+        // puts robots).
+        let poses = [-1.5, -3.5]
+            .into_iter()
+            .flat_map(|x| [1.0, -1.0].map(|side| (x, side)))
+            .map(|(x, side)| PosePrior {
+                pose: Pose::new(x, side * 3.7, -side * std::f64::consts::FRAC_PI_2),
+                sigma: [0.35, 0.35, 0.4],
+            })
+            .collect();
+        cfg.pose.hints.push(SymmetryHint::Relocations { poses });
+    }
+    let mut world = WorldModel::new(cfg).expect("valid config");
+    // Told, it has seen nothing for 4 s before: no track from before the move can fix it.
+    let before = if told.is_some() { 8.0 } else { 5.0 };
+    for frame in 0..(before / DT) as usize {
+        sim.see_landmarks = told.is_none() || frame as f64 * DT < 4.0;
+        let (odometry, percepts) = sim.frame(patrol_step(&sim));
+        world.process(odometry, &percepts);
+    }
+    assert!(good(&world.state().pose.pose, &sim.truth), "seed {seed}: not localized");
+    // Put at the spot at x = -3.5; only the corner 1.2 m away is within the camera's range.
+    sim.truth = Pose::new(-3.5, -3.7, std::f64::consts::FRAC_PI_2);
+    sim.view_range = 2.0;
+    if told.is_some() {
+        world.command(WorldCommand::Kidnapped).expect("always valid");
+    }
+    let blind = told.unwrap_or(0.0);
+    let (mut noticed, mut found) = (None, None);
+    for frame in 0..((blind + 10.0) / DT) as usize {
+        sim.see_landmarks = frame as f64 * DT >= blind;
+        // It turns on for a second before it stops.
+        let step =
+            if frame < 30 { Odometry { dx: 0.0, dy: 0.0, dtheta: 0.01 } } else { Odometry::ZERO };
+        let (odometry, mut percepts) = sim.frame(step);
+        percepts.placed = placed && frame == 0;
+        world.process(odometry, &percepts);
+        let state = world.state();
+        let t = (frame + 1) as f64 * DT;
+        if state.pose.lost {
+            noticed.get_or_insert(t);
+        } else if noticed.is_some() {
+            found.get_or_insert(t);
+            let e = pose_error(&state.pose.pose, &sim.truth);
+            assert!(
+                nees3(&e, &state.pose.covariance) < CONFIDENTLY_WRONG,
+                "seed {seed} frame {frame}: recovered to a wrong pose {:?}, truth {:?}",
+                state.pose,
+                sim.truth
+            );
+        }
+    }
+    let state = world.state();
+    AfterTheMove {
+        noticed,
+        found,
+        lost: state.pose.lost,
+        estimate: state.pose.pose,
+        truth: sim.truth,
+    }
+}
+
+#[test]
+fn a_robot_moved_off_the_field_silently_finds_itself_at_the_spot_from_one_landmark() {
+    for seed in 0..4 {
+        let after = moved_to_the_side_line(seed, true, true, None);
+        println!(
+            "seed {seed}: lost {:.2?} s and found {:.2?} s after the move",
+            after.noticed, after.found
+        );
+        assert!(after.noticed.is_some(), "seed {seed}: the move went unnoticed");
+        // One landmark fixes two coordinates, the spot the third as well as it knows it.
+        let e = pose_error(&after.estimate, &after.truth);
+        assert!(
+            !after.lost && e.xy().norm() < 0.4 && e.z.abs() < 0.3,
+            "seed {seed}: at {:?}, truth {:?}",
+            after.estimate,
+            after.truth
+        );
+        // Without the spots one landmark cannot fix the pose: the robot stays lost.
+        let after = moved_to_the_side_line(seed, true, false, None);
+        assert!(after.noticed.is_some() && after.lost, "seed {seed}");
+        // Without trusting one landmark it does not even notice.
+        let after = moved_to_the_side_line(seed, false, true, None);
+        let e = pose_error(&after.estimate, &after.truth);
+        assert!(after.noticed.is_none() && e.xy().norm() > 3.0, "seed {seed}");
+    }
+}
+
+#[test]
+fn the_spots_explain_a_kidnap_only_for_a_while() {
+    let soon = moved_to_the_side_line(0, true, true, Some(3.0));
+    assert!(!soon.lost, "seeing the landmark 3 s after the kidnap finds the spot");
+    let e = pose_error(&soon.estimate, &soon.truth);
+    assert!(e.xy().norm() < 0.3, "{:?} truth {:?}", soon.estimate, soon.truth);
+    // By then the robot may have been moved again: one landmark is no longer enough.
+    let late = moved_to_the_side_line(0, true, true, Some(11.0));
+    assert!(late.lost, "found {:?} from one landmark 11 s after the kidnap", late.estimate);
+}
+
+#[test]
+fn a_robot_the_platform_saw_placed_is_kidnapped_at_once_and_found_at_the_spot() {
+    for seed in 0..4 {
+        // Without trusting one landmark's disagreements: the platform's word alone.
+        let after = moved_to_the_side_line_seen(seed, false, true, None, true);
+        let heard = moved_to_the_side_line(seed, true, true, None);
+        println!(
+            "seed {seed}: placed: lost {:.2?} s and found {:.2?} s after the move; from the \
+             landmark alone: {:.2?} and {:.2?} s",
+            after.noticed, after.found, heard.noticed, heard.found
+        );
+        assert_eq!(after.noticed, Some(DT), "seed {seed}: lost in the frame that says so");
+        let e = pose_error(&after.estimate, &after.truth);
+        assert!(
+            !after.lost && e.xy().norm() < 0.4 && e.z.abs() < 0.3,
+            "seed {seed}: at {:?}, truth {:?}",
+            after.estimate,
+            after.truth
+        );
+        let (Some(placed), Some(landmark)) = (after.found, heard.found) else {
+            panic!("seed {seed}: not found: {:?} {:?}", after.found, heard.found);
+        };
+        assert!(placed <= landmark, "seed {seed}: found later when told ({placed} s)");
+        // Without the spots the robot knows it is lost, and stays so with one landmark.
+        let after = moved_to_the_side_line_seen(seed, false, false, None, true);
+        assert!(after.noticed == Some(DT) && after.lost, "seed {seed}");
+    }
+}

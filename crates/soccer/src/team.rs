@@ -17,7 +17,7 @@ use strata_robot::control::reactive::{
 use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::perception::PerceptionConfig;
 use strata_robot::platform::{ExternalLink, PlatformInfo, SharedPlatform, TeamLink, lock_platform};
-use strata_robot::world::{PosePrior, WorldModelConfig, WorldState};
+use strata_robot::world::{PosePrior, SymmetryHint, WorldModelConfig, WorldState};
 use strata_runtime::GraphBuilder;
 
 use crate::activation::{BodyActivation, HeadActivation, WholeBodyActivation};
@@ -227,6 +227,9 @@ pub struct SoccerRobotSpec {
     /// Where the robot knows it starts (a platform that places it), in the team frame; `None`:
     /// the pose is lost until landmarks fix it.
     pub initial_pose: Option<PosePrior>,
+    /// Where the platform's referee may put the robot without telling it, in the team frame
+    /// (rcssservermj's penalty spots); empty where the referee says so (a GameController).
+    pub relocations: Vec<PosePrior>,
 }
 
 impl std::fmt::Debug for SoccerRobotSpec {
@@ -238,10 +241,21 @@ impl std::fmt::Debug for SoccerRobotSpec {
     }
 }
 
-/// The world model's configuration for one robot: the field's, with where it starts if known.
-pub fn robot_world_config(field: &TeamField, initial_pose: Option<PosePrior>) -> WorldModelConfig {
+/// The world model's configuration for one robot: the field's, with where it starts if known
+/// and where it may be put without being told.
+pub fn robot_world_config(
+    field: &TeamField,
+    initial_pose: Option<PosePrior>,
+    relocations: &[PosePrior],
+) -> WorldModelConfig {
     let mut config = world_config(field);
     config.pose.initial = initial_pose;
+    if !relocations.is_empty() {
+        config.pose.hints.push(SymmetryHint::Relocations { poses: relocations.to_vec() });
+        // Put off the field, the robot may see a single landmark: that one disagreeing must
+        // be enough to notice.
+        config.pose.kidnap_from_one_landmark = true;
+    }
     config
 }
 
@@ -334,7 +348,7 @@ pub fn add_soccer_robot(
         player: spec.player,
         platform: spec.platform,
         perception: config.perception.clone(),
-        world: robot_world_config(&field, spec.initial_pose),
+        world: robot_world_config(&field, spec.initial_pose, &spec.relocations),
         reactive,
         deliberative,
         planner,

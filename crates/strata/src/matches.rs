@@ -238,6 +238,7 @@ impl Match {
                     game_controller: Some(Box::new(sim.game_controller_link(id)?)),
                     half_duration: config.half_duration,
                     initial_pose: None,
+                    relocations: Vec::new(),
                 };
                 let modules = add_soccer_robot(&mut graph, spec, team_config)
                     .map_err(|e| anyhow::anyhow!("robot {}: {e}", robot_name(id)))?;

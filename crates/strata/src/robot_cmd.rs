@@ -33,7 +33,7 @@ use strata_log::{ConfigFormat, LogCompression, McapTap, McapTapOptions, RunInfo,
 use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
 use strata_rcssmj::compute::ComputeReport;
 use strata_rcssmj::platform::{FALL_ONSET_TILT, FallRecord, RcssConfig, RcssPlatform, TruthSource};
-use strata_rcssmj::referee::TeamNumbers;
+use strata_rcssmj::referee::{TeamNumbers, penalty_spots};
 use strata_robot::assembly::RobotModules;
 use strata_robot::geometry::{Pose, normalize_angle};
 use strata_robot::platform::{
@@ -340,6 +340,12 @@ pub fn run(args: RobotArgs) -> Result<()> {
         PlatformKind::Rcssservermj => args.beam.map(|beam| beam_prior(beam, attack_sign)),
         _ => None,
     };
+    // rcssservermj's referee moves robots to the side line without a word; a GameController
+    // announces each penalty.
+    let relocations = match args.platform {
+        PlatformKind::Rcssservermj => penalty_spots(team_field.field.dimensions()),
+        _ => Vec::new(),
+    };
     // The robot: all four modules, all three layers.
     let mut graph = GraphBuilder::new();
     let spec = SoccerRobotSpec {
@@ -353,6 +359,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
         game_controller: Some(gc_link),
         half_duration: args.half_duration,
         initial_pose,
+        relocations: relocations.clone(),
     };
     let modules = add_soccer_robot(&mut graph, spec, &config)
         .map_err(|e| anyhow::anyhow!("building robot {}/{}: {e}", args.team, args.player))?;
@@ -368,7 +375,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
             let run_config = RobotRunConfig {
                 robot: format!("t{}/{}", args.team, args.player),
                 team: config.clone(),
-                world: robot_world_config(&team_field, initial_pose),
+                world: robot_world_config(&team_field, initial_pose, &relocations),
                 field: team_field.field.dimensions().clone(),
                 attack_sign,
                 platform: info.clone(),

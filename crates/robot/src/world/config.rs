@@ -311,6 +311,12 @@ strata_runtime::text_and_binary_enum! {
         Heading { theta: f64, sigma: f64 },
         /// The robot is near one of these poses.
         NearPoses { poses: Vec<PosePrior> },
+        /// The robot may have been moved to one of these poses without being told (a referee
+        /// that takes robots off the field silently). Unlike `NearPoses` it costs nothing
+        /// elsewhere: for 10 s after a kidnap, recovery tries each pose carried along by the
+        /// odometry since the landmarks began to disagree, favours poses near one, and takes
+        /// one landmark that fits there as enough.
+        Relocations { poses: Vec<PosePrior> },
     }
     text: #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
     binary: #[serde(rename_all = "snake_case")]
@@ -333,6 +339,11 @@ pub struct PoseConfig {
     /// Consecutive landmark estimates (from at least two landmarks) that disagree with the
     /// pose and the map before the robot is declared kidnapped.
     pub kidnap_rejections: usize,
+    /// Whether the disagreements of a single landmark declare a kidnap too. Off, they must come
+    /// from at least two, so that one persistent false positive cannot unseat the pose; on for
+    /// a robot that may be moved without being told to where it sees one landmark (the side
+    /// line of rcssservermj's field).
+    pub kidnap_from_one_landmark: bool,
     /// A robot whose feet carried less than this (kg, both feet) and then touch the ground
     /// again was carried: it is declared kidnapped. `None` ignores foot contact.
     pub kidnap_on_lift: Option<f64>,
@@ -363,6 +374,7 @@ impl Default for PoseConfig {
             lost_position_sigma: 1.0,
             lost_heading_sigma: 0.6,
             kidnap_rejections: 5,
+            kidnap_from_one_landmark: false,
             kidnap_on_lift: None,
             recovery_max_age: 3.0,
             recovery_min_landmarks: 2,
@@ -602,7 +614,7 @@ pub fn validate_hint(field: &str, hint: &SymmetryHint) -> Result<(), ConfigError
             }
             positive(&format!("{field}.sigma"), *sigma)
         }
-        SymmetryHint::NearPoses { poses } => {
+        SymmetryHint::NearPoses { poses } | SymmetryHint::Relocations { poses } => {
             if poses.is_empty() {
                 return Err(err(format!("{field}.poses"), "must not be empty"));
             }

@@ -132,6 +132,10 @@ pub struct WorldModel {
     last_pose_correction: Option<Time>,
     last_recovery_attempt: Option<Time>,
     hints: Vec<SymmetryHint>,
+    /// Lost after a kidnap: when it was declared, and the odometry since the landmarks began to
+    /// disagree, which carries the `Relocations` hints to where the robot went after it may
+    /// have been put there.
+    relocated: Option<(Time, Odometry)>,
     time: Option<Time>,
     frame_gains: Vec<FrameGain>,
     kidnap: KidnapDetector,
@@ -275,6 +279,7 @@ impl WorldModel {
             lost,
             last_pose_correction: None,
             last_recovery_attempt: None,
+            relocated: None,
             time: None,
             frame_gains: Vec::new(),
             kidnap: KidnapDetector::default(),
@@ -368,6 +373,10 @@ impl WorldModel {
         if let Some(pose) = &mut self.pose {
             pose.predict(&odometry, &q);
         }
+        self.kidnap.travel(odometry);
+        if let Some((_, moved)) = &mut self.relocated {
+            *moved = moved.then(odometry);
+        }
         let turn = odometry.dtheta.sin_cos();
         // Uncorrected (the usual case) the turn is the reported one, bit for bit.
         let reported_turn = if reported.dtheta.to_bits() == odometry.dtheta.to_bits() {
@@ -411,11 +420,16 @@ impl WorldModel {
     }
 
     /// One percept frame: odometry since the previous frame, then the frame's observations.
+    /// A frame that says the robot was placed ([`Percepts::placed`]) declares a kidnap after
+    /// that odometry (made where the robot was) and before its observations (made where it is).
     pub fn process(&mut self, odometry: Odometry, percepts: &Percepts) {
         self.check_lift(&percepts.foot_contact);
         self.predict(odometry);
         let stamp = percepts.camera.as_ref().map_or(percepts.stamp, |c| c.stamp);
         self.advance_to(stamp);
+        if percepts.placed {
+            self.declare_placed();
+        }
         match &percepts.camera {
             Some(camera) => self.update(camera),
             None => self.finish_frame(false),
@@ -423,9 +437,14 @@ impl WorldModel {
     }
 
     /// A frame without an image that the caller does not run the filters for (its odometry is
-    /// merged into the next one): only the lift detector needs every frame.
+    /// merged into the next one): only the lift detector needs every frame, and a placement
+    /// must not be missed ([`WorldModule`](super::WorldModule) runs [`WorldModel::process`] for
+    /// a placed frame, so that the odometry before it is applied first).
     pub fn note_frame_without_image(&mut self, percepts: &Percepts) {
         self.check_lift(&percepts.foot_contact);
+        if percepts.placed {
+            self.declare_placed();
+        }
     }
 
     // ----- correction -------------------------------------------------------------------
@@ -580,6 +599,7 @@ impl WorldModel {
                 validate_pose_prior("command.prior", &prior)?;
                 self.pose = Some(PoseFilter::new(prior.pose, prior.covariance()));
                 self.lost = None;
+                self.relocated = None;
                 self.kidnap.accept();
             }
             WorldCommand::Kidnapped => self.declare_kidnapped(),
@@ -592,6 +612,7 @@ impl WorldModel {
                 }
                 self.pose = None;
                 self.lost = Some(LostReason::Reset);
+                self.relocated = None;
                 self.kidnap.accept();
             }
             WorldCommand::SetHints { hints } => {

@@ -76,7 +76,9 @@ impl Module for WorldModule {
             self.pending_odometry = self.pending_odometry.then(odometry);
             odometry = Odometry::ZERO;
             let due = self.last_published.is_none_or(|t| package.stamp - t >= MIN_PUBLISH_PERIOD);
-            if frame.camera.is_some() || due {
+            // A placement is filtered at once: the odometry before it was made where the robot
+            // was, the odometry after it where it is.
+            if frame.camera.is_some() || due || frame.placed {
                 let motion = std::mem::replace(&mut self.pending_odometry, Odometry::ZERO);
                 self.model.process(motion, frame);
                 published = Some(package.stamp);

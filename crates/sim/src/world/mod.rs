@@ -641,6 +641,8 @@ impl Simulation {
                 buttons: Default::default(),
                 battery,
                 camera: None,
+                // A robot the referee carries off is lifted: its feet tell.
+                placed: false,
             });
         }
     }

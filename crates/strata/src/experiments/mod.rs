@@ -697,6 +697,7 @@ impl Scene {
                 game_controller: Some(Box::new(sim.game_controller_link(id)?)),
                 half_duration: 600.0,
                 initial_pose: None,
+                relocations: Vec::new(),
             };
             let modules = add_soccer_robot(&mut graph, spec, &robot.team)
                 .map_err(|e| anyhow!("robot {}: {e}", robot_name(id)))?;

@@ -218,7 +218,7 @@ impl WorldModel {
                 // Consistent observations of a landmark where the map and the pose put none:
                 // a persistent false positive, or the robot is not where it believes.
                 self.kidnap.reject(usize::MAX - g, now);
-                if self.kidnap.triggered(self.config.pose.kidnap_rejections) {
+                if self.kidnap_triggered() {
                     self.declare_kidnapped();
                 }
             }

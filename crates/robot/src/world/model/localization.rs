@@ -4,10 +4,17 @@
 use strata_runtime::Time;
 
 use super::{FrameGain, Slot, Track, WorldModel};
+use crate::geometry::Odometry;
 use crate::platform::FootContact;
+use crate::world::config::SymmetryHint;
 use crate::world::pose::PoseFilter;
-use crate::world::recovery::{MapInstance, RecoveryInput, RecoveryOutcome, Sighting, recover};
+use crate::world::recovery::{
+    MapInstance, RecoveryInput, RecoveryOutcome, Relocation, Sighting, recover,
+};
 use crate::world::state::LostReason;
+
+/// How long after a kidnap recovery tries the `Relocations` hints, s.
+const RELOCATION_WINDOW: f64 = 10.0;
 
 #[derive(Clone, Debug, Default)]
 pub(super) struct KidnapDetector {
@@ -15,6 +22,8 @@ pub(super) struct KidnapDetector {
     slots: Vec<usize>,
     /// When the current run of disagreements started.
     since: Option<Time>,
+    /// The odometry since then: where the robot went after it may have been moved.
+    moved: Odometry,
 }
 
 impl KidnapDetector {
@@ -22,6 +31,7 @@ impl KidnapDetector {
         self.consecutive = 0;
         self.slots.clear();
         self.since = None;
+        self.moved = Odometry::ZERO;
     }
 
     pub(super) fn reject(&mut self, slot: usize, now: Time) {
@@ -32,8 +42,14 @@ impl KidnapDetector {
         }
     }
 
-    pub(super) fn triggered(&self, needed: usize) -> bool {
-        self.consecutive >= needed && self.slots.len() >= 2
+    pub(super) fn travel(&mut self, odometry: Odometry) {
+        if self.since.is_some() {
+            self.moved = self.moved.then(odometry);
+        }
+    }
+
+    pub(super) fn triggered(&self, needed: usize, one_landmark: bool) -> bool {
+        self.consecutive >= needed && (self.slots.len() >= 2 || one_landmark)
     }
 }
 
@@ -87,9 +103,14 @@ impl WorldModel {
             self.kidnap.reject(gain.slot, now);
         }
         self.frame_gains = gains;
-        if self.kidnap.triggered(self.config.pose.kidnap_rejections) {
+        if self.kidnap_triggered() {
             self.declare_kidnapped();
         }
+    }
+
+    pub(super) fn kidnap_triggered(&self) -> bool {
+        let pose = &self.config.pose;
+        self.kidnap.triggered(pose.kidnap_rejections, pose.kidnap_from_one_landmark)
     }
 
     fn relabel_candidate(&self, gain: &FrameGain, now: Time) -> Option<usize> {
@@ -108,7 +129,6 @@ impl WorldModel {
     }
 
     pub(super) fn declare_kidnapped(&mut self) {
-        self.confidence_changes();
         let now = self.time.unwrap_or(Time::ZERO);
         // The robot was carried: landmark tracks not confirmed since the landmarks started
         // to disagree (or within the last moment, when told) are wrong.
@@ -116,13 +136,34 @@ impl WorldModel {
         let since = self.kidnap.since.unwrap_or(Time::from_nanos(
             now.as_nanos().saturating_sub(u64::try_from(window.as_nanos()).unwrap_or(u64::MAX)),
         ));
+        let moved = self.kidnap.moved;
+        self.kidnapped(now, moved, |slot| {
+            slot.map_position.is_some() && slot.track.as_ref().is_some_and(|t| t.last_seen < since)
+        });
+    }
+
+    /// The platform saw the robot put somewhere just now (`Percepts::placed`): a kidnap whose
+    /// moment is known. The robot is at a `Relocations` pose as they stand (no odometry since),
+    /// and every estimate relative to it made before (landmarks, mobile objects, obstacles,
+    /// observations waiting for a track) is from where it was.
+    pub(super) fn declare_placed(&mut self) {
+        let now = self.time.unwrap_or(Time::ZERO);
+        self.kidnapped(now, Odometry::ZERO, |_| true);
+        for group in &mut self.groups {
+            group.pending.clear();
+        }
+    }
+
+    /// Loses the pose to a kidnap at `now`, the robot having moved by `moved` since it was put
+    /// where the relocation hints say; drops the tracks `stale` picks.
+    fn kidnapped(&mut self, now: Time, moved: Odometry, stale: impl Fn(&Slot) -> bool) {
+        self.confidence_changes();
         self.lost = Some(LostReason::Kidnapped);
         self.diagnostics.kidnaps += 1;
+        self.relocated = Some((now, moved));
         self.kidnap.accept();
         for slot in &mut self.slots {
-            if slot.map_position.is_some()
-                && slot.track.as_ref().is_some_and(|t| t.last_seen < since)
-            {
+            if stale(slot) {
                 slot.track = None;
             }
         }
@@ -146,7 +187,11 @@ impl WorldModel {
                 });
             }
         }
-        if sightings.len() < self.config.pose.recovery_min_landmarks {
+        let relocations = self.relocations(now);
+        // As `recover` counts: a relocation stands in for one landmark.
+        let min = self.config.pose.recovery_min_landmarks;
+        let needed = if relocations.is_empty() { min } else { min.saturating_sub(1).max(1) };
+        if sightings.len() < needed {
             return;
         }
         let prior = match (self.lost, &self.pose) {
@@ -160,6 +205,7 @@ impl WorldModel {
             bounds: self.config.pose.field_bounds,
             hints: &self.hints,
             prior,
+            relocations: &relocations,
             team: &team,
             gate: self.gate,
             min_landmarks: self.config.pose.recovery_min_landmarks,
@@ -193,9 +239,37 @@ impl WorldModel {
         }
         self.pose = Some(PoseFilter::new(h.pose, h.covariance));
         self.lost = None;
+        self.relocated = None;
         self.kidnap.accept();
         self.last_pose_correction = Some(now);
         self.diagnostics.recoveries += 1;
+    }
+
+    /// Where the `Relocations` hints put the robot now: each pose moved by the odometry since
+    /// the robot may have been put there, its uncertainty grown by that odometry's. Only
+    /// shortly after a kidnap: lost for another reason the robot was not just put somewhere,
+    /// and lost for long it may have been moved again, or turned so much that where it faced
+    /// when put there tells nothing (with one landmark, the heading is what tells the two side
+    /// lines apart).
+    fn relocations(&self, now: Time) -> Vec<Relocation> {
+        let Some((since, moved)) = self.relocated else { return Vec::new() };
+        if (now - since).as_secs_f64() > RELOCATION_WINDOW {
+            return Vec::new();
+        }
+        let q = self.config.odometry.covariance(&moved);
+        self.hints
+            .iter()
+            .filter_map(|hint| match hint {
+                SymmetryHint::Relocations { poses } => Some(poses),
+                _ => None,
+            })
+            .flatten()
+            .map(|prior| {
+                let mut filter = PoseFilter::new(prior.pose, prior.covariance());
+                filter.predict(&moved, &q);
+                Relocation { pose: filter.pose(), covariance: filter.covariance() }
+            })
+            .collect()
     }
 }
 
@@ -203,4 +277,39 @@ fn swap_tracks(slots: &mut [Slot], a: usize, b: usize) {
     let ta = slots[a].track.take();
     slots[a].track = slots[b].track.take();
     slots[b].track = ta;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_landmark_disagreeing_is_a_kidnap_only_when_allowed() {
+        let mut detector = KidnapDetector::default();
+        for k in 0..5 {
+            detector.reject(7, Time::from_secs_f64(f64::from(k)));
+        }
+        assert!(!detector.triggered(5, false), "one source: maybe a false positive");
+        assert!(detector.triggered(5, true));
+        assert!(!detector.triggered(6, true));
+        detector.reject(3, Time::from_secs_f64(5.0));
+        assert!(detector.triggered(5, false), "two sources");
+        detector.accept();
+        assert!(!detector.triggered(1, true));
+    }
+
+    #[test]
+    fn the_robots_motion_is_followed_from_the_first_disagreement() {
+        let mut detector = KidnapDetector::default();
+        let step = Odometry { dx: 0.1, dy: 0.0, dtheta: std::f64::consts::FRAC_PI_2 };
+        detector.travel(step);
+        assert_eq!(detector.moved, Odometry::ZERO, "nothing disagreed yet");
+        detector.reject(1, Time::ZERO);
+        detector.travel(step);
+        detector.travel(step);
+        assert_eq!(detector.moved, step.then(step));
+        assert!((detector.moved.dy - 0.1).abs() < 1e-12, "{:?}", detector.moved);
+        detector.accept();
+        assert_eq!(detector.moved, Odometry::ZERO);
+    }
 }
