@@ -251,10 +251,11 @@ pub fn robot_world_config(
     let mut config = world_config(field);
     config.pose.initial = initial_pose;
     if !relocations.is_empty() {
+        // The platform reports the moves it sees (`Percepts::placed`); a single landmark's
+        // disagreement is not enough to declare one (`pose.kidnap_from_one_landmark` stays
+        // off): with it, a T1 walking in midfield once declared itself kidnapped and stayed
+        // lost for half a minute.
         config.pose.hints.push(SymmetryHint::Relocations { poses: relocations.to_vec() });
-        // Put off the field, the robot may see a single landmark: that one disagreeing must
-        // be enough to notice.
-        config.pose.kidnap_from_one_landmark = true;
     }
     config
 }
