@@ -153,6 +153,12 @@ pub struct T1Controller {
     placed: bool,
     /// Perceptions left in which a placement is the platform's own beam.
     own_beam_cycles: u32,
+    /// The heading at the last cycle whose odometry was integrated, and whether that was the
+    /// previous cycle. A fall and a stand-up integrate none, and turn the robot (rolling
+    /// over, by up to half a turn): the net turn counts when odometry resumes, or world
+    /// modeling keeps the old heading and, on a symmetric field, settles on the mirror pose.
+    upright_yaw: Option<f64>,
+    integrated_last_cycle: bool,
 }
 
 impl T1Controller {
@@ -170,6 +176,8 @@ impl T1Controller {
             getup: GetUpMotions::default(),
             placed: false,
             own_beam_cycles: 0,
+            upright_yaw: None,
+            integrated_last_cycle: false,
         }
     }
 
@@ -325,6 +333,14 @@ impl T1Controller {
     pub fn step(&mut self, measured: MeasuredBody) -> JointArray<JointCommand> {
         let previous_yaw = self.measured.as_ref().map(|m| m.orientation.yaw());
         let placed = self.track_placement(&measured);
+        if placed {
+            // The server's move is no turn of the robot's, lying or not.
+            self.upright_yaw = Some(measured.orientation.yaw());
+        }
+        // Odometry resuming after a stretch without: it turns by the whole stretch's turn.
+        let previous_yaw = if self.integrated_last_cycle { previous_yaw } else { self.upright_yaw };
+        let resumed = !self.integrated_last_cycle && self.upright_yaw.is_some();
+        self.integrated_last_cycle = false;
         self.track_fall(&measured);
         let mut commands = self.hold_default_pose();
         let soft = self.config.soft_gain;
@@ -343,7 +359,7 @@ impl T1Controller {
                         tau: 0.0,
                     };
                 }
-                self.integrate_odometry(previous_yaw, &measured, placed);
+                self.integrate_odometry(previous_yaw, &measured, placed, resumed);
             }
             BodyMode::Falling { elapsed } => {
                 *elapsed += CYCLE;
@@ -487,6 +503,7 @@ impl T1Controller {
         previous_yaw: Option<f64>,
         measured: &MeasuredBody,
         placed: bool,
+        resumed: bool,
     ) {
         let [sx, sy, st] = self.config.odometry_scale;
         let v = self.policy.smoothed_command();
@@ -499,12 +516,16 @@ impl T1Controller {
                     strata_robot::geometry::normalize_angle(measured.orientation.yaw() - yaw);
                 // No step turns the body this fast: the server placed the robot (a beam, or a
                 // referee's move, whose perception can arrive a cycle after the restart).
-                if placed || turned.abs() > MAX_TURN_PER_CYCLE { commanded } else { turned }
+                // After a fall or a stand-up the turn is the motion's, whatever its size.
+                let stepped = resumed || turned.abs() <= MAX_TURN_PER_CYCLE;
+                if placed || !stepped { commanded } else { turned }
             }
             None => commanded,
         };
         let step = Odometry { dx: sx * v.vx * CYCLE, dy: sy * v.vy * CYCLE, dtheta };
         self.odometry = self.odometry.then(step);
+        self.upright_yaw = Some(measured.orientation.yaw());
+        self.integrated_last_cycle = true;
     }
 
     fn step_head(&mut self, measured: &MeasuredBody, commands: &mut JointArray<JointCommand>) {
@@ -1024,6 +1045,52 @@ mod tests {
 
     fn normalize(angle: f64) -> f64 {
         strata_robot::geometry::normalize_angle(angle)
+    }
+
+    #[test]
+    fn a_fall_and_a_stand_up_that_turn_the_robot_turn_its_odometry() {
+        // Lying on its back long enough to be fallen, then upright again: turned by the
+        // stand-up rolling it over, or put at the side line by the referee.
+        let fall_and_rise = |rise: &[MeasuredBody]| {
+            let mut c = controller();
+            for _ in 0..10 {
+                c.step(yawed(0.0));
+            }
+            c.take_odometry();
+            for _ in 0..20 {
+                c.step(pitched(-1.5));
+            }
+            assert!(matches!(c.body_state(), BodyMotionState::Fallen { .. }));
+            c.take_placement();
+            for body in rise {
+                c.step(body.clone());
+            }
+            for _ in 0..MotionConfig::default().upright_cycles + 2 {
+                c.step(rise.last().cloned().unwrap_or_else(upright));
+            }
+            assert_eq!(c.body_state(), BodyMotionState::Standing);
+            (c.take_odometry().dtheta, c.take_placement())
+        };
+        // Rolled over: sitting up from the back and turning, a little every cycle.
+        let posed = |yaw: f64, pitch: f64| {
+            let (sy, cy) = (yaw / 2.0).sin_cos();
+            let (sp, cp) = (pitch / 2.0).sin_cos();
+            MeasuredBody {
+                orientation: Quaternion { w: cy * cp, x: -sy * sp, y: cy * sp, z: sy * cp },
+                ..upright()
+            }
+        };
+        let rolling: Vec<MeasuredBody> = (0..=30)
+            .map(|i| f64::from(i) / 30.0)
+            .map(|t| posed(2.8 * t, -1.5 * (1.0 - t)))
+            .collect();
+        let (turned, placed) = fall_and_rise(&rolling);
+        assert!(!placed);
+        assert!(normalize(turned - 2.8).abs() < 1e-9, "turned {turned}");
+        // The referee's move: a jump, reported as a placement and no turn.
+        let (turned, placed) = fall_and_rise(&[yawed(std::f64::consts::FRAC_PI_2)]);
+        assert!(placed);
+        assert!(turned.abs() < 0.05, "a placement is no turn: {turned}");
     }
 
     #[test]
