@@ -13,8 +13,9 @@
 //!
 //! The platform does not know where the ball is: the motion is the same wherever it is, and
 //! the soccer application's approach puts the robot behind the ball. The kicks were tuned from
-//! a ball 0.20 m ahead of the torso on its centre line; crates/rcssmj/tests/kick.rs measures
-//! them and has a bench for other placements.
+//! a ball 0.20 m ahead of the torso on its centre line, from standing; the approach orders
+//! them walking slowly with the ball 0.36-0.40 m ahead (crates/soccer/bodies/booster-t1.toml
+//! says why). crates/rcssmj/tests/kick.rs measures both and has a bench for other placements.
 
 use serde::{Deserialize, Serialize};
 
@@ -158,8 +159,8 @@ impl Swing {
 }
 
 /// The kicks the T1 makes, by sequence number. Tuned against rcssservermj from a ball 0.20 m
-/// ahead of the torso, 0.05 m either side of its centre line (the soccer application's
-/// approach ends on it); crates/rcssmj/tests/kick.rs measures them. The right foot meets the
+/// ahead of the torso, 0.05 m either side of its centre line, from standing;
+/// crates/rcssmj/tests/kick.rs measures them. The right foot meets the
 /// ball. Both walk a little to the left, or a ball just left of the centre line passes between
 /// the legs, and turn a little to the right, which takes back some of the angle to the left at
 /// which the inside of the right foot sends the ball.

@@ -74,7 +74,11 @@ pub struct BehaviorConfig {
     pub keeper_reach: f64,
     /// Distance of the keeper's covering position in front of the goal line, m.
     pub keeper_depth: f64,
-    /// The striker dribbles instead of kicking within this distance of the opponent goal, m.
+    /// A robot going to the ball dribbles it instead of kicking within this distance of the
+    /// opponent goal, m (under the second-touch rule a restart's taker still kicks). `strata
+    /// robot --platform rcssservermj` sets it to the field's length when the team file leaves
+    /// it at its default: the T1 dribbles the ball toward the goal at 0.23-0.27 m/s, and kicks
+    /// it 2.2 m in a direction 4-47 degrees left of its heading.
     pub dribble_distance: f64,
     /// A ball unknown for longer than this is searched actively (walking), s.
     pub active_search_after: f64,
@@ -130,6 +134,8 @@ pub struct Ctx {
     gazes: Vec<GazeCandidate>,
     gaze_looks: Vec<Looks>,
     ball_unknown_since: Option<Time>,
+    /// Since when the world model says the robot is lost.
+    lost_since: Option<Time>,
     landmark_groups: Vec<String>,
     /// The body's camera geometry, for what each gaze candidate would show.
     motion: Arc<MotionModel>,
@@ -596,9 +602,38 @@ fn localizing(ctx: &mut Ctx) -> Status {
     }
     head.push(GoalScore::new(HeadGoal::ObserveBall, 0.3).about(BALL));
     ctx.out.head = head;
-    ctx.set_body(BodyGoal::Stand);
+    // Standing, the head sees what is around; a robot still lost turns to see the rest, then
+    // walks toward where it believes the field's centre is: where the referee puts a robot,
+    // 3 m outside a side line, one landmark at most is in sight however it turns.
+    let lost_for = ctx.lost_since.map_or(0.0, |t| (ctx.now - t).as_secs_f64());
+    let pose = ctx.pose();
+    match lost_for % LOCALIZE_CYCLE {
+        t if t < LOCALIZE_STAND => ctx.set_body(BodyGoal::Stand),
+        t if t < LOCALIZE_STAND + LOCALIZE_TURN => {
+            let left = pose.to_field(Point::new(0.0, 1.0));
+            ctx.set_body(BodyGoal::ObserveTarget { target: left });
+        }
+        _ => {
+            let here = pose.position();
+            let centre = Point::new(0.0, 0.0);
+            let heading = (centre - here).angle();
+            let step =
+                here + (centre - here).normalized() * LOCALIZE_WALK.min(here.distance(centre));
+            ctx.set_body(BodyGoal::GoToPosition { pose: Pose::new(step.x, step.y, heading) });
+        }
+    }
     Status::Running
 }
+
+/// Localizing stands this long, s, then turns on the spot ...
+const LOCALIZE_STAND: f64 = 4.0;
+/// ... this long, s (a turn and a half at the T1's 1 rad/s), then walks toward the centre
+/// until the cycle starts again, s.
+const LOCALIZE_TURN: f64 = 10.0;
+const LOCALIZE_CYCLE: f64 = 24.0;
+/// How far ahead of the robot each walk toward the centre aims, m: a target beyond the
+/// odometry's drift, re-aimed every tick.
+const LOCALIZE_WALK: f64 = 3.0;
 
 /// Searching for object (the ball): passive (head only) at first, active (turning, walking
 /// toward where the team last saw it) after a while.
@@ -612,13 +647,32 @@ fn searching_for_object(ctx: &mut Ctx) -> Status {
         let pose = ctx.pose();
         ctx.set_body(BodyGoal::GoToPosition { pose: facing(pose.position(), team_ball) });
     } else {
-        // Turn on the spot: a target to the left keeps the robot rotating.
         let pose = ctx.pose();
-        let left = pose.to_field(Point::new(0.0, 1.0));
-        ctx.set_body(BodyGoal::ObserveTarget { target: left });
+        let here = pose.position();
+        // Where to look next: where this robot last had the ball, or the centre of the field
+        // once there. A robot the referee moved to the side line, 20 m from a ball the team
+        // lost, sees nothing from there however long it turns.
+        let last = ctx.ball_field().filter(|b| b.distance(here) > SEARCH_ARRIVED);
+        let spot = last.unwrap_or(Point::new(0.0, 0.0));
+        let turned = ctx.ball_unknown_for() - ctx.config.active_search_after;
+        if turned > SEARCH_TURN && spot.distance(here) > SEARCH_ARRIVED {
+            ctx.set_body(BodyGoal::GoToPosition {
+                pose: Pose::new(spot.x, spot.y, (spot - here).angle()),
+            });
+        } else {
+            // Turn on the spot: a target to the left keeps the robot rotating.
+            let left = pose.to_field(Point::new(0.0, 1.0));
+            ctx.set_body(BodyGoal::ObserveTarget { target: left });
+        }
     }
     Status::Running
 }
+
+/// How long an active search turns on the spot before it walks to where the ball may be, s
+/// (a turn and a half at the T1's 1 rad/s).
+const SEARCH_TURN: f64 = 10.0;
+/// Within this distance of where it searches, a robot turns there, m.
+const SEARCH_ARRIVED: f64 = 1.5;
 
 /// Avoiding obstacle: a waypoint beside a robot standing in the way.
 fn avoiding_obstacle(ctx: &mut Ctx) -> Status {
@@ -671,12 +725,18 @@ fn go_to_ball(ctx: &mut Ctx) -> Status {
     let target = shot_target(ctx);
     let near_goal = ball_field.distance(ctx.field.opponent_goal())
         < ctx.config.dribble_distance + ctx.field.goal_half_width;
-    if near_goal && ctx.role() == Role::Striker {
-        // Close to the goal a kick would rather miss: walk the ball in.
-        ctx.out.body = ScoreVector::default();
-        ctx.out.whole_body = ScoreVector::single(WholeBodyGoal::GoToBallAndDribble {
-            target: ctx.field.opponent_goal(),
-        });
+    // Under the second-touch rule a restart's taker kicks: a dribble touches the ball again
+    // and again.
+    let restart = ctx.config.no_second_touch && own_restart_pending(&ctx.directive());
+    if near_goal && !restart {
+        // Close to the goal a kick would rather miss: walk the ball in. The dribble (head and
+        // body) wins over the separate goals once the ball is near; until then the body walks
+        // to the ball as to a kick, which it may not make, and the head looks where the value
+        // function says.
+        let goal = ctx.field.opponent_goal();
+        ctx.set_body(BodyGoal::GoToBallAndKick { kick: Kick::Forward, target: goal });
+        ctx.out.whole_body =
+            ScoreVector::single(WholeBodyGoal::GoToBallAndDribble { target: goal });
         ctx.out.deactivated.insert(names::KICK_BALL.to_owned());
     } else {
         let kick = if ctx.role() == Role::Striker { Kick::Forward } else { Kick::Pass };
@@ -1085,6 +1145,7 @@ impl SoccerBehavior {
                 gazes: Vec::new(),
                 gaze_looks: Vec::new(),
                 ball_unknown_since: None,
+                lost_since: None,
                 landmark_groups: groups,
                 motion,
                 at_own_restart: false,
@@ -1123,6 +1184,11 @@ impl DeliberativePolicy for SoccerBehavior {
             ctx.ball_unknown_since = None;
         } else if ctx.ball_unknown_since.is_none() {
             ctx.ball_unknown_since = Some(input.now);
+        }
+        if !ctx.lost() {
+            ctx.lost_since = None;
+        } else if ctx.lost_since.is_none() {
+            ctx.lost_since = Some(input.now);
         }
         track_second_touch(ctx);
         self.machine.tick(&mut self.ctx, input.now);
@@ -1201,67 +1267,111 @@ mod tests {
     /// A striker that started searching for the ball ends the search when it sees the ball and
     /// goes for it in the same deliberative tick, with its role unchanged (a memory guard whose
     /// action never finished kept a lone striker searching beside the ball for good).
-    #[test]
-    fn a_striker_ends_its_search_when_it_sees_the_ball() {
-        use strata_robot::control::deliberative::{DeliberativeInput, DeliberativePolicy};
-        use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
-        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
-        let field =
-            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
-        let mut b = behavior(3);
-        let mut model =
-            WorldModel::new(crate::world_config::world_config(&field)).expect("valid config");
-        let prior = PosePrior { pose: Pose::new(-1.0, 0.0, 0.0), sigma: [0.05, 0.05, 0.02] };
-        model.command(WorldCommand::SetPose { prior }).expect("pose");
-        let decision = Decision {
-            assignment: strata_robot::control::planning::Assignment {
-                mission: Mission::Attack,
-                role: Role::Striker,
-                alone: false,
-            },
-            directive: GameDirective { state: GameState::Playing, ..GameDirective::default() },
-            teammates: Vec::new(),
-            stats: Default::default(),
-        };
-        let ball_class = crate::world_config::world_config(&field)
-            .objects
-            .iter()
-            .find(|o| o.name == BALL)
-            .map(|o| o.class)
-            .expect("a ball class");
-        let mut paths = Vec::new();
-        for k in 0..40u32 {
+    /// A robot's world model fed sightings of the ball, and the decisions its behavior ticks
+    /// on: one tick every 0.1 s.
+    struct Scene {
+        model: strata_robot::world::WorldModel,
+        ball_class: strata_robot::platform::ObjectClass,
+    }
+
+    impl Scene {
+        /// On the SPL field, at `pose` if given (else lost, as a robot starts).
+        fn new(pose: Option<Pose>) -> Scene {
+            use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+            let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+            let config = crate::world_config::world_config(&field);
+            let ball_class =
+                config.objects.iter().find(|o| o.name == BALL).map(|o| o.class).expect("ball");
+            let mut model = WorldModel::new(config).expect("valid config");
+            if let Some(pose) = pose {
+                let prior = PosePrior { pose, sigma: [0.05, 0.05, 0.02] };
+                model.command(WorldCommand::SetPose { prior }).expect("pose");
+            }
+            Scene { model, ball_class }
+        }
+
+        /// Tick `k`: the ball seen `ball` m straight ahead (or nothing seen), then the
+        /// behavior decides as `role` under `directive`.
+        fn tick(
+            &mut self,
+            b: &mut SoccerBehavior,
+            k: u32,
+            ball: Option<f64>,
+            role: Role,
+            directive: GameDirective,
+        ) -> Output {
+            use strata_robot::control::deliberative::{DeliberativeInput, DeliberativePolicy};
+            use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
             let now = Time::from_secs_f64(0.1 * f64::from(k));
-            // The ball comes into view two seconds in, 1 m ahead.
-            let observations = if k >= 20 {
-                vec![Observation {
-                    class: ball_class,
+            let observations = ball
+                .map(|range| Observation {
+                    class: self.ball_class,
                     variant: None,
-                    range: 1.0,
+                    range,
                     bearing: 0.0,
                     orientation: None,
-                    range_sigma: 0.05,
+                    range_sigma: 0.02,
                     bearing_sigma: 0.02,
-                }]
-            } else {
-                Vec::new()
-            };
+                })
+                .into_iter()
+                .collect();
             let camera = Some(CameraPercepts {
                 stamp: now,
                 view: ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 },
                 observations,
             });
-            model.process(
+            self.model.process(
                 strata_robot::geometry::Odometry::default(),
                 &Percepts { stamp: now, camera, ..Percepts::default() },
             );
-            let world = model.state();
-            let out = b.tick(&DeliberativeInput {
+            let world = self.model.state();
+            let mission =
+                if role == Role::Goalie { Mission::DefendTheGoal } else { Mission::Attack };
+            let decision = Decision {
+                assignment: strata_robot::control::planning::Assignment {
+                    mission,
+                    role,
+                    alone: false,
+                },
+                directive,
+                teammates: Vec::new(),
+                stats: Default::default(),
+            };
+            b.tick(&DeliberativeInput {
                 now,
                 world: Some(&world),
                 assignment: Some(&decision),
                 stability: Stability::default(),
-            });
+            })
+        }
+    }
+
+    fn playing() -> GameDirective {
+        GameDirective { state: GameState::Playing, ..GameDirective::default() }
+    }
+
+    fn with_config(player: u8, config: BehaviorConfig) -> SoccerBehavior {
+        let field =
+            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
+        SoccerBehavior::new(
+            player,
+            field,
+            config,
+            ActiveVisionConfig::default(),
+            Arc::new(MotionModel::default()),
+        )
+        .expect("behavior")
+    }
+
+    #[test]
+    fn a_striker_ends_its_search_when_it_sees_the_ball() {
+        let mut b = behavior(3);
+        let mut scene = Scene::new(Some(Pose::new(-1.0, 0.0, 0.0)));
+        let mut paths = Vec::new();
+        for k in 0..40u32 {
+            // The ball comes into view two seconds in, 1 m ahead.
+            let ball = (k >= 20).then_some(1.0);
+            let out = scene.tick(&mut b, k, ball, Role::Striker, playing());
             paths.push((k, out.behavior_path, !out.body.is_empty()));
         }
         let searching = |path: &str| path.contains("searching for object");
@@ -1273,6 +1383,97 @@ mod tests {
             assert!(path.ends_with("kick to goal"), "{path}");
             assert!(body, "no body goal at {path}");
         }
+    }
+
+    #[test]
+    fn a_search_that_finds_nothing_turns_then_walks_to_where_the_ball_may_be() {
+        let mut b = behavior(3);
+        let mut scene = Scene::new(Some(Pose::new(-3.0, -2.0, 0.0)));
+        let mut goals = Vec::new();
+        for k in 0..220u32 {
+            let out = scene.tick(&mut b, k, None, Role::Striker, playing());
+            goals.push(out.body.goals.first().map(|g| g.goal.clone()));
+        }
+        let at = |t: f64| goals[(t * 10.0) as usize].clone();
+        // The head alone first, then turning on the spot, then walking to the centre (this
+        // robot never saw the ball).
+        assert_eq!(at(2.0), Some(BodyGoal::Stand));
+        assert!(matches!(at(8.0), Some(BodyGoal::ObserveTarget { .. })), "{:?}", at(8.0));
+        let Some(BodyGoal::GoToPosition { pose }) = at(20.0) else { panic!("{:?}", at(20.0)) };
+        assert!(pose.position().distance(Point::new(0.0, 0.0)) < 0.01, "{pose:?}");
+    }
+
+    #[test]
+    fn a_lost_robot_stands_then_turns_then_walks_toward_the_centre() {
+        let mut b = behavior(3);
+        let mut scene = Scene::new(None);
+        let mut goals = Vec::new();
+        for k in 0..200u32 {
+            let out = scene.tick(&mut b, k, None, Role::Striker, playing());
+            // (The machine leaves its initial state in the first tick.)
+            assert!(
+                k == 0 || out.behavior_path.contains("localizing"),
+                "{k}: {}",
+                out.behavior_path
+            );
+            goals.push(out.body.goals.first().map(|g| g.goal.clone()));
+        }
+        let at = |t: f64| goals[(t * 10.0) as usize].clone();
+        assert_eq!(at(2.0), Some(BodyGoal::Stand));
+        assert!(matches!(at(8.0), Some(BodyGoal::ObserveTarget { .. })), "{:?}", at(8.0));
+        assert!(matches!(at(16.0), Some(BodyGoal::GoToPosition { .. })), "{:?}", at(16.0));
+    }
+
+    #[test]
+    fn dribbling_walks_to_the_ball_until_the_dribble_takes_over() {
+        // The T1's setting: dribble everywhere.
+        let config = BehaviorConfig { dribble_distance: 100.0, ..BehaviorConfig::default() };
+        let mut b = with_config(3, config);
+        let mut scene = Scene::new(Some(Pose::new(-2.0, 0.0, 0.0)));
+        let mut out = Output::default();
+        for k in 0..10 {
+            out = scene.tick(&mut b, k, Some(2.0), Role::Striker, playing());
+        }
+        assert!(
+            matches!(
+                out.body.goals.first().map(|g| &g.goal),
+                Some(BodyGoal::GoToBallAndKick { .. })
+            ),
+            "the body walks to the ball: {:?}",
+            out.body
+        );
+        assert!(matches!(
+            out.whole_body.goals.first().map(|g| &g.goal),
+            Some(WholeBodyGoal::GoToBallAndDribble { .. })
+        ));
+        assert!(out.deactivated.contains(names::KICK_BALL), "{:?}", out.deactivated);
+    }
+
+    #[test]
+    fn under_the_second_touch_rule_a_restart_taker_kicks_rather_than_dribbles() {
+        let config = BehaviorConfig {
+            dribble_distance: 100.0,
+            no_second_touch: true,
+            ..BehaviorConfig::default()
+        };
+        let mut b = with_config(KICKER_NUMBER, config);
+        let mut scene = Scene::new(Some(Pose::new(-0.6, 0.0, 0.0)));
+        let kick_off = GameDirective {
+            state: GameState::Playing,
+            kicking: Kicking::Us,
+            secondary_time: 10,
+            ..GameDirective::default()
+        };
+        let mut out = Output::default();
+        for k in 0..10 {
+            out = scene.tick(&mut b, k, Some(0.6), Role::Striker, kick_off.clone());
+        }
+        assert!(out.whole_body.is_empty(), "{:?}", out.whole_body);
+        assert!(!out.deactivated.contains(names::KICK_BALL));
+        assert!(matches!(
+            out.body.goals.first().map(|g| &g.goal),
+            Some(BodyGoal::GoToBallAndKick { .. })
+        ));
     }
 
     #[test]
@@ -1469,68 +1670,17 @@ mod tests {
     }
 
     fn kick_off_taker_lets_go(pending: GameState) {
-        use strata_robot::control::deliberative::{DeliberativeInput, DeliberativePolicy};
-        use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
-        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
-        let field =
-            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
         let config = BehaviorConfig { no_second_touch: true, ..BehaviorConfig::default() };
-        let mut b = SoccerBehavior::new(
-            KICKER_NUMBER,
-            Arc::clone(&field),
-            config,
-            ActiveVisionConfig::default(),
-            Arc::new(MotionModel::default()),
-        )
-        .expect("behavior");
-        let world_config = crate::world_config::world_config(&field);
-        let ball_class =
-            world_config.objects.iter().find(|o| o.name == BALL).map(|o| o.class).expect("ball");
-        let mut model = WorldModel::new(world_config).expect("valid config");
-        let prior = PosePrior { pose: Pose::new(-0.25, 0.0, 0.0), sigma: [0.05, 0.05, 0.02] };
-        model.command(WorldCommand::SetPose { prior }).expect("pose");
+        let mut b = with_config(KICKER_NUMBER, config);
+        let mut scene = Scene::new(Some(Pose::new(-0.25, 0.0, 0.0)));
         let mut tick = |k: u32, state: GameState, secondary_time: i16, ball_range: f64| {
-            let now = Time::from_secs_f64(0.1 * f64::from(k));
-            let camera = Some(CameraPercepts {
-                stamp: now,
-                view: ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 },
-                observations: vec![Observation {
-                    class: ball_class,
-                    variant: None,
-                    range: ball_range,
-                    bearing: 0.0,
-                    orientation: None,
-                    range_sigma: 0.02,
-                    bearing_sigma: 0.02,
-                }],
-            });
-            model.process(
-                strata_robot::geometry::Odometry::default(),
-                &Percepts { stamp: now, camera, ..Percepts::default() },
-            );
-            let world = model.state();
-            let decision = Decision {
-                assignment: strata_robot::control::planning::Assignment {
-                    mission: Mission::Attack,
-                    role: Role::Striker,
-                    alone: false,
-                },
-                directive: GameDirective {
-                    state,
-                    kicking: Kicking::Us,
-                    secondary_time,
-                    ..GameDirective::default()
-                },
-                teammates: Vec::new(),
-                stats: Default::default(),
+            let directive = GameDirective {
+                state,
+                kicking: Kicking::Us,
+                secondary_time,
+                ..GameDirective::default()
             };
-            b.tick(&DeliberativeInput {
-                now,
-                world: Some(&world),
-                assignment: Some(&decision),
-                stability: Stability::default(),
-            })
-            .behavior_path
+            scene.tick(&mut b, k, Some(ball_range), Role::Striker, directive).behavior_path
         };
         // The kick-off waits; the kicker stands at the ball (and goes for it once Playing).
         for k in 0..10 {

@@ -13,6 +13,7 @@ use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput};
 use strata_robot::geometry::{Point, Pose, Robot, Velocity, normalize_angle};
 use strata_robot::platform::{Footprint, HeadAngles, SpecialMotion};
 use strata_robot::world::WorldState;
+use strata_runtime::Time;
 
 use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
@@ -60,6 +61,15 @@ pub struct MotionModel {
     pub approach_speed: f64,
     /// 1/s.
     pub approach_speed_gain: f64,
+    /// How far behind the ball the torso lines up before dribbling walks through it, m; 0:
+    /// dribbling walks straight at a point beyond the ball from wherever the robot is (a 2D
+    /// ball rolls off whatever touches it). A biped that walks into the ball from the side
+    /// pushes it off the line, so the T1 lines up first: [`dribble_walk`].
+    pub dribble_behind: f64,
+    /// While dribbling, the head looks up toward the target for `[1]` s of every `[0]` s, so
+    /// that landmarks keep the pose (world modeling tracks the ball through the glance); 0:
+    /// it watches the ball throughout (a camera that sees the ball and the landmarks at once).
+    pub dribble_glance: [f64; 2],
     /// An obstacle closer than this, straight ahead, must be avoided, m.
     pub collision_distance: f64,
     /// How long each walk command lasts if no newer one replaces it, s.
@@ -96,6 +106,8 @@ impl Default for MotionModel {
             approach_distance: 0.16,
             approach_speed: 0.15,
             approach_speed_gain: 0.0,
+            dribble_behind: 0.0,
+            dribble_glance: [0.0, 0.0],
             collision_distance: 0.45,
             walk_command_duration: 0.4,
             near_gaze_range: 0.6,
@@ -562,12 +574,88 @@ pub struct Dribbling {
     model: Arc<MotionModel>,
     walk: WalkSender,
     head: HeadSender,
+    /// The last step walked through the ball (lined up behind it): staying lined up takes less
+    /// than lining up.
+    through: bool,
+    /// When this dribble started: the glances' clock.
+    since: Option<Time>,
 }
 
 impl Dribbling {
     pub fn new(model: Arc<MotionModel>) -> Self {
-        Dribbling { model, walk: WalkSender::default(), head: HeadSender::default() }
+        Dribbling {
+            model,
+            walk: WalkSender::default(),
+            head: HeadSender::default(),
+            through: false,
+            since: None,
+        }
     }
+}
+
+/// Where a lined-up dribble keeps the ball: ahead of the torso by at most `reach`, m, within
+/// `across` of its centre line, m, with the target within `turn` of the heading, rad. Lining
+/// up takes the tight one, staying lined up the loose one: the ball rolls ahead and sideways
+/// with each step, and a robot that stopped to line up again at every push would hardly move
+/// it. Tuned on the T1 (crates/rcssmj/tests/dribble.rs).
+struct Corridor {
+    reach: f64,
+    across: f64,
+    turn: f64,
+}
+
+const LINE_UP: Corridor = Corridor { reach: 0.6, across: 0.12, turn: 0.5 };
+const STAY_LINED_UP: Corridor = Corridor { reach: 1.0, across: 0.25, turn: 0.8 };
+
+/// How far beside the ball a robot on the wrong side of it walks around it, m (the T1's feet
+/// are 0.2 m apart).
+const ROUND_BALL: f64 = 0.45;
+
+/// The walk that dribbles the ball (robot frame) toward `target` (robot frame) with a body
+/// that lines up first (`model.dribble_behind` > 0), and whether it walks through the ball:
+/// lined up, it walks at full speed along the line to the target, side-stepping to keep the
+/// ball in front and slowing the farther it is off; otherwise it goes to the spot behind the
+/// ball on that line, as the approach to a kick does.
+pub fn dribble_walk(
+    model: &MotionModel,
+    ball: Point<Robot>,
+    target: Point<Robot>,
+    through: bool,
+) -> (Velocity, bool) {
+    let line = (target - ball).normalized();
+    let heading = line.angle();
+    let corridor = if through { STAY_LINED_UP } else { LINE_UP };
+    let lined_up = ball.x > 0.05
+        && ball.x < corridor.reach
+        && ball.y.abs() < corridor.across
+        && heading.abs() < corridor.turn;
+    if lined_up {
+        let slow = (1.0 - ball.y.abs() / (STAY_LINED_UP.across + 0.1)).max(0.0)
+            * (1.0 - heading.abs() / STAY_LINED_UP.turn).max(0.0);
+        let velocity = Velocity::new(
+            model.max_forward * slow,
+            limit(1.5 * ball.y, model.max_sideways),
+            limit(2.0 * heading, model.max_turn),
+        );
+        return (velocity, true);
+    }
+    // The robot's place relative to the ball: how far along the line toward the target, and
+    // on which side of it.
+    let robot = Point::<Robot>::ORIGIN - ball;
+    let along = robot.dot(line);
+    let velocity = if along > -model.dribble_behind / 2.0 && ball.range() < 1.5 {
+        // Between the ball and the target or beside the ball: round it, a step to the side of
+        // the line the robot is on, so the walk does not push the ball back.
+        let side = if line.cross(robot) >= 0.0 { 1.0 } else { -1.0 };
+        let perpendicular = line.rotated(FRAC_PI_2) * side;
+        let waypoint = ball + perpendicular * ROUND_BALL - line * model.dribble_behind;
+        walk_velocity(model, waypoint, heading)
+    } else if ball.range() > 0.8 {
+        walk_velocity(model, ball, ball.bearing())
+    } else {
+        walk_velocity(model, ball - line * model.dribble_behind, heading)
+    };
+    (velocity, false)
 }
 
 impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribbling {
@@ -575,9 +663,11 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribblin
         names::DRIBBLING
     }
 
-    fn activate(&mut self, _: &WholeBodyGoal, _: &Input<'_, '_>) {
+    fn activate(&mut self, _: &WholeBodyGoal, input: &Input<'_, '_>) {
         self.walk.reset();
         self.head.reset();
+        self.through = false;
+        self.since = Some(input.now);
     }
 
     fn step(&mut self, goal: &WholeBodyGoal, input: &Input<'_, '_>) -> Option<WholeBodyCommand> {
@@ -585,12 +675,26 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribblin
         let world = input.world?;
         let ball = ball(world)?;
         let target_robot = world.pose.pose.to_robot(*target);
-        let through = (target_robot - ball.robot).normalized();
-        // Aim a little behind the ball on the line to the target: walking there pushes it.
-        let aim = ball.robot + through * 0.1;
-        let velocity = walk_velocity(&self.model, aim, through.angle());
+        let velocity = if self.model.dribble_behind > 0.0 {
+            let (velocity, through) =
+                dribble_walk(&self.model, ball.robot, target_robot, self.through);
+            self.through = through;
+            velocity
+        } else {
+            let through = (target_robot - ball.robot).normalized();
+            // Aim a little behind the ball on the line to the target: walking there pushes it.
+            let aim = ball.robot + through * 0.1;
+            walk_velocity(&self.model, aim, through.angle())
+        };
         let duration = self.model.walk_command_duration;
-        let gaze = gaze_at(&self.model, ball.robot);
+        let [period, glance] = self.model.dribble_glance;
+        let into = self.since.map_or(0.0, |t| (input.now - t).as_secs_f64());
+        let gaze = if period > 0.0 && into % period >= period - glance {
+            // Level, toward the target: the goal and the lines beyond the ball.
+            HeadAngles { yaw: target_robot.bearing().clamp(-2.0, 2.0), pitch: 0.0 }
+        } else {
+            gaze_at(&self.model, ball.robot)
+        };
         let head_moved = self.head.send(gaze, self.model.head_speed).is_some();
         // A coordinated command carries both resources: when only the head has to move, the
         // walk goes with it unchanged (within the walk sender's tolerance) rather than the
@@ -771,6 +875,72 @@ mod tests {
             }) => Some(target),
             _ => None,
         }
+    }
+
+    #[test]
+    fn a_t1_lined_up_behind_the_ball_walks_through_it_at_full_speed() {
+        let model = MotionModel::booster_t1();
+        let target = Point::new(10.0, 0.0);
+        let (v, through) = dribble_walk(&model, Point::new(0.3, 0.0), target, false);
+        assert!(through);
+        assert!((v.vx - model.max_forward).abs() < 1e-9, "{v:?}");
+        // Off to the left: it side-steps left and slows.
+        let (v, through) = dribble_walk(&model, Point::new(0.3, 0.1), target, false);
+        assert!(through && v.vy > 0.0 && v.vx < model.max_forward, "{v:?}");
+    }
+
+    #[test]
+    fn a_t1_lines_up_before_walking_through_and_stays_lined_up_more_loosely() {
+        let model = MotionModel::booster_t1();
+        let target = Point::new(10.0, 0.0);
+        // 0.2 m to the side: too far to start walking through, near enough to go on.
+        let ball = Point::new(0.3, 0.2);
+        assert!(!dribble_walk(&model, ball, target, false).1);
+        assert!(dribble_walk(&model, ball, target, true).1);
+        // The target behind the robot: it never walks through the ball away from it.
+        let (v, through) = dribble_walk(&model, Point::new(0.3, 0.0), Point::new(-10.0, 0.0), true);
+        assert!(!through);
+        assert!(v.vx < model.max_forward * 0.5, "{v:?}");
+        // The ball behind the robot: it walks back around it, not through it.
+        let (_, through) = dribble_walk(&model, Point::new(-0.3, 0.0), target, true);
+        assert!(!through);
+    }
+
+    #[test]
+    fn a_t1_beside_the_ball_goes_behind_it_on_the_line_to_the_target() {
+        let model = MotionModel::booster_t1();
+        // Ball 0.5 m to the left, target far ahead: the spot is 0.25 m behind the ball.
+        let (v, through) = dribble_walk(&model, Point::new(0.0, 0.5), Point::new(10.0, 0.5), false);
+        assert!(!through);
+        assert!(v.vx < 0.0 && v.vy > 0.0, "back and left to the spot: {v:?}");
+    }
+
+    #[test]
+    fn a_t1_dribbling_glances_up_toward_the_target_and_back_at_the_ball() {
+        let model = MotionModel::booster_t1();
+        let [period, glance] = model.dribble_glance;
+        let mut dribbling = Dribbling::new(Arc::new(model.clone()));
+        let world = world_with_ball(Point::new(0.35, 0.0));
+        let (percepts, actuation) = (Percepts::default(), ActuationStatus::default());
+        let input = Input {
+            now: Time::ZERO,
+            percepts: &percepts,
+            world: Some(&world),
+            actuation: &actuation,
+            stability: Stability::Stable,
+        };
+        dribbling
+            .activate(&WholeBodyGoal::GoToBallAndDribble { target: Point::new(4.5, 0.0) }, &input);
+        let mut head_at = |at: f64| {
+            let command = dribble(&mut dribbling, &world, at);
+            head_target(command).map(|h| h.pitch)
+        };
+        let down = head_at(0.0).expect("the first command");
+        assert!(down > 0.5, "at the ball at its feet: pitch {down}");
+        let up = head_at(period - glance / 2.0).expect("the glance");
+        assert!(up.abs() < 1e-9, "level: {up}");
+        let back = head_at(period + 0.1).expect("back at the ball");
+        assert!((back - down).abs() < 1e-9);
     }
 
     #[test]

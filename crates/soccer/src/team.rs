@@ -168,6 +168,29 @@ impl TeamConfig {
         if !(gain.is_finite() && gain >= 0.0) {
             return Err(invalid("motion.approach_speed_gain", format!("must be >= 0, got {gain}")));
         }
+        let behind = self.motion.dribble_behind;
+        if !(behind.is_finite() && behind >= 0.0) {
+            return Err(invalid(
+                "motion.dribble_behind",
+                format!("must be >= 0 (0: no line-up), got {behind}"),
+            ));
+        }
+        let [period, glance] = self.motion.dribble_glance;
+        if !(period.is_finite() && glance.is_finite() && glance >= 0.0 && glance <= period) {
+            return Err(invalid(
+                "motion.dribble_glance",
+                format!(
+                    "must be [period, glance] with 0 <= glance <= period, got [{period}, {glance}]"
+                ),
+            ));
+        }
+        let dribble = self.behavior.dribble_distance;
+        if !(dribble.is_finite() && dribble >= 0.0) {
+            return Err(invalid(
+                "behavior.dribble_distance",
+                format!("must be >= 0, got {dribble}"),
+            ));
+        }
         positive("motion.head_speed", self.motion.head_speed)?;
         positive("motion.camera_height", self.motion.camera_height)?;
         let [up, down] = self.motion.head_pitch_limits;

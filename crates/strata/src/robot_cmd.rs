@@ -45,7 +45,7 @@ use strata_runtime::{
     Clock, Encoding, GraphBuilder, HostConfig, HostError, HostStats, MonotonicClock, Package, Tap,
     TapRecord, ThreadedHost, Time,
 };
-use strata_soccer::behaviors::Decision;
+use strata_soccer::behaviors::{BehaviorConfig, Decision};
 use strata_soccer::field::TeamField;
 use strata_soccer::game::GameDirective;
 use strata_soccer::primitives::MotionModel;
@@ -251,6 +251,13 @@ pub fn run(args: RobotArgs) -> Result<()> {
         // The server's referee gives the other team a free kick when a restart's taker touches
         // the ball again before anyone else has.
         config.behavior.no_second_touch = true;
+    }
+    if args.platform == PlatformKind::Rcssservermj
+        && config.behavior.dribble_distance == BehaviorConfig::default().dribble_distance
+    {
+        // The T1 dribbles the ball toward the goal faster than its kicks, which go 3 m in
+        // a direction 20-60 degrees off, move it there (docs/rcssservermj.md).
+        config.behavior.dribble_distance = field.dimensions().field_length;
     }
     let out = Output { json: args.json, name: format!("robot {}/{}", args.team, args.player) };
 
