@@ -6,7 +6,8 @@
 //!
 //! Needs the server (`scripts/setup-rcssservermj`). Without it the test says so and passes,
 //! unless `STRATA_REQUIRE_RCSSSERVERMJ` is set. `STRATA_GETUP_ATTEMPTS` sets the attempts per
-//! side (default 5). A get-up is a throw: MuJoCo runs are close to but not bit-for-bit
+//! side (default 10: the first order from the back succeeds in 35-80 % of attempts, and with
+//! 5 attempts none did in one of seven runs). A get-up is a throw: MuJoCo runs are close to but not bit-for-bit
 //! repeatable, and a small difference decides whether the hips land over the feet. One order
 //! does not always succeed (the architecture orders it again while the robot lies fallen), so
 //! the test asserts that the robot stands up from each side, and reports how often the first
@@ -119,7 +120,7 @@ fn a_t1_laid_on_the_ground_stands_up_and_stands() {
         .ok()
         .and_then(|n| n.parse().ok())
         .filter(|&n| n > 0)
-        .unwrap_or(5);
+        .unwrap_or(10);
     let config =
         RcssConfig { pace: 0.0, beam: Some([SPOT[0], SPOT[1], 0.0]), ..RcssConfig::default() };
     let mut robot =
