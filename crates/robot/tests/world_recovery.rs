@@ -175,6 +175,63 @@ fn being_carried_is_a_kidnapping() {
     assert_eq!(world.diagnostics().kidnaps, 1);
 }
 
+/// A pose gone wrong without the robot being moved (odometry through a fall): 0.9 rad and
+/// 0.5 m off. On a symmetric field without hints only `pose.disagreement_prior` tells the
+/// robot from its mirror image.
+fn gone_wrong(seed: u64, prior: Option<[f64; 3]>) -> (WorldModel, Sim, usize) {
+    let start = Pose::new(-3.0, 1.2, 0.3);
+    let mut sim = Sim::new(500 + seed, start);
+    let mut cfg = config(Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.02] }));
+    cfg.pose.disagreement_prior = prior;
+    let mut world = WorldModel::new(cfg).expect("valid config");
+    for _ in 0..(3.0 / DT) as usize {
+        let (odometry, percepts) = sim.frame(patrol_step(&sim));
+        world.process(odometry, &percepts);
+    }
+    assert!(good(&world.state().pose.pose, &sim.truth), "seed {seed}: not localized");
+    let t = sim.truth;
+    sim.truth = Pose::new(t.x + 0.5, t.y, t.theta + 0.9);
+    let mut mirrored = 0;
+    for _ in 0..(10.0 / DT) as usize {
+        let (odometry, percepts) = sim.frame(patrol_step(&sim));
+        world.process(odometry, &percepts);
+        let state = world.state();
+        let mirror = Pose::new(-sim.truth.x, -sim.truth.y, sim.truth.theta + std::f64::consts::PI);
+        if !state.pose.lost && good(&state.pose.pose, &mirror) {
+            mirrored += 1;
+        }
+    }
+    (world, sim, mirrored)
+}
+
+#[test]
+fn a_pose_gone_wrong_recovers_near_itself_with_the_disagreement_prior() {
+    for seed in 0..4 {
+        let (world, sim, mirrored) = gone_wrong(seed, Some([2.0, 2.0, 1.0]));
+        let state = world.state();
+        assert!(state.diagnostics.kidnaps >= 1, "seed {seed}: the disagreement went unnoticed");
+        assert_eq!(mirrored, 0, "seed {seed}: recovered the mirror image");
+        assert!(
+            !state.pose.lost && good(&state.pose.pose, &sim.truth),
+            "seed {seed}: not recovered: {:?} truth {:?}",
+            state.pose,
+            sim.truth
+        );
+    }
+}
+
+#[test]
+fn without_the_disagreement_prior_a_pose_gone_wrong_stays_lost_on_a_symmetric_field() {
+    for seed in 0..4 {
+        let (world, _, mirrored) = gone_wrong(seed, None);
+        assert_eq!(mirrored, 0, "seed {seed}: recovered the mirror image");
+        assert!(
+            world.state().pose.lost,
+            "seed {seed}: localized without a way to break the symmetry"
+        );
+    }
+}
+
 #[test]
 fn commands_set_the_pose_and_reset_the_model() {
     let mut world = WorldModel::new(config(None)).expect("valid config");

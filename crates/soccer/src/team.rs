@@ -264,6 +264,10 @@ impl std::fmt::Debug for SoccerRobotSpec {
     }
 }
 
+/// How far (m, m, rad) a robot whose landmarks disagree with its pose may be from it, on a
+/// platform that reports every move it sees.
+const DISAGREEMENT_PRIOR: [f64; 3] = [2.0, 2.0, 1.0];
+
 /// The world model's configuration for one robot: the field's, with where it starts if known
 /// and where it may be put without being told.
 pub fn robot_world_config(
@@ -279,6 +283,11 @@ pub fn robot_world_config(
         // off): with it, a T1 walking in midfield once declared itself kidnapped and stayed
         // lost for half a minute.
         config.pose.hints.push(SymmetryHint::Relocations { poses: relocations.to_vec() });
+        // So landmarks that disagree mean the estimate went wrong, mostly through a fall: the
+        // robot is within a few metres of it and faces within a radian or so. Without this a
+        // fallen T1 could come up on its mirror image (two robot-halves of one game at 9.8 and
+        // 16.9 m of mean error).
+        config.pose.disagreement_prior = Some(DISAGREEMENT_PRIOR);
     }
     config
 }

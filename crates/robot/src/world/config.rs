@@ -347,6 +347,13 @@ pub struct PoseConfig {
     /// A robot whose feet carried less than this (kg, both feet) and then touch the ground
     /// again was carried: it is declared kidnapped. `None` ignores foot contact.
     pub kidnap_on_lift: Option<f64>,
+    /// After a kidnap declared because the landmarks disagree with the pose (not a placement,
+    /// a lift or a command), recovery prefers poses near the estimate it lost, its covariance
+    /// grown by these standard deviations (m, m, rad). For a platform that reports every move
+    /// it sees (`Percepts::placed`), such a kidnap is the estimate gone wrong (odometry through
+    /// a fall), not a carry: the robot is still near it, which tells a pose from its mirror
+    /// image on a symmetric field. `None`: the robot may be anywhere.
+    pub disagreement_prior: Option<[f64; 3]>,
     /// Only landmark estimates observed within this time take part in recovery, s.
     pub recovery_max_age: f64,
     /// Landmarks that must agree with a recovery hypothesis.
@@ -376,6 +383,7 @@ impl Default for PoseConfig {
             kidnap_rejections: 5,
             kidnap_from_one_landmark: false,
             kidnap_on_lift: None,
+            disagreement_prior: None,
             recovery_max_age: 3.0,
             recovery_min_landmarks: 2,
             recovery_margin: 6.0,
@@ -584,6 +592,11 @@ impl WorldModelConfig {
         }
         if let Some(kg) = p.kidnap_on_lift {
             positive("pose.kidnap_on_lift", kg)?;
+        }
+        if let Some(sigma) = p.disagreement_prior {
+            for (i, s) in sigma.iter().enumerate() {
+                positive(&format!("pose.disagreement_prior[{i}]"), *s)?;
+            }
         }
         positive("pose.recovery_max_age", p.recovery_max_age)?;
         if p.recovery_min_landmarks < 2 {

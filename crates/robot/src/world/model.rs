@@ -139,6 +139,9 @@ pub struct WorldModel {
     time: Option<Time>,
     frame_gains: Vec<FrameGain>,
     kidnap: KidnapDetector,
+    /// The current kidnap was declared because the landmarks disagreed with the pose (not a
+    /// placement, a lift or a command): `pose.disagreement_prior` applies.
+    disagreed: bool,
     lifted: bool,
     odometry_error: OdometryErrorEstimator,
     team: TeamFusion,
@@ -283,6 +286,7 @@ impl WorldModel {
             time: None,
             frame_gains: Vec::new(),
             kidnap: KidnapDetector::default(),
+            disagreed: false,
             lifted: false,
             team_objects: Vec::new(),
             diagnostics: WorldDiagnostics::default(),

@@ -219,7 +219,7 @@ impl WorldModel {
                 // a persistent false positive, or the robot is not where it believes.
                 self.kidnap.reject(usize::MAX - g, now);
                 if self.kidnap_triggered() {
-                    self.declare_kidnapped();
+                    self.declare_disagreement();
                 }
             }
             return;

@@ -6,7 +6,7 @@ use strata_runtime::Time;
 use super::{FrameGain, Slot, Track, WorldModel};
 use crate::geometry::Odometry;
 use crate::platform::FootContact;
-use crate::world::config::SymmetryHint;
+use crate::world::config::{PosePrior, SymmetryHint};
 use crate::world::pose::PoseFilter;
 use crate::world::recovery::{
     MapInstance, RecoveryInput, RecoveryOutcome, Relocation, Sighting, recover,
@@ -104,7 +104,7 @@ impl WorldModel {
         }
         self.frame_gains = gains;
         if self.kidnap_triggered() {
-            self.declare_kidnapped();
+            self.declare_disagreement();
         }
     }
 
@@ -142,6 +142,12 @@ impl WorldModel {
         });
     }
 
+    /// A kidnap declared because the landmarks disagree with the pose.
+    pub(super) fn declare_disagreement(&mut self) {
+        self.declare_kidnapped();
+        self.disagreed = true;
+    }
+
     /// The platform saw the robot put somewhere just now (`Percepts::placed`): a kidnap whose
     /// moment is known. The robot is at a `Relocations` pose as they stand (no odometry since),
     /// and every estimate relative to it made before (landmarks, mobile objects, obstacles,
@@ -159,6 +165,7 @@ impl WorldModel {
     fn kidnapped(&mut self, now: Time, moved: Odometry, stale: impl Fn(&Slot) -> bool) {
         self.confidence_changes();
         self.lost = Some(LostReason::Kidnapped);
+        self.disagreed = false;
         self.diagnostics.kidnaps += 1;
         self.relocated = Some((now, moved));
         self.kidnap.accept();
@@ -194,8 +201,12 @@ impl WorldModel {
         if sightings.len() < needed {
             return;
         }
-        let prior = match (self.lost, &self.pose) {
-            (Some(LostReason::Uncertain), Some(p)) => Some((p.pose(), p.covariance())),
+        let prior = match (self.lost, &self.pose, self.config.pose.disagreement_prior) {
+            (Some(LostReason::Uncertain), Some(p), _) => Some((p.pose(), p.covariance())),
+            (Some(LostReason::Kidnapped), Some(p), Some(sigma)) if self.disagreed => {
+                let grown = PosePrior { pose: p.pose(), sigma }.covariance();
+                Some((p.pose(), p.covariance() + grown))
+            }
             _ => None,
         };
         let team = self.team_cues(now);
