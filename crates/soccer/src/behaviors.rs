@@ -732,11 +732,9 @@ fn go_to_ball(ctx: &mut Ctx) -> Status {
         // Close to the goal a kick would rather miss: walk the ball in. The dribble (head and
         // body) wins over the separate goals once the ball is near; until then the body walks
         // to the ball as to a kick, which it may not make, and the head looks where the value
-        // function says.
-        let goal = ctx.field.opponent_goal();
-        ctx.set_body(BodyGoal::GoToBallAndKick { kick: Kick::Forward, target: goal });
-        ctx.out.whole_body =
-            ScoreVector::single(WholeBodyGoal::GoToBallAndDribble { target: goal });
+        // function says. It aims where a shot would: the side of the goal its keeper leaves.
+        ctx.set_body(BodyGoal::GoToBallAndKick { kick: Kick::Forward, target });
+        ctx.out.whole_body = ScoreVector::single(WholeBodyGoal::GoToBallAndDribble { target });
         ctx.out.deactivated.insert(names::KICK_BALL.to_owned());
     } else {
         let kick = if ctx.role() == Role::Striker { Kick::Forward } else { Kick::Pass };

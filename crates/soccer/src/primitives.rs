@@ -17,7 +17,7 @@ use strata_runtime::Time;
 
 use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
-use crate::situation::{ball, head_goal_objects, obstacle_ahead};
+use crate::situation::{ball, head_goal_objects, obstacle_ahead, obstacles};
 
 /// Names of the primitive behaviors, as the multiplexers and the deliberative layer refer to
 /// them (deactivation).
@@ -70,6 +70,9 @@ pub struct MotionModel {
     /// that landmarks keep the pose (world modeling tracks the ball through the glance); 0:
     /// it watches the ball throughout (a camera that sees the ball and the landmarks at once).
     pub dribble_glance: [f64; 2],
+    /// How far a dribble turns from its target to pass a robot in its way, rad
+    /// ([`dodge_target`]); 0: it dribbles straight at the target whoever is there.
+    pub dribble_dodge: f64,
     /// An obstacle closer than this, straight ahead, must be avoided, m.
     pub collision_distance: f64,
     /// How long each walk command lasts if no newer one replaces it, s.
@@ -108,6 +111,7 @@ impl Default for MotionModel {
             approach_speed_gain: 0.0,
             dribble_behind: 0.0,
             dribble_glance: [0.0, 0.0],
+            dribble_dodge: 0.0,
             collision_distance: 0.45,
             walk_command_duration: 0.4,
             near_gaze_range: 0.6,
@@ -579,6 +583,8 @@ pub struct Dribbling {
     through: bool,
     /// When this dribble started: the glances' clock.
     since: Option<Time>,
+    /// The side (+1 left, -1 right) the dribble passes a robot in its way on, while it does.
+    dodge: Option<f64>,
 }
 
 impl Dribbling {
@@ -589,8 +595,41 @@ impl Dribbling {
             head: HeadSender::default(),
             through: false,
             since: None,
+            dodge: None,
         }
     }
+}
+
+/// A robot within this of the ball, m, along the line to the target (from a little behind the
+/// ball) and within `DODGE_ACROSS` of it is in the dribble's way.
+const DODGE_AHEAD: f64 = 1.5;
+const DODGE_ACROSS: f64 = 0.7;
+/// Where a dribble aims (robot frame) with robots (`others`, robot frame) about: `angle` off
+/// the line to `target` past the nearest one in the way, on the side it was passed on before
+/// (`side`) or else the side away from it; straight at `target` when none is. Two T1s walking
+/// through the ball from either side push it between them and fall over each other.
+pub fn dodge_target(
+    ball: Point<Robot>,
+    target: Point<Robot>,
+    others: impl Iterator<Item = Point<Robot>>,
+    side: Option<f64>,
+    angle: f64,
+) -> (Point<Robot>, Option<f64>) {
+    if angle <= 0.0 {
+        return (target, None);
+    }
+    let line = (target - ball).normalized();
+    let in_the_way = others
+        .map(|o| o - ball)
+        .filter(|d| {
+            let along = d.dot(line);
+            along > -0.2 && along < DODGE_AHEAD && line.cross(*d).abs() < DODGE_ACROSS
+        })
+        .min_by(|a, b| a.dot(line).total_cmp(&b.dot(line)));
+    let Some(d) = in_the_way else { return (target, None) };
+    let side = side.unwrap_or(if line.cross(d) > 0.0 { -1.0 } else { 1.0 });
+    let aim = ball + line.rotated(side * angle) * (target - ball).norm();
+    (aim, Some(side))
 }
 
 /// Where a lined-up dribble keeps the ball: ahead of the torso by at most `reach`, m, within
@@ -668,6 +707,7 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribblin
         self.head.reset();
         self.through = false;
         self.since = Some(input.now);
+        self.dodge = None;
     }
 
     fn step(&mut self, goal: &WholeBodyGoal, input: &Input<'_, '_>) -> Option<WholeBodyCommand> {
@@ -675,6 +715,11 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribblin
         let world = input.world?;
         let ball = ball(world)?;
         let target_robot = world.pose.pose.to_robot(*target);
+        let others = obstacles(world).map(|o| o.position);
+        let dodge_angle = self.model.dribble_dodge;
+        let (target_robot, dodge) =
+            dodge_target(ball.robot, target_robot, others, self.dodge, dodge_angle);
+        self.dodge = dodge;
         let velocity = if self.model.dribble_behind > 0.0 {
             let (velocity, through) =
                 dribble_walk(&self.model, ball.robot, target_robot, self.through);
@@ -853,18 +898,24 @@ mod tests {
         world
     }
 
-    fn dribble(dribbling: &mut Dribbling, world: &WorldState, at: f64) -> Option<WholeBodyCommand> {
+    /// The reactive input of a stable robot with `world`, `at` seconds.
+    fn with_input<R>(world: &WorldState, at: f64, f: impl FnOnce(&Input<'_, '_>) -> R) -> R {
         let percepts = Percepts::default();
         let actuation = ActuationStatus::default();
-        let input = Input {
+        f(&Input {
             now: Time::from_secs_f64(at),
             percepts: &percepts,
             world: Some(world),
             actuation: &actuation,
             stability: Stability::Stable,
-        };
-        let goal = WholeBodyGoal::GoToBallAndDribble { target: Point::new(4.5, 0.0) };
-        dribbling.step(&goal, &input)
+        })
+    }
+
+    const DRIBBLE_TO: WholeBodyGoal =
+        WholeBodyGoal::GoToBallAndDribble { target: Point::new(4.5, 0.0) };
+
+    fn dribble(dribbling: &mut Dribbling, world: &WorldState, at: f64) -> Option<WholeBodyCommand> {
+        with_input(world, at, |input| dribbling.step(&DRIBBLE_TO, input))
     }
 
     fn head_target(command: Option<WholeBodyCommand>) -> Option<HeadAngles> {
@@ -916,21 +967,40 @@ mod tests {
     }
 
     #[test]
+    fn a_dribble_passes_a_robot_in_its_way_on_the_far_side_and_keeps_to_that_side() {
+        let angle = MotionModel::booster_t1().dribble_dodge;
+        assert!(angle > 0.0);
+        let ball = Point::new(0.3, 0.0);
+        let target = Point::new(10.0, 0.0);
+        let dodge = |others: &[Point<Robot>], side| {
+            dodge_target(ball, target, others.iter().copied(), side, angle)
+        };
+        // Nobody about, or only beside the robot and behind the ball: straight at the target.
+        assert_eq!(dodge(&[], None), (target, None));
+        assert_eq!(dodge(&[Point::new(0.0, 1.5), Point::new(-1.0, 0.2)], None), (target, None));
+        // A robot 0.8 m past the ball, a little to the left: aim right of it.
+        let (aim, side) = dodge(&[Point::new(1.1, 0.2)], None);
+        assert_eq!(side, Some(-1.0));
+        let turn = (aim - ball).angle();
+        assert!((turn + angle).abs() < 1e-9, "{turn}");
+        // It steps right across the line: the dribble keeps passing on the right.
+        let right = [Point::new(1.1, -0.1)];
+        assert_eq!(dodge(&right, side).1, Some(-1.0));
+        assert_eq!(dodge(&right, None).1, Some(1.0));
+        // Past it: straight at the target again. A NAO does not dodge.
+        assert_eq!(dodge(&[Point::new(0.0, 0.6)], side), (target, None));
+        let nao = MotionModel::default().dribble_dodge;
+        let never = dodge_target(ball, target, right.into_iter(), None, nao);
+        assert_eq!(never, (target, None));
+    }
+
+    #[test]
     fn a_t1_dribbling_glances_up_toward_the_target_and_back_at_the_ball() {
         let model = MotionModel::booster_t1();
         let [period, glance] = model.dribble_glance;
         let mut dribbling = Dribbling::new(Arc::new(model.clone()));
         let world = world_with_ball(Point::new(0.35, 0.0));
-        let (percepts, actuation) = (Percepts::default(), ActuationStatus::default());
-        let input = Input {
-            now: Time::ZERO,
-            percepts: &percepts,
-            world: Some(&world),
-            actuation: &actuation,
-            stability: Stability::Stable,
-        };
-        dribbling
-            .activate(&WholeBodyGoal::GoToBallAndDribble { target: Point::new(4.5, 0.0) }, &input);
+        with_input(&world, 0.0, |input| dribbling.activate(&DRIBBLE_TO, input));
         let mut head_at = |at: f64| {
             let command = dribble(&mut dribbling, &world, at);
             head_target(command).map(|h| h.pitch)

@@ -1,6 +1,7 @@
 //! A team of soccer robots: its configuration (which behavior variants it plays with) and the
 //! function that adds one of its robots to a module graph over any platform.
 
+use std::f64::consts::FRAC_PI_2;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
@@ -182,6 +183,13 @@ impl TeamConfig {
                 format!(
                     "must be [period, glance] with 0 <= glance <= period, got [{period}, {glance}]"
                 ),
+            ));
+        }
+        let dodge = self.motion.dribble_dodge;
+        if !(dodge.is_finite() && (0.0..FRAC_PI_2).contains(&dodge)) {
+            return Err(invalid(
+                "motion.dribble_dodge",
+                format!("must be >= 0 and below pi/2 rad (0: no dodge), got {dodge}"),
             ));
         }
         let dribble = self.behavior.dribble_distance;
