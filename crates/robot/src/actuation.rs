@@ -43,9 +43,23 @@ impl Default for ActuationConfig {
 enum BodyExecution {
     Idle,
     Standing,
-    Walking { velocity: Velocity, remaining: f64 },
-    Special { motion: SpecialMotion, started: bool },
+    Walking {
+        velocity: Velocity,
+        remaining: f64,
+    },
+    /// `waited`: how long it has waited for the platform to start it, s.
+    Special {
+        motion: SpecialMotion,
+        started: bool,
+        waited: f64,
+    },
 }
+
+/// A special sequence the platform has not started within this is given up, its resources
+/// released, s: a platform that accepts an order and never runs it (a T1 told to fall while
+/// it lies already) would otherwise hold the body for good, and a fallen robot would never be
+/// told to stand up.
+const SPECIAL_START_DEADLINE: f64 = 1.0;
 
 /// The command queues and the state of execution; pure, so it can be tested without a
 /// platform or threads.
@@ -95,7 +109,7 @@ impl ActuationState {
 
     fn start_special(&mut self, motion: SpecialMotion) {
         self.body_queue.clear();
-        self.body = BodyExecution::Special { motion, started: false };
+        self.body = BodyExecution::Special { motion, started: false, waited: 0.0 };
         self.orders.body = Some(BodyOrder::Special { motion });
         self.messages.push(ActuationMessage::ResourceBusy { resource: Resource::Body });
         if motion.uses_head() {
@@ -210,13 +224,24 @@ impl ActuationState {
             }
             (BodyExecution::Special { started: true, .. }, _) => {
                 // The sequence ended (standing, or lying after a fall): the resources are free.
-                self.body = BodyExecution::Idle;
-                self.orders.body = None;
-                self.messages.push(ActuationMessage::ResourceReleased { resource: Resource::Body });
-                if self.head_held_by_special {
-                    self.head_held_by_special = false;
-                    self.messages
-                        .push(ActuationMessage::ResourceReleased { resource: Resource::Head });
+                self.release_special();
+            }
+            (BodyExecution::Special { motion, started: false, waited }, state) => {
+                *waited += dt;
+                let (motion, late) = (*motion, *waited > SPECIAL_START_DEADLINE);
+                // A fall ordered as the robot came to lie is over before it began.
+                let fall_over = matches!(motion, SpecialMotion::Fall(_))
+                    && matches!(state, BodyMotionState::Fallen { .. });
+                if !fall_over && late {
+                    self.reject(
+                        Resource::Body,
+                        &format!(
+                            "the platform did not start {motion:?} within {SPECIAL_START_DEADLINE} s"
+                        ),
+                    );
+                }
+                if fall_over || late {
+                    self.release_special();
                 }
             }
             (BodyExecution::Walking { remaining, .. }, state) => {
@@ -261,7 +286,6 @@ impl ActuationState {
                     self.start_body(next);
                 }
             }
-            (BodyExecution::Special { started: false, .. }, _) => {}
         }
         if !matches!(self.body, BodyExecution::Walking { .. }) {
             self.last_stage = None;
@@ -298,6 +322,16 @@ impl ActuationState {
         let messages = std::mem::take(&mut self.messages);
         let changed = orders.head.is_some() || orders.body.is_some();
         (changed.then_some(orders), messages)
+    }
+
+    fn release_special(&mut self) {
+        self.body = BodyExecution::Idle;
+        self.orders.body = None;
+        self.messages.push(ActuationMessage::ResourceReleased { resource: Resource::Body });
+        if self.head_held_by_special {
+            self.head_held_by_special = false;
+            self.messages.push(ActuationMessage::ResourceReleased { resource: Resource::Head });
+        }
     }
 
     /// The platform refused the last body order (a NAO without a kick, say): a special
@@ -555,6 +589,53 @@ mod tests {
         assert!(
             messages.contains(&ActuationMessage::ResourceReleased { resource: Resource::Head })
         );
+    }
+
+    #[test]
+    fn a_fall_ordered_while_the_robot_lies_ends_at_once_and_a_stand_up_follows() {
+        let mut a = ActuationState::new(ActuationConfig::default());
+        let lying = BodyMotionState::Fallen { direction: crate::platform::FallDirection::Back };
+        a.command(&MotionCommands::WholeBody {
+            command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(0) },
+        });
+        // The T1 takes the order and goes on lying: the fall is over before it began.
+        let (_, messages) = a.update(&feedback(0.0, lying));
+        assert!(
+            messages.contains(&ActuationMessage::ResourceReleased { resource: Resource::Body })
+        );
+        let stand_up = SpecialMotion::StandUp(1);
+        a.command(&MotionCommands::WholeBody {
+            command: WholeBodyCommand::Special { motion: stand_up },
+        });
+        let (orders, messages) = a.update(&feedback(0.02, lying));
+        assert_eq!(orders.and_then(|o| o.body), Some(BodyOrder::Special { motion: stand_up }));
+        assert!(messages.iter().all(|m| !matches!(m, ActuationMessage::CommandRejected { .. })));
+    }
+
+    #[test]
+    fn a_special_sequence_the_platform_never_starts_is_given_up() {
+        let mut a = ActuationState::new(ActuationConfig::default());
+        a.command(&MotionCommands::PerResource {
+            head: None,
+            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
+        });
+        let mut released_at = None;
+        let mut rejected = false;
+        for k in 0..100 {
+            let at = 0.02 * f64::from(k);
+            let (_, messages) = a.update(&feedback(at, BodyMotionState::Standing));
+            rejected |=
+                messages.iter().any(|m| matches!(m, ActuationMessage::CommandRejected { .. }));
+            if messages.contains(&ActuationMessage::ResourceReleased { resource: Resource::Body }) {
+                released_at.get_or_insert(at);
+            }
+        }
+        let Some(at) = released_at else { panic!("the body stays held") };
+        assert!(
+            (SPECIAL_START_DEADLINE..SPECIAL_START_DEADLINE + 0.05).contains(&(at + 1e-9)),
+            "{at}"
+        );
+        assert!(rejected, "the reason is reported");
     }
 
     #[test]
