@@ -296,6 +296,13 @@ pub fn robot_world_config(
         // fallen T1 could come up on its mirror image (two robot-halves of one game at 9.8 and
         // 16.9 m of mean error).
         config.pose.disagreement_prior = Some(DISAGREEMENT_PRIOR);
+        if initial_pose.is_some() {
+            // A robot that starts from its pose needs no hint that it enters the field in its
+            // own half, and in play the hint is wrong half the time: a T1 that fell in the
+            // opponent half recovered the mirror image of its pose, in its own half, and its
+            // team dribbled toward their own goal for two minutes.
+            config.pose.hints.retain(|h| !matches!(h, SymmetryHint::Region { .. }));
+        }
     }
     config
 }
@@ -408,6 +415,26 @@ pub fn add_soccer_robot(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_robot_placed_by_a_platform_that_reports_moves_drops_the_own_half_hint() {
+        use strata_robot::geometry::Pose;
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let region = |c: &WorldModelConfig| {
+            c.pose.hints.iter().any(|h| matches!(h, SymmetryHint::Region { .. }))
+        };
+        let start = PosePrior { pose: Pose::new(-2.0, 0.0, 0.0), sigma: [0.1, 0.1, 0.05] };
+        let spot = PosePrior { pose: Pose::new(-1.0, -3.5, FRAC_PI_2), sigma: [0.3, 0.3, 0.4] };
+        // The built-in simulator's robots: entering in their own half breaks the symmetry.
+        let sim = robot_world_config(&field, Some(start), &[]);
+        assert!(region(&sim) && sim.pose.disagreement_prior.is_none());
+        // A T1 in rcssservermj: beamed to its pose, its moves reported or at known spots.
+        let t1 = robot_world_config(&field, Some(start), &[spot]);
+        assert!(!region(&t1) && t1.pose.disagreement_prior.is_some());
+        assert!(t1.pose.hints.iter().any(|h| matches!(h, SymmetryHint::Relocations { .. })));
+        // Not told where it starts: it still enters in its own half.
+        assert!(region(&robot_world_config(&field, None, &[spot])));
+    }
 
     #[test]
     fn every_preset_loads() {
