@@ -20,11 +20,28 @@ pub struct HostConfig {
     /// why ([`crate::Scheduling::RealTimeRefused`]); nothing else changes.
     #[serde(default)]
     pub real_time_priority: Option<u8>,
+    /// Threaded host: how long stopping waits for the module threads after asking them to
+    /// stop. A module still inside a cycle then is left running, detached, and named in
+    /// [`HostError::StopTimeout`]: a module blocked in a read must not hang its process's exit.
+    #[serde(default = "default_stop_timeout", with = "crate::serde_duration")]
+    pub stop_timeout: Duration,
+}
+
+/// A deliberative cycle takes tens to hundreds of milliseconds; this leaves ample margin.
+pub const DEFAULT_STOP_TIMEOUT: Duration = Duration::from_secs(5);
+
+fn default_stop_timeout() -> Duration {
+    DEFAULT_STOP_TIMEOUT
 }
 
 impl Default for HostConfig {
     fn default() -> Self {
-        HostConfig { seed: 0, stats_window: Duration::from_secs(1), real_time_priority: None }
+        HostConfig {
+            seed: 0,
+            stats_window: Duration::from_secs(1),
+            real_time_priority: None,
+            stop_timeout: DEFAULT_STOP_TIMEOUT,
+        }
     }
 }
 
@@ -41,6 +58,8 @@ pub enum HostError {
     ModulePanicked { module: String, message: String, stats: Box<HostStats> },
     #[error("module `{module}` failed: {error}")]
     ModuleFailed { module: String, error: String, stats: Box<HostStats> },
+    #[error("{}", not_stopped(.modules, *.timeout))]
+    StopTimeout { modules: Vec<String>, timeout: Duration, stats: Box<HostStats> },
     #[error("cannot start a module thread: {0}")]
     Spawn(String),
     #[error("{0}")]
@@ -57,12 +76,22 @@ impl HostError {
     /// The statistics gathered before the failure, if any.
     pub fn stats(&self) -> Option<&HostStats> {
         match self {
-            HostError::ModulePanicked { stats, .. } | HostError::ModuleFailed { stats, .. } => {
-                Some(stats)
-            }
+            HostError::ModulePanicked { stats, .. }
+            | HostError::ModuleFailed { stats, .. }
+            | HostError::StopTimeout { stats, .. } => Some(stats),
             _ => None,
         }
     }
+}
+
+fn not_stopped(modules: &[String], timeout: Duration) -> String {
+    let names: Vec<String> = modules.iter().map(|m| format!("`{m}`")).collect();
+    let (which, were) = if names.len() == 1 { ("module", "was") } else { ("modules", "were") };
+    format!(
+        "{which} {} did not stop within {} s (the host's stop timeout) and {were} left running",
+        names.join(", "),
+        timeout.as_secs_f64()
+    )
 }
 
 pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {

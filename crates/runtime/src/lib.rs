@@ -39,7 +39,7 @@ pub use graph::{
     InputMode, InputRef, ModuleDescription, Output, OutputRef, PortDescription, Ports,
     ProcessingTime, Trigger,
 };
-pub use host::{HostConfig, HostError};
+pub use host::{DEFAULT_STOP_TIMEOUT, HostConfig, HostError};
 pub use lockstep::{LockstepHost, TraceEntry, TraceEvent};
 pub use message::{ErasedPackage, Message};
 pub use module::{Context, Module, ModuleError, Wake};

@@ -108,7 +108,8 @@ impl ThreadedHost {
                 stats: Arc::clone(&stats),
                 failures: failure_tx.clone(),
             };
-            let name = format!("strata:{}", worker.parts.name);
+            let module = worker.parts.name.clone();
+            let name = format!("strata:{module}");
             let real_time = worker.parts.real_time;
             let handle = std::thread::Builder::new()
                 .name(name)
@@ -118,11 +119,12 @@ impl ThreadedHost {
                 let scheduling = make_real_time(&handle, priority);
                 stats.lock().unwrap_or_else(|e| e.into_inner()).set_scheduling(scheduling);
             }
-            threads.push(handle);
+            threads.push((module, handle));
         }
         Ok(RunningHost {
             shared,
             threads,
+            stop_timeout: config.stop_timeout,
             failures: failure_rx,
             stop_rx,
             stop: StopHandle { tx: stop_tx, requested: Arc::new(AtomicBool::new(false)) },
@@ -191,7 +193,9 @@ struct Monitor {
 /// A host whose module threads are running.
 pub struct RunningHost {
     shared: Arc<Shared>,
-    threads: Vec<JoinHandle<()>>,
+    /// Each module's name and thread.
+    threads: Vec<(String, JoinHandle<()>)>,
+    stop_timeout: Duration,
     failures: Receiver<Failure>,
     stop_rx: Receiver<()>,
     stop: StopHandle,
@@ -255,7 +259,8 @@ impl RunningHost {
     }
 
     /// Blocks until the host is asked to stop (stop handle, Ctrl-C) or a module fails, then
-    /// stops every module and joins its thread.
+    /// stops every module and joins its thread, waiting at most [`HostConfig::stop_timeout`]:
+    /// modules still running then are named in [`HostError::StopTimeout`].
     pub fn wait(self) -> Result<HostStats, HostError> {
         let failure = crossbeam_channel::select! {
             recv(self.failures) -> f => f.ok(),
@@ -274,43 +279,91 @@ impl RunningHost {
         self.shutdown(failure)
     }
 
-    /// Stops now.
+    /// Stops now (as [`RunningHost::wait`] does once asked to).
     pub fn stop(self) -> Result<HostStats, HostError> {
         let failure = self.failures.try_recv().ok();
         self.shutdown(failure)
     }
 
     fn shutdown(mut self, failure: Option<Failure>) -> Result<HostStats, HostError> {
-        for sender in &self.shared.senders {
-            let _ = sender.send(Event::Stop);
+        let threads = std::mem::take(&mut self.threads);
+        let stuck = stop_threads(&self.shared, threads, self.stop_timeout);
+        let failure = failure.or_else(|| self.failures.try_recv().ok());
+        let stats = self.stats();
+        match failure {
+            Some(failure) => {
+                // The failure is the news; modules left running are worth a line beside it.
+                if !stuck.is_empty() {
+                    warn_stuck(&stuck, self.stop_timeout);
+                }
+                Err(failure_error(failure, stats))
+            }
+            None if stuck.is_empty() => Ok(stats),
+            None => Err(HostError::StopTimeout {
+                modules: stuck,
+                timeout: self.stop_timeout,
+                stats: Box::new(stats),
+            }),
         }
-        for thread in self.threads.drain(..) {
+    }
+}
+
+fn failure_error(failure: Failure, stats: HostStats) -> HostError {
+    match failure {
+        Failure::Panicked { module, message } => {
+            HostError::ModulePanicked { module, message, stats: Box::new(stats) }
+        }
+        Failure::Failed { module, error } => {
+            HostError::ModuleFailed { module, error, stats: Box::new(stats) }
+        }
+    }
+}
+
+fn warn_stuck(modules: &[String], timeout: Duration) {
+    tracing::warn!(
+        ?modules,
+        "modules did not stop within {} s (the host's stop timeout) and were left running",
+        timeout.as_secs_f64()
+    );
+}
+
+/// Asks every module thread to stop and waits for them, `timeout` at most in all. Returns the
+/// modules whose thread was still running then; those threads are left detached (a thread
+/// cannot be killed), and end on their own if their cycle ever returns.
+fn stop_threads(
+    shared: &Shared,
+    threads: Vec<(String, JoinHandle<()>)>,
+    timeout: Duration,
+) -> Vec<String> {
+    for sender in &shared.senders {
+        let _ = sender.send(Event::Stop);
+    }
+    let deadline = Instant::now() + timeout;
+    let mut running = threads;
+    loop {
+        let (ended, still): (Vec<_>, Vec<_>) =
+            running.into_iter().partition(|(_, thread)| thread.is_finished());
+        for (_, thread) in ended {
             // A worker catches its module's panics, so a join error would be a bug of ours;
             // the stats are still worth returning.
             let _ = thread.join();
         }
-        let failure = failure.or_else(|| self.failures.try_recv().ok());
-        let stats = self.stats();
-        match failure {
-            None => Ok(stats),
-            Some(Failure::Panicked { module, message }) => {
-                Err(HostError::ModulePanicked { module, message, stats: Box::new(stats) })
-            }
-            Some(Failure::Failed { module, error }) => {
-                Err(HostError::ModuleFailed { module, error, stats: Box::new(stats) })
-            }
+        running = still;
+        if running.is_empty() || Instant::now() >= deadline {
+            break;
         }
+        std::thread::sleep(Duration::from_millis(1));
     }
+    running.into_iter().map(|(module, _)| module).collect()
 }
 
 impl Drop for RunningHost {
     fn drop(&mut self) {
         if !self.threads.is_empty() {
-            for sender in &self.shared.senders {
-                let _ = sender.send(Event::Stop);
-            }
-            for thread in self.threads.drain(..) {
-                let _ = thread.join();
+            let threads = std::mem::take(&mut self.threads);
+            let stuck = stop_threads(&self.shared, threads, self.stop_timeout);
+            if !stuck.is_empty() {
+                warn_stuck(&stuck, self.stop_timeout);
             }
         }
     }

@@ -359,3 +359,98 @@ fn without_a_real_time_priority_in_the_config_every_thread_keeps_the_default_pol
     }
     assert_eq!(*sensor_path.lock().expect("lock"), Some(false));
 }
+
+/// Stays inside its first cycle until the test sends on (or drops) `release`.
+struct Stuck {
+    release: crossbeam_channel::Receiver<()>,
+    entered: Arc<AtomicUsize>,
+    stops: Arc<AtomicUsize>,
+}
+
+impl Module for Stuck {
+    fn cycle(&mut self, _: &mut Context<'_>) -> Result<(), ModuleError> {
+        if self.entered.fetch_add(1, Ordering::SeqCst) == 0 {
+            let _ = self.release.recv();
+        }
+        Ok(())
+    }
+    fn stop(&mut self) {
+        self.stops.fetch_add(1, Ordering::SeqCst);
+    }
+}
+
+/// A graph of a module stuck in its first cycle ("deliberative") and a ticking one
+/// ("reactive"), on a host that waits `stop_timeout` for its threads.
+fn stuck_host(
+    stop_timeout: Duration,
+) -> (strata_runtime::RunningHost, crossbeam_channel::Sender<()>, Arc<AtomicUsize>, Arc<AtomicUsize>)
+{
+    let (release_tx, release) = crossbeam_channel::bounded(1);
+    let entered = Arc::new(AtomicUsize::new(0));
+    let stops = Arc::new(AtomicUsize::new(0));
+    let mut graph = GraphBuilder::new();
+    {
+        let (entered, stops) = (Arc::clone(&entered), Arc::clone(&stops));
+        graph.add("deliberative", move |p| {
+            p.trigger(Trigger::every(Duration::from_millis(1)));
+            (Stuck { release, entered, stops }, ())
+        });
+    }
+    {
+        let (cycles, stops) = (Arc::new(AtomicU64::new(0)), Arc::clone(&stops));
+        graph.add("reactive", move |p| {
+            p.trigger(Trigger::every(Duration::from_millis(1)));
+            (Ticker { cycles, stops }, ())
+        });
+    }
+    let config = HostConfig { stop_timeout, ..HostConfig::default() };
+    let host = ThreadedHost::new(graph.build().expect("valid"), config).start().expect("starts");
+    wait_until("the deliberative module to be stuck", || entered.load(Ordering::SeqCst) == 1);
+    (host, release_tx, entered, stops)
+}
+
+#[test]
+fn stopping_gives_up_on_a_module_stuck_in_its_cycle_after_the_stop_timeout_and_names_it() {
+    let (host, release, _, stops) = stuck_host(Duration::from_millis(200));
+    // On another thread, so that a stop that never returns fails the test instead of hanging it.
+    let (done_tx, done) = crossbeam_channel::bounded(1);
+    std::thread::spawn(move || {
+        let _ = done_tx.send(host.stop());
+    });
+    let result = done.recv_timeout(PATIENCE);
+    let Ok(result) = result else {
+        let _ = release.send(());
+        panic!("stop did not return while a module was stuck in its cycle");
+    };
+    match &result {
+        Err(HostError::StopTimeout { modules, timeout, stats }) => {
+            assert_eq!(modules, &["deliberative".to_owned()]);
+            assert_eq!(*timeout, Duration::from_millis(200));
+            assert!(stats.module("reactive").expect("reactive").cycles > 0);
+        }
+        other => panic!("expected a stop timeout naming the stuck module, got {other:?}"),
+    }
+    let message = result.expect_err("a stop timeout").to_string();
+    assert_eq!(
+        message,
+        "module `deliberative` did not stop within 0.2 s (the host's stop timeout) and was left running"
+    );
+    assert_eq!(stops.load(Ordering::SeqCst), 1, "the healthy module was stopped and joined");
+    // The module left running stops on its own once its cycle returns.
+    release.send(()).expect("the stuck module still waits");
+    wait_until("the released module to stop", || stops.load(Ordering::SeqCst) == 2);
+}
+
+#[test]
+fn dropping_a_host_with_a_module_stuck_in_its_cycle_returns_after_the_stop_timeout() {
+    let (host, release, _, stops) = stuck_host(Duration::from_millis(200));
+    let (done_tx, done) = crossbeam_channel::bounded(1);
+    std::thread::spawn(move || {
+        drop(host);
+        let _ = done_tx.send(());
+    });
+    let dropped = done.recv_timeout(PATIENCE);
+    let _ = release.send(());
+    assert!(dropped.is_ok(), "dropping the host did not return while a module was stuck");
+    assert!(stops.load(Ordering::SeqCst) >= 1, "the healthy module was stopped");
+}

@@ -1,9 +1,12 @@
 //! The simulator over TCP: handshake, sensor frames and game state reaching robot processes,
 //! orders and team messages reaching the world, team broadcasts forwarded with loss, malformed
-//! frames, disconnection and reconnection. Waits poll with generous deadlines; nothing asserts how long anything took.
+//! frames, disconnection and reconnection, the server's limits and the client's write timeout.
+//! Waits poll with generous deadlines; nothing asserts how long anything took.
 
 use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use strata_robot::Velocity;
@@ -12,7 +15,10 @@ use strata_robot::platform::{
 };
 use strata_runtime::Time;
 use strata_sim::net::protocol::{self, ClientMessage, ErrorCode, ServerMessage};
-use strata_sim::net::{ConnectError, RunningServer, Server, ServerOptions, TcpRobot, connect};
+use strata_sim::net::{
+    ClientOptions, ConnectError, RunningServer, Server, ServerLimits, ServerOptions, TcpRobot,
+    connect, connect_with,
+};
 use strata_sim::{GameState, RobotId, SimConfig, SimHandle, Simulation};
 use strata_spl::gamecontroller::GameControlData;
 
@@ -23,12 +29,17 @@ fn server() -> RunningServer {
 }
 
 fn server_with(adjust: impl FnOnce(&mut SimConfig)) -> RunningServer {
+    limited_server(adjust, ServerLimits::default())
+}
+
+fn limited_server(adjust: impl FnOnce(&mut SimConfig), limits: ServerLimits) -> RunningServer {
     let mut config = SimConfig::default().without_noise();
     config.referee.auto = false;
     adjust(&mut config);
     let sim = SimHandle::new(Simulation::new(config).expect("valid config"));
     sim.lock().set_game_state(GameState::Playing);
-    let server = Server::bind("127.0.0.1:0", sim, ServerOptions::default()).expect("binds");
+    let options = ServerOptions { limits, ..ServerOptions::default() };
+    let server = Server::bind("127.0.0.1:0", sim, options).expect("binds");
     server.spawn().expect("runs")
 }
 
@@ -211,11 +222,15 @@ fn a_robot_that_disconnects_mid_game_is_removed_and_may_reconnect() {
 
 #[test]
 fn the_server_forwards_team_messages_to_teammates_only_and_loses_the_configured_fraction() {
-    let server = server_with(|c| {
-        c.broadcast.loss = 0.5;
-        // Plenty: the budget is not what this test is about.
-        c.referee.message_budget = 10_000;
-    });
+    // Plenty of budget and message rate for a burst of 400: neither is what this test is about.
+    let limits = ServerLimits { max_messages_per_second: 100_000, ..ServerLimits::default() };
+    let server = limited_server(
+        |c| {
+            c.broadcast.loss = 0.5;
+            c.referee.message_budget = 10_000;
+        },
+        limits,
+    );
     let addr = server.local_addr();
     let mut sender = join(addr, 10, 1);
     let mut teammate = join(addr, 10, 2);
@@ -259,4 +274,226 @@ fn the_server_forwards_team_messages_to_teammates_only_and_loses_the_configured_
     assert!(opponent.team_link.receive(now()).expect("connected").is_empty());
     assert!(sender.team_link.receive(now()).expect("connected").is_empty());
     server.stop().expect("stops cleanly");
+}
+
+fn hello_frame(team: u8, player: u8) -> Vec<u8> {
+    protocol::encode(&ClientMessage::Hello {
+        protocol: "strata-sim".to_owned(),
+        version: 1,
+        team,
+        player,
+    })
+}
+
+/// Sends `bytes` on a new connection and returns the server's first message.
+fn first_reply(addr: SocketAddr, bytes: &[u8]) -> ServerMessage {
+    let mut stream = TcpStream::connect(addr).expect("connects");
+    stream.set_read_timeout(Some(PATIENCE)).expect("timeout");
+    stream.write_all(bytes).expect("sends");
+    protocol::read_message::<ServerMessage>(&mut stream, protocol::MAX_SERVER_FRAME)
+        .expect("a message from the server")
+}
+
+#[test]
+fn connections_over_the_cap_are_refused_with_the_reason_while_robots_still_join_and_play() {
+    let limits = ServerLimits {
+        max_connections: 3,
+        // Long enough that the idle connections stay for the whole test.
+        handshake_deadline: Duration::from_secs(120),
+        ..ServerLimits::default()
+    };
+    let server = limited_server(|_| {}, limits);
+    let addr = server.local_addr();
+    let mut robot = join(addr, 10, 1);
+    a_frame(&mut robot);
+    let idle: Vec<TcpStream> =
+        (0..2).map(|_| TcpStream::connect(addr).expect("connects")).collect();
+    until("the idle connections to be open", || (server.counters().connections == 3).then_some(()));
+
+    match first_reply(addr, &hello_frame(10, 2)) {
+        ServerMessage::Error { code: ErrorCode::TooManyConnections, message } => {
+            assert!(message.contains("3 connections open"), "{message}");
+        }
+        other => panic!("expected too_many_connections, got {other:?}"),
+    }
+    assert!(matches!(
+        connect(addr, 10, 2, Duration::from_secs(5)),
+        Err(ConnectError::Refused { code: ErrorCode::TooManyConnections, .. })
+    ));
+    assert!(!server.sim().lock().is_present(RobotId::new(0, 2)));
+    assert_eq!(server.counters().refused, 2);
+
+    // The robot already playing never noticed.
+    let before = robot.platform.received();
+    until("more frames", || (robot.platform.received() > before + 10).then_some(()));
+    assert_eq!(robot.platform.closed(), None);
+
+    // The cap counts open connections: once one closes, a robot joins again.
+    drop(idle);
+    until("the idle connections to close", || (server.counters().connections == 1).then_some(()));
+    let mut second = join(addr, 10, 2);
+    a_frame(&mut second);
+    server.stop().expect("stops cleanly");
+}
+
+#[test]
+fn a_client_that_trickles_its_hello_is_dropped_at_the_handshake_deadline() {
+    let limits =
+        ServerLimits { handshake_deadline: Duration::from_secs(1), ..ServerLimits::default() };
+    let server = limited_server(|_| {}, limits);
+    let hello = hello_frame(10, 1);
+    let mut stream = TcpStream::connect(server.local_addr()).expect("connects");
+    stream.set_read_timeout(Some(PATIENCE)).expect("timeout");
+    let sent = Arc::new(AtomicUsize::new(0));
+    let stop = Arc::new(AtomicBool::new(false));
+    let trickle = {
+        let (mut writer, sent, stop) =
+            (stream.try_clone().expect("clones"), Arc::clone(&sent), Arc::clone(&stop));
+        let hello = hello.clone();
+        // Each byte well within the deadline of the previous one: only a deadline over the
+        // whole handshake ends this.
+        std::thread::spawn(move || {
+            for byte in hello {
+                if stop.load(Ordering::SeqCst) || writer.write_all(&[byte]).is_err() {
+                    return;
+                }
+                sent.fetch_add(1, Ordering::SeqCst);
+                std::thread::sleep(Duration::from_millis(200));
+            }
+        })
+    };
+    let reply = protocol::read_message::<ServerMessage>(&mut stream, protocol::MAX_SERVER_FRAME);
+    let sent_at_reply = sent.load(Ordering::SeqCst);
+    stop.store(true, Ordering::SeqCst);
+    let _ = trickle.join();
+    match reply {
+        Ok(ServerMessage::Error { code: ErrorCode::HandshakeTimeout, message }) => {
+            assert!(message.contains("1 s"), "{message}");
+        }
+        other => panic!("expected handshake_timeout, got {other:?}"),
+    }
+    assert!(
+        sent_at_reply < hello.len(),
+        "the server waited for the whole trickled hello ({sent_at_reply} bytes)"
+    );
+    assert!(!server.sim().lock().is_present(RobotId::new(0, 1)));
+    assert_eq!(server.counters().refused, 1);
+    server.stop().expect("stops cleanly");
+}
+
+#[test]
+fn a_robot_sending_above_the_message_rate_has_the_excess_dropped_and_others_keep_playing() {
+    const RATE: u32 = 50;
+    const SENT: u64 = 5000;
+    let limits = ServerLimits { max_messages_per_second: RATE, ..ServerLimits::default() };
+    let server = limited_server(|_| {}, limits);
+    let addr = server.local_addr();
+    let mut other = join(addr, 20, 1);
+    a_frame(&mut other);
+
+    let mut flood = TcpStream::connect(addr).expect("connects");
+    flood.write_all(&hello_frame(10, 1)).expect("sends");
+    let mut replies = flood.try_clone().expect("clones");
+    assert!(matches!(
+        protocol::read_message::<ServerMessage>(&mut replies, protocol::MAX_SERVER_FRAME),
+        Ok(ServerMessage::Welcome { .. })
+    ));
+    // Read what the server sends, so that only the orders are at stake.
+    let drain = std::thread::spawn(move || {
+        while protocol::read_message::<ServerMessage>(&mut replies, protocol::MAX_SERVER_FRAME)
+            .is_ok()
+        {}
+    });
+    let walk = ActuatorOrders {
+        head: None,
+        body: Some(BodyOrder::Walk { velocity: Velocity::new(0.1, 0.0, 0.0) }),
+    };
+    let orders = protocol::encode(&ClientMessage::Orders { orders: walk });
+    let burst: Vec<u8> = (0..SENT).flat_map(|_| orders.iter().copied()).collect();
+    let frames_before = other.platform.received();
+    let start = Instant::now();
+    flood.write_all(&burst).expect("sends");
+    until("the server to read every order", || (server.counters().messages >= SENT).then_some(()));
+    let elapsed = start.elapsed().as_secs_f64();
+    let counters = server.counters();
+    let applied = SENT - counters.throttled;
+    // A tenth of a second's worth, at least 10, may pass at once; then the rate.
+    let allowed = 10.0 + f64::from(RATE) * elapsed;
+    assert!(
+        (applied as f64) <= allowed + 1.0,
+        "{applied} of {SENT} orders applied in {elapsed:.2} s at {RATE} per second"
+    );
+    assert!(applied >= 1, "orders within the rate are applied");
+    // The flooding robot stays (its excess is only dropped), and the other one keeps playing.
+    assert!(server.sim().lock().is_present(RobotId::new(0, 1)));
+    until("the other robot's frames", || {
+        (other.platform.received() > frames_before + 20).then_some(())
+    });
+    assert_eq!(other.platform.closed(), None);
+    drop(flood);
+    server.stop().expect("stops cleanly");
+    let _ = drain.join();
+}
+
+/// A server that welcomes one robot and then never reads from it again.
+fn stalled_server() -> (SocketAddr, std::sync::mpsc::Sender<()>) {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("binds");
+    let addr = listener.local_addr().expect("an address");
+    let info = Simulation::new(SimConfig::default()).expect("valid config").platform_info();
+    let (release, released) = std::sync::mpsc::channel::<()>();
+    std::thread::spawn(move || {
+        let (mut stream, _) = listener.accept().expect("a robot connects");
+        let hello =
+            protocol::read_message::<ClientMessage>(&mut stream, protocol::MAX_CLIENT_FRAME);
+        assert!(matches!(hello, Ok(ClientMessage::Hello { .. })));
+        let welcome = ServerMessage::Welcome {
+            version: protocol::VERSION,
+            team: 10,
+            player: 1,
+            team_index: 0,
+            info,
+            max_team_message: 128,
+            time: Time::ZERO,
+        };
+        protocol::write_message(&mut stream, &welcome).expect("welcomes");
+        // Holds the connection open, reading nothing.
+        let _ = released.recv();
+        drop(stream);
+    });
+    (addr, release)
+}
+
+#[test]
+fn a_robot_whose_server_stops_reading_gets_a_write_timeout_error_and_drops_promptly() {
+    let (addr, release) = stalled_server();
+    let options = ClientOptions {
+        timeout: Duration::from_secs(5),
+        write_timeout: Duration::from_millis(300),
+    };
+    let robot = connect_with(addr, 10, 1, options).expect("welcomed");
+    let (result_tx, result) = std::sync::mpsc::channel();
+    // On another thread, so that a send or drop that never returns fails the test instead of
+    // hanging it.
+    std::thread::spawn(move || {
+        let mut robot = robot;
+        let walk = ActuatorOrders {
+            head: None,
+            body: Some(BodyOrder::Walk { velocity: Velocity::new(0.1, 0.0, 0.0) }),
+        };
+        // Fills the socket's buffers until a send blocks for the write timeout.
+        let error = loop {
+            if let Err(error) = robot.platform.write(now(), &walk) {
+                break error;
+            }
+        };
+        let _ = result_tx.send(Some(error.to_string()));
+        drop(robot);
+        let _ = result_tx.send(None);
+    });
+    let error = result.recv_timeout(PATIENCE);
+    let dropped = error.is_ok() && result.recv_timeout(PATIENCE).is_ok();
+    let _ = release.send(());
+    let error = error.expect("a send to the stalled server returns").expect("an error");
+    assert!(error.contains("write timeout"), "{error}");
+    assert!(dropped, "dropping the robot did not return");
 }

@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use strata_robot::platform::{Platform, PlatformError};
 use strata_runtime::{Clock, MonotonicClock};
-use strata_sim::net::{Server, ServerOptions, TcpRobot, connect};
+use strata_sim::net::{Server, ServerLimits, ServerOptions, TcpRobot, connect};
 use strata_sim::{SimConfig, SimHandle, Simulation, TestController};
 
 /// The port `strata server` listens on and `strata robot` connects to by default.
@@ -36,6 +36,54 @@ pub struct ServerArgs {
     /// Keep every robot on the field even when no process drives it (it stands still).
     #[arg(long)]
     pub keep_idle_robots: bool,
+    /// Connections open at once, robots and handshakes together; one more is refused with
+    /// `too_many_connections`.
+    #[arg(long, value_name = "N", default_value_t = ServerLimits::DEFAULT.max_connections,
+          value_parser = parse_count)]
+    pub max_connections: usize,
+    /// Seconds from accepting a connection to having its whole `hello`.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds,
+          default_value_t = ServerLimits::DEFAULT.handshake_deadline.as_secs_f64())]
+    pub handshake_deadline: f64,
+    /// Messages (orders, team messages, return packets) a robot may send per second; the
+    /// excess is dropped and counted.
+    #[arg(long, value_name = "N", default_value_t = ServerLimits::DEFAULT.max_messages_per_second,
+          value_parser = clap::value_parser!(u32).range(1..))]
+    pub max_messages_per_second: u32,
+    /// Seconds a write to one robot may block before the server drops that robot.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds,
+          default_value_t = ServerLimits::DEFAULT.write_timeout.as_secs_f64())]
+    pub write_timeout: f64,
+}
+
+impl ServerArgs {
+    fn limits(&self) -> ServerLimits {
+        ServerLimits {
+            max_connections: self.max_connections,
+            handshake_deadline: Duration::from_secs_f64(self.handshake_deadline),
+            max_messages_per_second: self.max_messages_per_second,
+            write_timeout: Duration::from_secs_f64(self.write_timeout),
+        }
+    }
+}
+
+/// A count of at least 1.
+fn parse_count(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(0) => Err("must be at least 1".to_owned()),
+        Ok(count) => Ok(count),
+        Err(_) => Err(format!("{text:?} is not a whole number")),
+    }
+}
+
+/// A duration in seconds, positive and at most a day (a limit, not a way to switch it off).
+fn parse_seconds(text: &str) -> Result<f64, String> {
+    let seconds: f64 = text.parse().map_err(|_| format!("{text:?} is not a number of seconds"))?;
+    if seconds > 0.0 && seconds <= 86_400.0 {
+        Ok(seconds)
+    } else {
+        Err(format!("{seconds} s is outside 0 (exclusive) to 86400 s"))
+    }
 }
 
 /// Runs the simulator server until Ctrl-C.
@@ -55,6 +103,7 @@ pub fn run_server(args: ServerArgs) -> Result<()> {
     let options = ServerOptions {
         status_interval: Duration::from_secs_f64(args.status_interval.max(0.1)),
         robots_need_clients: !args.keep_idle_robots,
+        limits: args.limits(),
         ..ServerOptions::default()
     };
     let server = Server::bind(args.addr.as_str(), SimHandle::new(simulation), options)?;

@@ -44,6 +44,22 @@ pub enum ConnectError {
     Spawn(std::io::Error),
 }
 
+/// How long the robot waits for the server. [`connect`] uses the default write timeout.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClientOptions {
+    /// For connecting, and for each step of the handshake.
+    pub timeout: Duration,
+    /// How long sending one message may block. A server that reads nothing for this long is
+    /// taken as gone: the send fails, the connection closes and the platform reports it
+    /// disconnected, instead of the robot's module (or dropping the robot) hanging.
+    pub write_timeout: Duration,
+}
+
+impl ClientOptions {
+    /// The write timeout of [`connect`]; the server reads every message as it arrives.
+    pub const DEFAULT_WRITE_TIMEOUT: Duration = Duration::from_secs(2);
+}
+
 /// What the server said when the robot joined.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Welcome {
@@ -87,6 +103,7 @@ struct Connection {
     inbox: Mutex<Inbox>,
     writer: Mutex<TcpStream>,
     welcome: Welcome,
+    write_timeout: Duration,
 }
 
 impl Connection {
@@ -100,17 +117,29 @@ impl Connection {
         }
         let mut writer = self.writer.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         protocol::write_message(&mut *writer, message).map_err(|e| {
-            let reason = format!("cannot send to the simulator: {e}");
-            self.inbox().closed = Some(reason.clone());
-            reason
+            let reason = match e.kind() {
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut => format!(
+                    "the simulator read nothing for {} s, the write timeout; connection closed",
+                    self.write_timeout.as_secs_f64()
+                ),
+                _ => format!("cannot send to the simulator: {e}"),
+            };
+            // Part of a frame may have gone out: nothing more can be sent on this stream. Closing
+            // it ends the reader thread, and the server removes the robot.
+            let _ = writer.shutdown(Shutdown::Both);
+            self.inbox().closed.get_or_insert(reason).clone()
         })
     }
 }
 
 impl Drop for Connection {
     fn drop(&mut self) {
+        let closed = self.inbox().closed.is_some();
         let mut writer = self.writer.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        let _ = protocol::write_message(&mut *writer, &ClientMessage::Goodbye);
+        // The stream's write timeout bounds this when the server has stopped reading.
+        if !closed {
+            let _ = protocol::write_message(&mut *writer, &ClientMessage::Goodbye);
+        }
         // Ends the reader thread too.
         let _ = writer.shutdown(Shutdown::Both);
     }
@@ -126,13 +155,26 @@ pub struct TcpRobot {
     pub welcome: Welcome,
 }
 
-/// Connects to the server at `addr` as player `player` of team number `team`.
+/// Connects to the server at `addr` as player `player` of team number `team`, with the default
+/// write timeout ([`ClientOptions::DEFAULT_WRITE_TIMEOUT`]).
 pub fn connect(
     addr: impl ToSocketAddrs + std::fmt::Display,
     team: u8,
     player: u8,
     timeout: Duration,
 ) -> Result<TcpRobot, ConnectError> {
+    let write_timeout = ClientOptions::DEFAULT_WRITE_TIMEOUT;
+    connect_with(addr, team, player, ClientOptions { timeout, write_timeout })
+}
+
+/// Connects to the server at `addr` as player `player` of team number `team`.
+pub fn connect_with(
+    addr: impl ToSocketAddrs + std::fmt::Display,
+    team: u8,
+    player: u8,
+    options: ClientOptions,
+) -> Result<TcpRobot, ConnectError> {
+    let ClientOptions { timeout, write_timeout } = options;
     let target = addr
         .to_socket_addrs()
         .ok()
@@ -144,6 +186,7 @@ pub fn connect(
     let handshake =
         |e: std::io::Error| ConnectError::Handshake { addr: target, error: FrameError::Io(e) };
     stream.set_read_timeout(Some(timeout)).map_err(handshake)?;
+    stream.set_write_timeout(Some(timeout)).map_err(handshake)?;
     let hello =
         ClientMessage::Hello { protocol: PROTOCOL.to_owned(), version: VERSION, team, player };
     protocol::write_message(&mut stream, &hello).map_err(handshake)?;
@@ -159,11 +202,13 @@ pub fn connect(
         other => return Err(ConnectError::Unexpected(format!("{other:?}"))),
     };
     stream.set_read_timeout(None).map_err(handshake)?;
+    stream.set_write_timeout(Some(write_timeout)).map_err(handshake)?;
     let reader = stream.try_clone().map_err(handshake)?;
     let connection = Arc::new(Connection {
         inbox: Mutex::new(Inbox::default()),
         writer: Mutex::new(stream),
         welcome: welcome.clone(),
+        write_timeout,
     });
     let weak = Arc::downgrade(&connection);
     std::thread::Builder::new()

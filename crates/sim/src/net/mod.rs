@@ -8,7 +8,10 @@ pub mod protocol;
 pub mod server;
 
 pub use client::{
-    ConnectError, TcpGameControllerLink, TcpRobot, TcpSimPlatform, TcpTeamLink, Welcome, connect,
+    ClientOptions, ConnectError, TcpGameControllerLink, TcpRobot, TcpSimPlatform, TcpTeamLink,
+    Welcome, connect, connect_with,
 };
 pub use protocol::{ClientMessage, ErrorCode, ServerMessage};
-pub use server::{RunningServer, Server, ServerError, ServerOptions, ServerStatus};
+pub use server::{
+    RunningServer, Server, ServerCounters, ServerError, ServerLimits, ServerOptions, ServerStatus,
+};

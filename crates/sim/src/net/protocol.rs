@@ -124,10 +124,12 @@ pub enum ErrorCode {
     SlotTaken,
     /// A message that is not valid at this point (orders before `hello`, a second `hello`).
     UnexpectedMessage,
-    /// No `hello` in time.
+    /// No complete `hello` within the server's handshake deadline.
     HandshakeTimeout,
     /// The server is stopping.
     ServerShutdown,
+    /// The server has as many connections open as its limit allows.
+    TooManyConnections,
 }
 
 /// Why a frame could not be read.

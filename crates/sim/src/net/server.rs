@@ -4,11 +4,15 @@
 //! sender's teammates.
 //!
 //! Threads: one steps the world and hands each connected robot its messages; one accepts
-//! connections; per connection, one reads (and applies what arrives) and one writes. A slow or
-//! broken client never blocks the world: its queue overflows (and is counted) or it is dropped.
+//! connections; per connection, one reads (and applies what arrives) and, once the robot said
+//! `hello`, one writes. A slow or broken client never blocks the world: its queue overflows (and
+//! is counted) or it is dropped. [`ServerLimits`] bounds what any one peer can cost: how many
+//! connections are open, how long a handshake may take, how often a robot may take the
+//! simulation's lock, how long a write may block.
 
+use std::io::Read;
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -46,12 +50,12 @@ pub struct ServerOptions {
     pub tick: Option<Duration>,
     /// How often `run` reports its status.
     pub status_interval: Duration,
-    /// A client must say `hello` within this time.
-    pub handshake_timeout: Duration,
-    /// Messages queued per client before new ones are dropped.
+    /// Messages queued per robot before new ones are dropped.
     pub queue: usize,
     /// Robots are in the world only while a process drives them.
     pub robots_need_clients: bool,
+    /// What one peer may cost the server.
+    pub limits: ServerLimits,
 }
 
 impl Default for ServerOptions {
@@ -59,11 +63,63 @@ impl Default for ServerOptions {
         ServerOptions {
             tick: None,
             status_interval: Duration::from_secs(5),
-            handshake_timeout: Duration::from_secs(5),
             queue: 1024,
             robots_need_clients: true,
+            limits: ServerLimits::DEFAULT,
         }
     }
+}
+
+/// Caps and deadlines that keep one peer (a stuck robot, a port scanner, a flood) from taking
+/// the server's threads, memory or simulation from everyone else. Documented with their
+/// defaults in `docs/sim-protocol.md`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ServerLimits {
+    /// Connections open at once, robots and handshakes together. One more is answered with
+    /// `too_many_connections` and closed.
+    pub max_connections: usize,
+    /// From accepting a connection to having read its whole `hello`: a peer that sends its hello
+    /// a byte at a time cannot hold a connection longer than this.
+    pub handshake_deadline: Duration,
+    /// Messages (orders, team messages, return packets) a robot may send per second, each of
+    /// which takes the simulation's lock; bursts of a tenth of a second's worth (at least 10)
+    /// pass. Messages above the rate are dropped and counted (`throttled`).
+    pub max_messages_per_second: u32,
+    /// How long a write to one peer may block before the server gives up on that peer.
+    pub write_timeout: Duration,
+}
+
+impl ServerLimits {
+    /// A robot sends orders about once per sensor period (83 Hz); a team of 7 plus spare
+    /// connections for reconnects and tools fits the connection cap many times over.
+    pub const DEFAULT: ServerLimits = ServerLimits {
+        max_connections: 64,
+        handshake_deadline: Duration::from_secs(5),
+        max_messages_per_second: 500,
+        write_timeout: Duration::from_secs(2),
+    };
+}
+
+impl Default for ServerLimits {
+    fn default() -> Self {
+        ServerLimits::DEFAULT
+    }
+}
+
+/// What the server's limits did so far, and how many connections are open.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ServerCounters {
+    /// Connections open now (robots and handshakes).
+    pub connections: usize,
+    /// Messages read from robots after their `hello`, throttled ones included.
+    pub messages: u64,
+    /// Messages dropped because a robot sent above `max_messages_per_second`.
+    pub throttled: u64,
+    /// Connections closed by a limit before `hello`: over `max_connections`, or past the
+    /// handshake deadline.
+    pub refused: u64,
+    /// Messages dropped because a robot did not read fast enough.
+    pub dropped: u64,
 }
 
 /// A status report of a running server.
@@ -80,6 +136,10 @@ pub struct ServerStatus {
     pub real_time_factor: f64,
     /// Messages dropped because a client did not read fast enough.
     pub dropped: u64,
+    /// Messages dropped because a robot sent above the message rate.
+    pub throttled: u64,
+    /// Connections closed by a limit before `hello`.
+    pub refused: u64,
     /// Steps that started late by more than one tick.
     pub late_steps: u64,
 }
@@ -100,6 +160,9 @@ impl std::fmt::Display for ServerStatus {
         )?;
         if self.dropped > 0 || self.late_steps > 0 {
             write!(f, "  dropped={} late={}", self.dropped, self.late_steps)?;
+        }
+        if self.throttled > 0 || self.refused > 0 {
+            write!(f, "  throttled={} refused={}", self.throttled, self.refused)?;
         }
         Ok(())
     }
@@ -130,6 +193,11 @@ struct Shared {
     registry: Mutex<Registry>,
     stop: Arc<AtomicBool>,
     dropped: AtomicU64,
+    throttled: AtomicU64,
+    refused: AtomicU64,
+    messages: AtomicU64,
+    /// Connections whose thread is running.
+    open: AtomicUsize,
     next_connection: AtomicU64,
     options: ServerOptions,
     players: u8,
@@ -138,6 +206,20 @@ struct Shared {
 impl Shared {
     fn registry(&self) -> MutexGuard<'_, Registry> {
         self.registry.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    fn limits(&self) -> &ServerLimits {
+        &self.options.limits
+    }
+
+    fn counters(&self) -> ServerCounters {
+        ServerCounters {
+            connections: self.open.load(Ordering::Relaxed),
+            messages: self.messages.load(Ordering::Relaxed),
+            throttled: self.throttled.load(Ordering::Relaxed),
+            refused: self.refused.load(Ordering::Relaxed),
+            dropped: self.dropped.load(Ordering::Relaxed),
+        }
     }
 
     fn slot(&self, robot: RobotId) -> usize {
@@ -192,6 +274,10 @@ impl Server {
                 registry: Mutex::new(registry),
                 stop: Arc::new(AtomicBool::new(false)),
                 dropped: AtomicU64::new(0),
+                throttled: AtomicU64::new(0),
+                refused: AtomicU64::new(0),
+                messages: AtomicU64::new(0),
+                open: AtomicUsize::new(0),
                 next_connection: AtomicU64::new(1),
                 options,
                 players,
@@ -205,6 +291,10 @@ impl Server {
 
     pub fn sim(&self) -> SimHandle {
         self.shared.sim.clone()
+    }
+
+    pub fn counters(&self) -> ServerCounters {
+        self.shared.counters()
     }
 
     /// Runs the world in real time until `stop` becomes true, calling `on_status` every
@@ -277,22 +367,29 @@ impl Server {
         let stop = Arc::new(AtomicBool::new(false));
         let addr = self.addr;
         let sim = self.sim();
+        let shared = Arc::clone(&self.shared);
         let thread_stop = Arc::clone(&stop);
         let thread = std::thread::Builder::new()
             .name("sim-server".to_owned())
             .spawn(move || self.run(thread_stop, |_| {}))
             .map_err(ServerError::Spawn)?;
-        Ok(RunningServer { addr, sim, stop, thread: Some(thread) })
+        Ok(RunningServer { addr, sim, shared, stop, thread: Some(thread) })
     }
 }
 
 /// A server running on its own thread; stops when dropped.
-#[derive(Debug)]
 pub struct RunningServer {
     addr: SocketAddr,
     sim: SimHandle,
+    shared: Arc<Shared>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<Result<(), ServerError>>>,
+}
+
+impl std::fmt::Debug for RunningServer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RunningServer").field("addr", &self.addr).finish_non_exhaustive()
+    }
 }
 
 impl RunningServer {
@@ -302,6 +399,10 @@ impl RunningServer {
 
     pub fn sim(&self) -> SimHandle {
         self.sim.clone()
+    }
+
+    pub fn counters(&self) -> ServerCounters {
+        self.shared.counters()
     }
 
     /// Stops the server and waits for it.
@@ -349,6 +450,8 @@ fn status(
         secs_remaining: game.secs_remaining,
         real_time_factor: (sim_time - last_sim).as_secs_f64() / wall.as_secs_f64().max(1e-9),
         dropped: shared.dropped.load(Ordering::Relaxed),
+        throttled: shared.throttled.load(Ordering::Relaxed),
+        refused: shared.refused.load(Ordering::Relaxed),
         late_steps,
     }
 }
@@ -387,19 +490,49 @@ fn step_and_collect(
     }
 }
 
+/// How long a refused connection stays open so its peer can read why: closing a socket with
+/// unread input makes the kernel reset it, which could destroy the error frame on its way.
+const LINGER: Duration = Duration::from_secs(1);
+/// Refused connections lingering at once; under a flood the oldest are closed early.
+const MAX_LINGERING: usize = 64;
+/// At most one warning about refused connections per this interval (a flood would fill the log).
+const REFUSAL_WARNING_INTERVAL: Duration = Duration::from_secs(5);
+
+/// A connection refused by the acceptor, read and discarded until its peer closes or `until`.
+struct Lingering {
+    stream: TcpStream,
+    until: Instant,
+}
+
+/// Refusals since the last warning.
+#[derive(Default)]
+struct RefusalLog {
+    last_warning: Option<Instant>,
+    since: u64,
+}
+
+/// Counts a connection as open until its thread ends, however it ends.
+struct OpenConnection(Arc<Shared>);
+
+impl Drop for OpenConnection {
+    fn drop(&mut self) {
+        self.0.open.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
 fn accept_loop(listener: TcpListener, shared: Arc<Shared>) {
     let mut threads: Vec<JoinHandle<()>> = Vec::new();
+    let mut lingering: Vec<Lingering> = Vec::new();
+    let mut refusals = RefusalLog::default();
     while !shared.stop.load(Ordering::Relaxed) {
         match listener.accept() {
             Ok((stream, peer)) => {
-                let connection = shared.next_connection.fetch_add(1, Ordering::Relaxed);
-                let thread_shared = Arc::clone(&shared);
-                let spawned = std::thread::Builder::new()
-                    .name(format!("sim-conn-{connection}"))
-                    .spawn(move || serve(stream, peer, connection, thread_shared));
-                match spawned {
-                    Ok(handle) => threads.push(handle),
-                    Err(error) => tracing::warn!(%peer, %error, "cannot serve a connection"),
+                // Only this thread opens connections, so the count cannot pass the cap between
+                // the check and the increment.
+                if shared.open.load(Ordering::Relaxed) >= shared.limits().max_connections {
+                    refuse_over_cap(stream, peer, &shared, &mut lingering, &mut refusals);
+                } else if let Some(thread) = spawn_connection(stream, peer, &shared) {
+                    threads.push(thread);
                 }
                 threads.retain(|t| !t.is_finished());
             }
@@ -411,6 +544,7 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>) {
                 std::thread::sleep(Duration::from_millis(20));
             }
         }
+        drain(&mut lingering);
     }
     // Wake connection threads still reading, then wait for them.
     for (_, stream) in &shared.registry().streams {
@@ -421,79 +555,236 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>) {
     }
 }
 
+fn spawn_connection(
+    stream: TcpStream,
+    peer: SocketAddr,
+    shared: &Arc<Shared>,
+) -> Option<JoinHandle<()>> {
+    let connection = shared.next_connection.fetch_add(1, Ordering::Relaxed);
+    shared.open.fetch_add(1, Ordering::Relaxed);
+    let thread_shared = Arc::clone(shared);
+    let spawned =
+        std::thread::Builder::new().name(format!("sim-conn-{connection}")).spawn(move || {
+            let open = OpenConnection(thread_shared);
+            serve(stream, peer, connection, &open.0);
+        });
+    match spawned {
+        Ok(thread) => Some(thread),
+        Err(error) => {
+            shared.open.fetch_sub(1, Ordering::Relaxed);
+            tracing::warn!(%peer, %error, "cannot serve a connection");
+            None
+        }
+    }
+}
+
+/// Answers a connection over `max_connections` from the acceptor itself: no thread, no queue.
+fn refuse_over_cap(
+    stream: TcpStream,
+    peer: SocketAddr,
+    shared: &Shared,
+    lingering: &mut Vec<Lingering>,
+    refusals: &mut RefusalLog,
+) {
+    shared.refused.fetch_add(1, Ordering::Relaxed);
+    let limit = shared.limits().max_connections;
+    refusals.since += 1;
+    let now = Instant::now();
+    if refusals.last_warning.is_none_or(|last| now - last >= REFUSAL_WARNING_INTERVAL) {
+        tracing::warn!(
+            %peer,
+            refused = refusals.since,
+            "refusing connections: {limit} are open, the server's limit (max_connections)"
+        );
+        refusals.last_warning = Some(now);
+        refusals.since = 0;
+    }
+    let message = error(
+        ErrorCode::TooManyConnections,
+        format!("the server already has {limit} connections open, its limit; try again later"),
+    );
+    // Non-blocking: the acceptor must never wait for a peer. A fresh socket's send buffer takes
+    // one small frame at once; if it does not, the peer only misses the reason.
+    if stream.set_nonblocking(true).is_err() {
+        return;
+    }
+    let mut writer = &stream;
+    let _ = std::io::Write::write_all(&mut writer, &protocol::encode(&message));
+    let _ = stream.shutdown(Shutdown::Write);
+    if lingering.len() >= MAX_LINGERING {
+        lingering.remove(0);
+    }
+    lingering.push(Lingering { stream, until: now + LINGER });
+}
+
+/// Reads and discards what refused peers still send; closes each at its end or deadline.
+fn drain(lingering: &mut Vec<Lingering>) {
+    let now = Instant::now();
+    let mut sink = [0u8; 4096];
+    lingering.retain(|l| {
+        if now >= l.until {
+            return false;
+        }
+        // Bounded, so a peer that keeps sending cannot hold the acceptor.
+        for _ in 0..16 {
+            match (&l.stream).read(&mut sink) {
+                Ok(0) => return false,
+                Ok(_) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return true,
+                Err(_) => return false,
+            }
+        }
+        true
+    });
+}
+
 fn error(code: ErrorCode, message: impl Into<String>) -> ServerMessage {
     ServerMessage::Error { code, message: message.into() }
 }
 
 /// One connection: handshake, then apply what the robot sends until it leaves.
-fn serve(stream: TcpStream, peer: SocketAddr, connection: u64, shared: Arc<Shared>) {
+fn serve(stream: TcpStream, peer: SocketAddr, connection: u64, shared: &Shared) {
     let _ = stream.set_nodelay(true);
-    let (Ok(writer_stream), Ok(registered)) = (stream.try_clone(), stream.try_clone()) else {
+    let _ = stream.set_write_timeout(Some(shared.limits().write_timeout));
+    let Ok(registered) = stream.try_clone() else {
         return;
     };
     shared.registry().streams.push((connection, registered));
-    let (sender, receiver) = crossbeam_channel::bounded(shared.options.queue.max(16));
-    let writer = std::thread::Builder::new()
-        .name(format!("sim-write-{connection}"))
-        .spawn(move || write_loop(writer_stream, receiver));
     let mut reader = stream;
-    let robot = match handshake(&mut reader, &shared, connection, &sender) {
-        Ok(robot) => Some(robot),
+    // Before hello a connection costs this thread only: its queue and writer exist once the
+    // peer has shown it speaks the protocol.
+    match read_hello(&reader, shared) {
+        Ok((team, player)) => serve_robot(&mut reader, peer, connection, shared, team, player),
         Err(refusal) => {
-            tracing::info!(%peer, ?refusal, "connection refused");
-            close_with(&mut reader, &sender, *refusal);
-            None
+            tracing::warn!(%peer, ?refusal, "connection refused");
+            refuse(&mut reader, &refusal);
         }
-    };
-    if let Some(robot) = robot {
-        tracing::info!(%peer, %robot, "robot connected");
-        if let Some(refusal) = read_loop(&mut reader, &shared, robot) {
-            tracing::info!(%peer, %robot, ?refusal, "robot disconnected by the server");
-            close_with(&mut reader, &sender, refusal);
-        } else {
-            tracing::info!(%peer, %robot, "robot disconnected");
-        }
-        let mut registry = shared.registry();
-        let slot = shared.slot(robot);
-        if registry.clients[slot].as_ref().is_some_and(|c| c.connection == connection) {
-            registry.clients[slot] = None;
-            drop(registry);
-            let _ = shared.sim.lock().remove_robot(robot);
-        }
-    }
-    drop(sender);
-    if let Ok(writer) = writer {
-        let _ = writer.join();
     }
     let _ = reader.shutdown(Shutdown::Both);
     shared.registry().streams.retain(|(c, _)| *c != connection);
 }
 
-/// Sends a last error, then waits briefly for the client to close: closing a socket with
-/// unread input makes the kernel reset it, which could destroy the error frame on its way.
-fn close_with(reader: &mut TcpStream, sender: &Sender<Outgoing>, message: ServerMessage) {
-    let _ = sender.send(Outgoing::Close(message));
+/// A robot that said hello: its writer, then admission, then what it sends until it leaves.
+fn serve_robot(
+    reader: &mut TcpStream,
+    peer: SocketAddr,
+    connection: u64,
+    shared: &Shared,
+    team: u8,
+    player: u8,
+) {
+    let Ok(writer_stream) = reader.try_clone() else {
+        return;
+    };
+    let (sender, receiver) = crossbeam_channel::bounded(shared.options.queue.max(16));
+    let write_timeout = shared.limits().write_timeout;
+    let writer = std::thread::Builder::new()
+        .name(format!("sim-write-{connection}"))
+        .spawn(move || write_loop(writer_stream, receiver, write_timeout));
+    let writer = match writer {
+        Ok(writer) => writer,
+        Err(error) => {
+            tracing::warn!(%peer, %error, "cannot start a robot's writer thread");
+            return;
+        }
+    };
+    match admit(shared, connection, team, player, &sender) {
+        Ok(robot) => play(reader, peer, connection, shared, robot, &sender),
+        Err(refusal) => {
+            tracing::warn!(%peer, ?refusal, "connection refused");
+            close_with(reader, &sender, *refusal, write_timeout);
+        }
+    }
+    drop(sender);
+    let _ = writer.join();
+}
+
+fn play(
+    reader: &mut TcpStream,
+    peer: SocketAddr,
+    connection: u64,
+    shared: &Shared,
+    robot: RobotId,
+    sender: &Sender<Outgoing>,
+) {
+    tracing::info!(%peer, %robot, "robot connected");
+    if let Some(refusal) = read_loop(reader, shared, peer, robot) {
+        tracing::info!(%peer, %robot, ?refusal, "robot disconnected by the server");
+        close_with(reader, sender, refusal, shared.limits().write_timeout);
+    } else {
+        tracing::info!(%peer, %robot, "robot disconnected");
+    }
+    let mut registry = shared.registry();
+    let slot = shared.slot(robot);
+    if registry.clients[slot].as_ref().is_some_and(|c| c.connection == connection) {
+        registry.clients[slot] = None;
+        drop(registry);
+        let _ = shared.sim.lock().remove_robot(robot);
+    }
+}
+
+/// Sends a last error through the robot's writer, then lingers.
+fn close_with(
+    reader: &mut TcpStream,
+    sender: &Sender<Outgoing>,
+    message: ServerMessage,
+    write_timeout: Duration,
+) {
+    // The queue may be full of frames the robot is slow to read; the writer empties it within
+    // its write timeouts or gives up on the robot.
+    let _ = sender.send_timeout(Outgoing::Close(message), write_timeout);
+    linger(reader);
+}
+
+/// Sends a last error on a connection that has no writer yet (the stream's write timeout bounds
+/// it), then lingers.
+fn refuse(reader: &mut TcpStream, message: &ServerMessage) {
+    let _ = protocol::write_message(reader, message);
+    let _ = reader.shutdown(Shutdown::Write);
+    linger(reader);
+}
+
+/// Waits briefly for the peer to close after a last error: closing a socket with unread input
+/// makes the kernel reset it, which could destroy the error frame on its way.
+fn linger(reader: &mut TcpStream) {
     let _ = reader.set_read_timeout(Some(Duration::from_millis(500)));
     let mut sink = [0u8; 4096];
-    let deadline = Instant::now() + Duration::from_secs(1);
+    let deadline = Instant::now() + LINGER;
     while Instant::now() < deadline {
-        match std::io::Read::read(reader, &mut sink) {
+        match reader.read(&mut sink) {
             Ok(0) | Err(_) => break,
             Ok(_) => {}
         }
     }
 }
 
-fn handshake(
-    reader: &mut TcpStream,
-    shared: &Shared,
-    connection: u64,
-    sender: &Sender<Outgoing>,
-) -> Result<RobotId, Box<ServerMessage>> {
-    let _ = reader.set_read_timeout(Some(shared.options.handshake_timeout));
-    let hello = protocol::read_message::<ClientMessage>(reader, MAX_CLIENT_FRAME);
+/// Reads from a stream until a deadline over all reads together: each read may wait only for
+/// what is left.
+struct Deadline<'a> {
+    stream: &'a TcpStream,
+    deadline: Instant,
+}
+
+impl Read for Deadline<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let left = self.deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(std::io::ErrorKind::TimedOut.into());
+        }
+        self.stream.set_read_timeout(Some(left))?;
+        let mut stream = self.stream;
+        stream.read(buf)
+    }
+}
+
+/// Reads `hello` within the handshake deadline, counted once from now: a peer that trickles its
+/// bytes cannot hold the connection longer.
+fn read_hello(reader: &TcpStream, shared: &Shared) -> Result<(u8, u8), Box<ServerMessage>> {
+    let limit = shared.limits().handshake_deadline;
+    let mut deadline = Deadline { stream: reader, deadline: Instant::now() + limit };
+    let hello = protocol::read_message::<ClientMessage>(&mut deadline, MAX_CLIENT_FRAME);
     let _ = reader.set_read_timeout(None);
-    let (team, player) = match hello {
+    match hello {
         Ok(ClientMessage::Hello { protocol, version, team, player }) => {
             if protocol != PROTOCOL || version != VERSION {
                 return Err(Box::new(error(
@@ -503,24 +794,39 @@ fn handshake(
                     ),
                 )));
             }
-            (team, player)
+            Ok((team, player))
         }
-        Ok(other) => {
-            return Err(Box::new(error(
-                ErrorCode::UnexpectedMessage,
-                format!("the first message must be hello, not {}", message_name(&other)),
-            )));
-        }
+        Ok(other) => Err(Box::new(error(
+            ErrorCode::UnexpectedMessage,
+            format!("the first message must be hello, not {}", message_name(&other)),
+        ))),
         Err(FrameError::Io(e))
             if matches!(
                 e.kind(),
                 std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
             ) =>
         {
-            return Err(Box::new(error(ErrorCode::HandshakeTimeout, "no hello in time")));
+            shared.refused.fetch_add(1, Ordering::Relaxed);
+            Err(Box::new(error(
+                ErrorCode::HandshakeTimeout,
+                format!(
+                    "no complete hello within {} s, the server's handshake deadline",
+                    limit.as_secs_f64()
+                ),
+            )))
         }
-        Err(e) => return Err(Box::new(frame_error(e))),
-    };
+        Err(e) => Err(Box::new(frame_error(e))),
+    }
+}
+
+/// Puts the robot named in `hello` in the world, unless it is unknown or already driven.
+fn admit(
+    shared: &Shared,
+    connection: u64,
+    team: u8,
+    player: u8,
+    sender: &Sender<Outgoing>,
+) -> Result<RobotId, Box<ServerMessage>> {
     let mut sim = shared.sim.lock();
     let team_index = sim
         .team_index(team)
@@ -574,9 +880,47 @@ fn frame_error(e: FrameError) -> ServerMessage {
     }
 }
 
-/// Applies what the robot sends. Returns the error to send when the server closes the
-/// connection, `None` when the client left.
-fn read_loop(reader: &mut TcpStream, shared: &Shared, robot: RobotId) -> Option<ServerMessage> {
+/// A token bucket: `rate` messages per second on average, bursts of up to `capacity`.
+struct Allowance {
+    rate: f64,
+    capacity: f64,
+    tokens: f64,
+    last: Instant,
+}
+
+impl Allowance {
+    fn new(per_second: u32) -> Allowance {
+        let rate = f64::from(per_second.max(1));
+        let capacity = (rate / 10.0).max(10.0);
+        Allowance { rate, capacity, tokens: capacity, last: Instant::now() }
+    }
+
+    fn take(&mut self) -> bool {
+        let now = Instant::now();
+        let earned = self.rate * (now - self.last).as_secs_f64();
+        self.tokens = (self.tokens + earned).min(self.capacity);
+        self.last = now;
+        if self.tokens >= 1.0 {
+            self.tokens -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// Applies what the robot sends, at most at the message rate: every message applied takes the
+/// simulation's lock, which the world's step needs too. Returns the error to send when the
+/// server closes the connection, `None` when the client left.
+fn read_loop(
+    reader: &mut TcpStream,
+    shared: &Shared,
+    peer: SocketAddr,
+    robot: RobotId,
+) -> Option<ServerMessage> {
+    let limit = shared.limits().max_messages_per_second;
+    let mut allowance = Allowance::new(limit);
+    let mut warned = false;
     loop {
         let message = match protocol::read_message::<ClientMessage>(reader, MAX_CLIENT_FRAME) {
             Ok(message) => message,
@@ -586,36 +930,58 @@ fn read_loop(reader: &mut TcpStream, shared: &Shared, robot: RobotId) -> Option<
         if shared.stop.load(Ordering::Relaxed) {
             return None;
         }
+        shared.messages.fetch_add(1, Ordering::Relaxed);
         match message {
-            ClientMessage::Orders { orders } => {
-                // A sequence the body cannot start in its state (a kick while lying) is refused
-                // by the motion engine; over the network that is not an error of the protocol.
-                if let Err(refusal) = shared.sim.lock().apply_orders(robot, &orders) {
-                    tracing::debug!(%robot, %refusal, "order refused");
-                }
-            }
-            ClientMessage::TeamMessage { payload } => {
-                // Oversized messages are rejected and counted by the world, like lost ones.
-                let _ = shared.sim.lock().send_team_message(robot, &payload.0);
-            }
-            ClientMessage::ReturnPacket { payload } => {
-                let _ = shared.sim.lock().receive_return_packet(robot, &payload.0);
-            }
             ClientMessage::Goodbye => return None,
             ClientMessage::Hello { .. } => {
                 return Some(error(ErrorCode::UnexpectedMessage, "hello was already received"));
             }
+            _ if !allowance.take() => {
+                shared.throttled.fetch_add(1, Ordering::Relaxed);
+                if !warned {
+                    warned = true;
+                    tracing::warn!(
+                        %peer,
+                        %robot,
+                        "robot sends more than {limit} messages per second, the server's limit \
+                         (max_messages_per_second); the excess is dropped"
+                    );
+                }
+            }
+            message => apply(shared, robot, message),
         }
     }
 }
 
-fn write_loop(mut stream: TcpStream, receiver: Receiver<Outgoing>) {
-    let _ = stream.set_write_timeout(Some(Duration::from_secs(2)));
+fn apply(shared: &Shared, robot: RobotId, message: ClientMessage) {
+    match message {
+        ClientMessage::Orders { orders } => {
+            // A sequence the body cannot start in its state (a kick while lying) is refused
+            // by the motion engine; over the network that is not an error of the protocol.
+            if let Err(refusal) = shared.sim.lock().apply_orders(robot, &orders) {
+                tracing::debug!(%robot, %refusal, "order refused");
+            }
+        }
+        ClientMessage::TeamMessage { payload } => {
+            // Oversized messages are rejected and counted by the world, like lost ones.
+            let _ = shared.sim.lock().send_team_message(robot, &payload.0);
+        }
+        ClientMessage::ReturnPacket { payload } => {
+            let _ = shared.sim.lock().receive_return_packet(robot, &payload.0);
+        }
+        // `read_loop` answers these itself.
+        ClientMessage::Hello { .. } | ClientMessage::Goodbye => {}
+    }
+}
+
+fn write_loop(mut stream: TcpStream, receiver: Receiver<Outgoing>, timeout: Duration) {
+    let _ = stream.set_write_timeout(Some(timeout));
     for outgoing in receiver {
         match outgoing {
             Outgoing::Message(message) => {
                 if protocol::write_message(&mut stream, &message).is_err() {
-                    // A dead client: unblock its reader so the connection is cleaned up.
+                    // A dead client, or one that read nothing for the write timeout: unblock its
+                    // reader so the connection is cleaned up.
                     let _ = stream.shutdown(Shutdown::Both);
                     return;
                 }
