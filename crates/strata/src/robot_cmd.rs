@@ -35,6 +35,7 @@ use strata_rcssmj::compute::ComputeReport;
 use strata_rcssmj::platform::{FALL_ONSET_TILT, FallRecord, RcssConfig, RcssPlatform, TruthSource};
 use strata_rcssmj::referee::{TeamNumbers, penalty_spots};
 use strata_robot::assembly::RobotModules;
+use strata_robot::control::reactive::FallDetectorConfig;
 use strata_robot::geometry::{Pose, normalize_angle};
 use strata_robot::platform::{
     ActuatorOrders, ExternalLink, MotionFeedback, Platform, PlatformError, PlatformInfo,
@@ -237,6 +238,11 @@ pub fn run(args: RobotArgs) -> Result<()> {
         // The team file's primitives assume a NAO unless it says otherwise: a T1's camera is
         // twice as high, its neck pitches further and it kicks from further away.
         config.motion = MotionModel::booster_t1();
+    }
+    if args.platform == PlatformKind::Rcssservermj
+        && config.fall_detector == FallDetectorConfig::default()
+    {
+        config.fall_detector = strata_rcssmj::controller::fall_detector();
     }
     let field = resolve_field(args.field.as_deref().unwrap_or(match args.platform {
         PlatformKind::Rcssservermj => "rcssservermj",
