@@ -567,6 +567,45 @@ fn push_command(p: &Pushes, robot: &RobotTruth, direction: Direction) -> Monitor
     }
 }
 
+/// Times the trainer puts a robot upright that does not stand by itself before it gives up on
+/// it (a robot that falls again each time it is put up): without a bound, the experiment would
+/// wait for it forever.
+const MAX_HELP_UPS: u32 = 3;
+
+/// What the trainer does about a robot that is not standing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum HelpStep {
+    Wait,
+    PutUpright,
+    GiveUp,
+}
+
+/// The trainer's help for a robot that is not standing: put upright each time it has not stood
+/// for the recovery timeout, up to [`MAX_HELP_UPS`] times.
+#[derive(Clone, Copy, Debug)]
+struct Help {
+    since: f64,
+    given: u32,
+}
+
+impl Help {
+    fn new(now: f64) -> Help {
+        Help { since: now, given: 0 }
+    }
+
+    fn step(&mut self, now: f64, timeout: f64) -> HelpStep {
+        if now - self.since <= timeout {
+            return HelpStep::Wait;
+        }
+        if self.given >= MAX_HELP_UPS {
+            return HelpStep::GiveUp;
+        }
+        self.given += 1;
+        self.since = now;
+        HelpStep::PutUpright
+    }
+}
+
 fn help_up(player: u8, robot: &RobotTruth) -> MonitorCommand {
     MonitorCommand::PlaceRobot {
         team: TeamRef::Name(TEAM_NAME.to_owned()),
@@ -643,23 +682,35 @@ fn run_pushes(
     let mut motion = Motion::default();
     let mut pushes: Vec<Push> = Vec::new();
     let truth = |state: &MonitorState| robot_of(state, p.player).cloned();
-    for k in 0..p.pushes_per_run {
+    'pushes: for k in 0..p.pushes_per_run {
         let direction = p.directions[k % p.directions.len()];
         // Walking after a ball ahead, upright for the settle time.
         let settle = uniform(&mut rng, p.settle);
-        let waiting_since = session.now;
+        let mut help = Help::new(session.now);
         let mut upright_since: Option<f64> = None;
         let mut chase_placed = f64::NEG_INFINITY;
-        let mut helped_up = false;
         let robot = loop {
             let state = session.next()?;
             motion.sample(&state, &[p.player]);
             let Some(robot) = truth(&state) else { continue };
             if !standing(&robot) {
                 upright_since = None;
-                if session.now - waiting_since > p.recovery_timeout && !helped_up {
-                    session.server.command(vec![help_up(p.player, &robot)]);
-                    helped_up = true;
+                match help.step(session.now, p.recovery_timeout) {
+                    HelpStep::Wait => {}
+                    HelpStep::PutUpright => {
+                        session.server.command(vec![help_up(p.player, &robot)]);
+                    }
+                    HelpStep::GiveUp => {
+                        bar.println(format!(
+                            "run {run}: the robot did not stand after {} help-ups; its \
+                             remaining pushes are not made",
+                            help.given
+                        ));
+                        if let Some(last) = pushes.last_mut() {
+                            last.helped_up = true;
+                        }
+                        break 'pushes;
+                    }
                 }
                 continue;
             }
@@ -675,7 +726,7 @@ fn run_pushes(
         };
         // Helped up while waiting: after the previous push.
         if let Some(last) = pushes.last_mut() {
-            last.helped_up |= helped_up;
+            last.helped_up |= help.given > 0;
         }
         session.server.command(vec![push_command(p, &robot, direction)]);
         let at = session.now;
@@ -698,9 +749,8 @@ fn run_pushes(
         pushes.push(Push { run, at, direction: direction.name(), fell, helped_up: false });
     }
     // Standing again after the last push, and long enough for the platform to call it so.
-    let waiting_since = session.now;
+    let mut help = Help::new(session.now);
     let mut upright_since: Option<f64> = None;
-    let mut helped_up = false;
     loop {
         let state = session.next()?;
         motion.sample(&state, &[p.player]);
@@ -712,17 +762,17 @@ fn run_pushes(
             }
         } else {
             upright_since = None;
-            if session.now - waiting_since > p.recovery_timeout {
-                if helped_up {
-                    break;
+            match help.step(session.now, p.recovery_timeout) {
+                HelpStep::Wait => {}
+                HelpStep::PutUpright => {
+                    session.server.command(vec![help_up(p.player, &robot)]);
                 }
-                session.server.command(vec![help_up(p.player, &robot)]);
-                helped_up = true;
+                HelpStep::GiveUp => break,
             }
         }
     }
     if let Some(last) = pushes.last_mut() {
-        last.helped_up = helped_up;
+        last.helped_up |= help.given > 0;
     }
     let played_s = session.now - kickoff;
     let reports = session.finish()?;
@@ -1088,6 +1138,26 @@ mod tests {
         let w = &scenario.walking;
         assert!(w.runs as f64 * f64::from(w.robots) * w.duration >= 600.0);
         assert_eq!(scenario.pushes.method, PushMethod::Tilt);
+    }
+
+    #[test]
+    fn the_trainer_helps_a_robot_that_stays_down_a_bounded_number_of_times() {
+        let mut help = Help::new(0.0);
+        let mut steps = Vec::new();
+        // A robot that never stands, sampled every 0.5 s for 10 minutes.
+        for k in 0..1200 {
+            match help.step(f64::from(k) * 0.5, 30.0) {
+                HelpStep::Wait => {}
+                step => steps.push((f64::from(k) * 0.5, step)),
+            }
+            if steps.last().is_some_and(|(_, s)| *s == HelpStep::GiveUp) {
+                break;
+            }
+        }
+        let puts: Vec<f64> =
+            steps.iter().filter(|(_, s)| *s == HelpStep::PutUpright).map(|(t, _)| *t).collect();
+        assert_eq!(puts, [30.5, 61.0, 91.5]);
+        assert_eq!(steps.last(), Some(&(122.0, HelpStep::GiveUp)));
     }
 
     #[test]
