@@ -95,6 +95,13 @@ impl fmt::Display for LogInfo {
                     "status:    TRUNCATED: recovered {} messages in {} complete chunks ({} of {} bytes)",
                     r.messages, r.chunks, r.valid_bytes, r.file_bytes
                 )?;
+                if r.skipped_chunks > 0 || r.skipped_bytes > 0 {
+                    writeln!(
+                        f,
+                        "           DAMAGED: skipped {} damaged chunks ({} bytes) and read on",
+                        r.skipped_chunks, r.skipped_bytes
+                    )?;
+                }
                 writeln!(f, "           {}", r.stopped)?;
             }
         }

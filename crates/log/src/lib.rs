@@ -6,14 +6,16 @@
 //!   (Foxglove, the `mcap` CLI) open the logs. The sending module only clones a package; the
 //!   writer thread encodes it. A bounded background thread writes the file; a full queue drops and
 //!   counts (by default), it never blocks a real-time layer; simulated-time runs can ask it to
-//!   wait instead, for a complete log. The graph description and the run's metadata
-//!   (seed, command line, configuration, version) travel in the file, so a module can be
-//!   rebuilt and replayed from it.
+//!   wait instead, for a complete log. It can sync each chunk to the disk, reports a failed
+//!   write at once, and splits a long log into files at a size cap. The graph description and
+//!   the run's metadata (seed, command line, configuration, version) travel in the file, so a
+//!   module can be rebuilt and replayed from it.
 //! - A [`Derive`] set on the log works out, on the writer thread, the records it makes of
 //!   the packages (a match's game state and behavior paths): the sending modules pay nothing
 //!   for them.
 //! - [`LogReader`] reads a log: a complete one through its summary, a truncated one (killed
-//!   process) by scanning its chunks up to the first incomplete one.
+//!   process) by scanning its chunks up to the first incomplete one, passing over damaged
+//!   ones.
 //! - [`replay`] re-runs modules of a logged graph on the lockstep host from their logged
 //!   inputs, seed and (optionally overridden) parameters, and lists where their outputs differ
 //!   from the logged ones.

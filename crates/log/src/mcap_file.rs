@@ -269,7 +269,9 @@ impl<W: Write> McapFile<W> {
         id
     }
 
-    /// Appends a message to the open chunk, closing the chunk once it is full.
+    /// Appends a message to the open chunk. The caller closes the chunk once it is
+    /// [full](McapFile::chunk_full): closing a chunk is where it flushes, syncs and may start a
+    /// new file.
     pub(crate) fn write_message(
         &mut self,
         channel: u16,
@@ -277,7 +279,7 @@ impl<W: Write> McapFile<W> {
         log_time: u64,
         publish_time: u64,
         data: &[u8],
-    ) -> io::Result<()> {
+    ) {
         let chunk = &mut self.chunk;
         let offset = chunk.records.len() as u64;
         let records = &mut chunk.records;
@@ -303,16 +305,28 @@ impl<W: Write> McapFile<W> {
         if let Some(count) = self.channel_counts.get_mut(c) {
             *count += 1;
         }
-        if chunk.records.len() >= self.chunk_size {
-            self.close_chunk()?;
-        }
-        Ok(())
     }
 
-    /// Compresses and writes the open chunk and its message indexes (nothing if it is empty).
-    pub(crate) fn close_chunk(&mut self) -> io::Result<()> {
+    /// Whether the open chunk's records have reached the chunk size.
+    pub(crate) fn chunk_full(&self) -> bool {
+        self.chunk.records.len() >= self.chunk_size
+    }
+
+    /// Bytes written so far (the open chunk not included).
+    pub(crate) fn position(&self) -> u64 {
+        self.out.position
+    }
+
+    /// The underlying writer.
+    pub(crate) fn get_ref(&self) -> &W {
+        &self.out.inner
+    }
+
+    /// Compresses and writes the open chunk and its message indexes; `false`: the chunk was
+    /// empty, nothing was written.
+    pub(crate) fn close_chunk(&mut self) -> io::Result<bool> {
         if self.chunk.records.is_empty() {
-            return Ok(());
+            return Ok(false);
         }
         let chunk = std::mem::take(&mut self.chunk);
         let uncompressed_crc = crc32fast::hash(&chunk.records);
@@ -398,7 +412,7 @@ impl<W: Write> McapFile<W> {
         index.iter_mut().for_each(Vec::clear);
         self.chunk.records = records;
         self.chunk.index = index;
-        Ok(())
+        Ok(true)
     }
 
     /// Writes a metadata record (closing the open chunk first, to keep the file in order).

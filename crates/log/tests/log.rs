@@ -154,7 +154,6 @@ fn damaged_bytes_give_errors_or_partial_results_never_panics() {
         McapTapOptions { max_chunk_span: Duration::from_millis(100), ..Default::default() };
     record_demo(&path, 1.0, options, CONFIG);
     let bytes = std::fs::read(&path).expect("read");
-    let chunks = chunk_ends_and_counts(&bytes);
     let damaged_path = dir.join("damaged.mcap");
     // Every few bytes, headers, metadata, attachment, chunks and summary alike.
     for position in (0..bytes.len()).step_by(bytes.len() / 700 + 1) {
@@ -168,17 +167,132 @@ fn damaged_bytes_give_errors_or_partial_results_never_panics() {
             let _ = reader.messages().take_while(Result::is_ok).count();
         }
     }
-    // Damage inside the third chunk of a file whose footer is also gone: the first two
-    // chunks are recovered, nothing after the damaged one.
-    let start_of_third = chunks[1].0 as usize;
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+/// A message by topic and (32-bit) sequence number.
+type Sent = (String, u32);
+
+/// A chunk of a complete file: where it starts and ends, and the messages it holds.
+struct Chunk {
+    start: u64,
+    end: u64,
+    messages: Vec<Sent>,
+}
+
+/// The chunks of a complete file in file order, read with the `mcap` crate (independently of
+/// `LogReader`).
+fn chunk_contents(bytes: &[u8]) -> Vec<Chunk> {
+    let summary = mcap::Summary::read(bytes).expect("summary").expect("present");
+    let mut chunks: Vec<Chunk> = summary
+        .chunk_indexes
+        .iter()
+        .map(|index| Chunk {
+            start: index.chunk_start_offset,
+            end: index.chunk_start_offset + index.chunk_length,
+            messages: summary
+                .stream_chunk(bytes, index)
+                .expect("chunk")
+                .map(|m| m.expect("message"))
+                .map(|m| (m.channel.topic.clone(), m.sequence))
+                .collect(),
+        })
+        .collect();
+    chunks.sort_unstable_by_key(|c| c.start);
+    chunks
+}
+
+/// The messages of every chunk but the `lost` ones, in order.
+fn messages_but(chunks: &[Chunk], lost: &[usize]) -> Vec<Sent> {
+    let kept = chunks.iter().enumerate().filter(|(k, _)| !lost.contains(k));
+    kept.flat_map(|(_, c)| c.messages.iter().cloned()).collect()
+}
+
+fn set_u64(bytes: &mut [u8], at: usize, value: u64) {
+    bytes[at..at + 8].copy_from_slice(&value.to_le_bytes());
+}
+
+/// The messages `LogReader` reads from `path`.
+fn read_back(path: &std::path::Path) -> Vec<Sent> {
+    let reader = LogReader::open(path).expect("open");
+    reader
+        .messages()
+        .map(|m| m.expect("readable"))
+        .map(|m| (m.topic.to_string(), m.seq as u32))
+        .collect()
+}
+
+/// Damage done to a file: the file, where the chunk's length is, its length.
+type Damage = fn(&mut [u8], usize, u64);
+
+#[test]
+fn recovery_passes_over_a_damaged_chunk_and_reads_on() {
+    let dir = scratch("skip-damaged");
+    let path = dir.join("full.mcap");
+    let options =
+        McapTapOptions { max_chunk_span: Duration::from_millis(100), ..Default::default() };
+    record_demo(&path, 2.0, options, CONFIG);
+    let bytes = std::fs::read(&path).expect("read");
+    let chunks = chunk_contents(&bytes);
+    assert!(chunks.len() >= 10, "{} chunks", chunks.len());
+    // Chunk 0 defines the channels; chunk 3 is in the middle, with good chunks on both sides.
+    let (bad, next) = (&chunks[3], &chunks[4]);
+    let expected = messages_but(&chunks, &[3]);
+    let damaged_path = dir.join("damaged.mcap");
+    let length_at = bad.start as usize + 1;
+    let length = u64::from_le_bytes(bytes[length_at..length_at + 8].try_into().expect("8 bytes"));
+    // Without its footer (killed before finishing), the file is scanned. The damage: inside
+    // the chunk's compressed records (its CRC or its decompression fails); in its length, which
+    // then ends it early (its records are cut) or past the end of the file (the next chunk is
+    // found by its header either way).
+    let damages: [(&str, Damage); 3] = [
+        ("records", |file, at, _| file[at + 100] ^= 0x5a),
+        ("length short", |file, at, length| set_u64(file, at, length - 20)),
+        ("length past the end", |file, at, length| set_u64(file, at, length + (1 << 40))),
+    ];
+    for (what, damage) in damages {
+        let mut damaged = bytes[..bytes.len() - 8].to_vec();
+        damage(&mut damaged, length_at, length);
+        std::fs::write(&damaged_path, &damaged).expect("write");
+        let reader = LogReader::open(&damaged_path).expect("open");
+        let recovery = reader.recovery().expect("scanned").clone();
+        assert_eq!(recovery.skipped_chunks, 1, "{what}: {}", recovery.stopped);
+        // From the damaged chunk to the next good one: the chunk and its message indexes.
+        assert_eq!(recovery.skipped_bytes, next.start - bad.start, "{what}");
+        assert_eq!(recovery.chunks, chunks.len() - 1, "{what}");
+        assert_eq!(recovery.messages, expected.len() as u64, "{what}");
+        let first = format!("the first at byte {}", bad.start);
+        assert!(recovery.stopped.contains(&first), "{what}: {}", recovery.stopped);
+        assert_eq!(read_back(&damaged_path), expected, "{what}");
+        // The writer's statistics come after the last chunk: read too.
+        assert!(reader.stats().is_some(), "{what}");
+        let text = LogInfo::of(&reader).to_string();
+        assert!(text.contains("skipped 1 damaged chunks"), "{text}");
+    }
+    // A length that ends the chunk past its records but inside the file: the chunk reads
+    // (MCAP records may carry bytes after their fields), and the scan finds the next chunk
+    // by its header, past the message indexes the length ran into.
     let mut damaged = bytes[..bytes.len() - 8].to_vec();
-    let middle = (start_of_third + chunks[2].0 as usize) / 2;
-    damaged[middle] ^= 0xff;
+    set_u64(&mut damaged, length_at, length + 20);
     std::fs::write(&damaged_path, &damaged).expect("write");
     let reader = LogReader::open(&damaged_path).expect("open");
-    assert_eq!(reader.message_count(), chunks[0].1 + chunks[1].1);
-    let recovery = reader.recovery().expect("recovery");
-    assert!(recovery.stopped.contains("damaged chunk"), "{}", recovery.stopped);
+    let recovery = reader.recovery().expect("scanned");
+    let read = (recovery.skipped_chunks, recovery.chunks);
+    assert_eq!(read, (0, chunks.len()), "{}", recovery.stopped);
+    assert!(recovery.skipped_bytes > 0 && recovery.skipped_bytes < next.start - bad.end);
+    assert_eq!(read_back(&damaged_path), messages_but(&chunks, &[]));
+    // Two damaged chunks in a row, and one further on: each is counted, the rest is read.
+    let mut damaged = bytes[..bytes.len() - 8].to_vec();
+    for k in [3, 4, 7] {
+        damaged[((chunks[k].start + chunks[k].end) / 2) as usize] ^= 0x5a;
+    }
+    std::fs::write(&damaged_path, &damaged).expect("write");
+    let reader = LogReader::open(&damaged_path).expect("open");
+    let recovery = reader.recovery().expect("scanned");
+    assert_eq!(recovery.skipped_chunks, 3, "{}", recovery.stopped);
+    let stretches = (chunks[5].start - chunks[3].start) + (chunks[8].start - chunks[7].start);
+    assert_eq!(recovery.skipped_bytes, stretches);
+    assert_eq!(read_back(&damaged_path), messages_but(&chunks, &[3, 4, 7]));
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
 

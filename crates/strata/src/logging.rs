@@ -476,6 +476,17 @@ impl Derive for RunRecords {
             None => {}
         }
     }
+
+    /// A new file of the log (its size cap) starts with the game state and each robot's path
+    /// again, at their next packages: written only when they change, they would otherwise be
+    /// missing from it until then.
+    fn next_file(&mut self) {
+        self.last_game = None;
+        for robot in &mut self.robots {
+            robot.written = BehaviorPath::default();
+            robot.changed = true;
+        }
+    }
 }
 
 /// Passes packages to the log, the world state of each robot at most once per `period`.

@@ -81,6 +81,13 @@ pub fn run(args: ReplayArgs, registry: &ModuleRegistry) -> Result<()> {
             args.file.display(),
             recovery.messages
         );
+        if recovery.skipped_chunks > 0 {
+            // The inputs of those chunks are missing: what follows them may differ.
+            eprintln!(
+                "note: {} damaged chunks were skipped: their messages are missing",
+                recovery.skipped_chunks
+            );
+        }
     }
     // `strata robot --log` stores the robot's configuration under `robot`, an experiment the
     // host it ran on; a match runs on the lockstep host.

@@ -29,7 +29,9 @@ use serde::Serialize;
 use strata::links::{self, Counted, LinkCounters, LinkStats, NetConfig, Prefetched};
 use strata::logging::{RobotRunConfig, open_run_log};
 use strata::matches::LayerRate;
-use strata_log::{ConfigFormat, LogCompression, McapTap, McapTapOptions, RunInfo, WhenFull};
+use strata_log::{
+    ConfigFormat, LogCompression, LogSummary, McapTap, McapTapOptions, RunInfo, WhenFull,
+};
 use strata_nao::{DEFAULT_SOCKET_PATH, LolaConfig, LolaPlatform};
 use strata_rcssmj::compute::ComputeReport;
 use strata_rcssmj::platform::{FALL_ONSET_TILT, FallRecord, RcssConfig, RcssPlatform, TruthSource};
@@ -189,6 +191,17 @@ pub struct RobotArgs {
     /// How package values are encoded: cdr (compact), msgpack or json.
     #[arg(long, value_name = "cdr|msgpack|json", default_value = "cdr", requires = "log")]
     pub log_encoding: Encoding,
+    /// Do not sync each chunk of the log to the disk once written. Synced (the default), a
+    /// power cut or a crash of the machine loses at most the chunk being gathered (half a
+    /// second); unsynced, whatever the operating system had not yet written.
+    #[arg(long, requires = "log")]
+    pub log_no_sync: bool,
+    /// Split the log into files of about this many megabytes: past it, at the end of a chunk,
+    /// the file is finished and the log goes on in FILE-1.mcap, FILE-2.mcap..., each file a
+    /// whole log (its graph, run and configuration included).
+    #[arg(long, value_name = "MB", requires = "log",
+          value_parser = clap::value_parser!(u64).range(1..))]
+    pub log_max_size: Option<u64>,
 }
 
 /// Where a beam puts the robot, in its team's frame: rcssservermj moves `x` into the own half
@@ -457,14 +470,21 @@ pub fn run(args: RobotArgs) -> Result<()> {
         let counters = Arc::clone(&platform.counters);
         let (team_counters, gc_counters) = (Arc::clone(&team_counters), Arc::clone(&gc_counters));
         let accuracy = accuracy.clone();
+        let log = log.clone();
         let duration = args.duration.map(|d| Duration::from_secs_f64(d.max(0.0)));
         let status_every = Duration::from_secs_f64(args.status_interval.max(0.1));
         std::thread::Builder::new()
             .name("robot-monitor".to_owned())
             .spawn(move || {
                 let mut last_status = Instant::now();
+                let mut log_failed = false;
                 while !done.load(Ordering::Relaxed) {
                     std::thread::sleep(Duration::from_millis(20));
+                    // A full disk is said when it happens, not when the robot stops.
+                    if !log_failed && let Some(error) = log.as_ref().and_then(|log| log.error()) {
+                        log_failed = true;
+                        out.note(&format!("log: {error}; nothing more is logged"));
+                    }
                     let elapsed = started.elapsed();
                     for event in watch.take_events() {
                         out.game_event(elapsed.as_secs_f64(), &event);
@@ -508,13 +528,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
     }
     if let Some(log) = &log {
         match log.finish() {
-            Ok(summary) => out.note(&format!(
-                "log: {} ({} messages, {} dropped, {:.1} MB)",
-                log.path().display(),
-                summary.messages,
-                summary.dropped,
-                summary.bytes as f64 / 1e6
-            )),
+            Ok(summary) => out.note(&log_note(&summary)),
             Err(error) => out.note(&format!("log: {error}")),
         }
     }
@@ -591,12 +605,36 @@ fn open_log(
         when_full: WhenFull::Drop,
         compression: args.log_compression,
         encoding: args.log_encoding,
+        // A robot's run cannot be played again: what it logged must survive a power cut.
+        sync_chunks: !args.log_no_sync,
+        max_file_size: args.log_max_size.map(|mb| mb.saturating_mul(1_000_000)),
         ..McapTapOptions::default()
     };
     let text =
         serde_json::to_string_pretty(config).context("serializing the robot's configuration")?;
     let run = RunInfo::current(seed).with_config(ConfigFormat::Json, text);
     open_run_log(path, options, &run, &graph.describe(), [config.robot.clone()])
+}
+
+/// What a finished log holds: `log: robot.mcap (N messages, D dropped, X MB)`, or
+/// `log: robot.mcap to robot-3.mcap (4 files, ...)` when it was split at its size cap.
+fn log_note(summary: &LogSummary) -> String {
+    let counts = format!(
+        "{} messages, {} dropped, {:.1} MB",
+        summary.messages,
+        summary.dropped,
+        summary.bytes as f64 / 1e6
+    );
+    match &summary.files[..] {
+        [first, .., last] => format!(
+            "log: {} to {} ({} files, {counts})",
+            first.display(),
+            last.display(),
+            summary.files.len()
+        ),
+        [only] => format!("log: {} ({counts})", only.display()),
+        [] => format!("log: ({counts})"),
+    }
 }
 
 fn validate(args: &RobotArgs) -> Result<()> {

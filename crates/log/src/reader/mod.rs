@@ -2,13 +2,15 @@
 //!
 //! A complete file is read through its summary (channels, statistics, chunk and metadata
 //! indexes at the end). A file without a valid footer (the process was killed) is scanned from
-//! the start, record by record, up to the first record that is incomplete or damaged:
-//! everything in the complete chunks before it is kept. The writer closes chunks often (see
-//! [`crate::McapTapOptions`]), so little is lost.
+//! the start, record by record, up to its end or its first incomplete record: every complete
+//! chunk is kept, and a damaged one is passed over, the scan going on at the next chunk that
+//! reads back whole. The writer closes chunks often (see [`crate::McapTapOptions`]), so little
+//! is lost.
 
 mod messages;
 mod open;
 mod records;
+mod resync;
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -27,8 +29,8 @@ pub use messages::Messages;
 
 use messages::ChannelInfo;
 use records::{
-    MAGIC, RECORD_HEADER, RecordFile, check_chunk_records, decode_chunk, parse_attachment,
-    parse_metadata,
+    MAGIC, MAX_RECORD_BYTES, RECORD_HEADER, RecordFile, check_chunk_records, decode_chunk,
+    parse_attachment, parse_metadata,
 };
 
 /// One logged message.
@@ -113,12 +115,20 @@ pub struct LoggedStats {
 /// How much of a file without a valid footer could be read.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Recovery {
-    /// Bytes up to the end of the last complete record kept.
+    /// Bytes read, up to the end of the last complete record (damaged stretches skipped on the
+    /// way included: see `skipped_bytes`).
     pub valid_bytes: u64,
     pub file_bytes: u64,
+    /// Chunks read.
     pub chunks: usize,
     pub messages: u64,
-    /// Why reading stopped there.
+    /// Damaged chunks passed over, reading on at the next chunk that reads back whole.
+    #[serde(default)]
+    pub skipped_chunks: usize,
+    /// The bytes of the damaged stretches passed over.
+    #[serde(default)]
+    pub skipped_bytes: u64,
+    /// Why reading stopped there, and what was skipped.
     pub stopped: String,
 }
 

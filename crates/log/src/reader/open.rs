@@ -1,5 +1,5 @@
 //! Opening a log: a complete file through its summary, one cut short by scanning its records
-//! up to the first incomplete or damaged one.
+//! up to the first incomplete one, passing over damaged chunks.
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -11,15 +11,19 @@ use strata_runtime::Time;
 
 use crate::error::LogError;
 
+use super::records::ChunkContents;
+use super::resync::{self, Resumed};
 use super::{
-    ChannelInfo, ChunkLocation, LogReader, MAGIC, RECORD_HEADER, RecordFile, Recovery, TopicInfo,
-    check_chunk_records, decode_chunk, parse_attachment, parse_metadata,
+    ChannelInfo, ChunkLocation, LogReader, LoggedAttachment, LoggedMetadata, MAGIC, RECORD_HEADER,
+    RecordFile, Recovery, TopicInfo, check_chunk_records, decode_chunk, parse_attachment,
+    parse_metadata,
 };
 
 impl LogReader {
     /// Opens a log. A complete file is read through its summary; a file cut short is scanned
-    /// up to its last complete chunk ([`LogReader::recovery`] says how much was kept). Only a
-    /// file that is not MCAP at all, or cannot be read, is an error.
+    /// up to its last complete chunk, passing over damaged ones ([`LogReader::recovery`] says
+    /// how much was kept and skipped). Only a file that is not MCAP at all, or cannot be read,
+    /// is an error.
     pub fn open(path: impl AsRef<Path>) -> Result<LogReader, LogError> {
         let path = path.as_ref().to_path_buf();
         let file =
@@ -191,73 +195,148 @@ impl LogReader {
         }))
     }
 
-    /// Reads the data section record by record until the first incomplete or damaged one.
+    /// Reads the data section record by record up to its end or its first incomplete record,
+    /// passing over damaged chunks.
     fn scan(records: &mut RecordFile, why: &str) -> Result<LogReader, LogError> {
-        let path = records.path.clone();
+        let mut scan = Scan::default();
         let mut offset = MAGIC.len() as u64;
-        let mut chunks = Vec::new();
-        let mut channels: HashMap<u16, ChannelInfo> = HashMap::new();
-        let mut topics: BTreeMap<String, TopicInfo> = BTreeMap::new();
-        let mut counts: HashMap<u16, u64> = HashMap::new();
-        let mut metadata = Vec::new();
-        let mut attachments = Vec::new();
-        let mut message_count = 0u64;
-        let mut time_range: Option<(u64, u64)> = None;
         let stopped = loop {
-            let record = match records.record_at(offset) {
-                Ok(Some(record)) => record,
+            let (damage, next) = match records.record_at(offset) {
+                Ok(Some((opcode, body))) => {
+                    let next = offset + RECORD_HEADER + body.len() as u64;
+                    match scan.record(&records.path, offset, opcode, &body) {
+                        Step::On => (None, next),
+                        Step::End(end) => {
+                            offset = next;
+                            break end.to_owned();
+                        }
+                        Step::Damaged(what) => (Some((what, opcode == op::CHUNK)), next),
+                    }
+                }
                 Ok(None) if offset == records.len => break "end of file".to_owned(),
-                Ok(None) => break format!("incomplete record at byte {offset}"),
+                Ok(None) => {
+                    // A chunk cut short, or one whose length was damaged.
+                    let mut opcode = [0u8];
+                    let chunk = records.read_exact_at(offset, &mut opcode).is_ok()
+                        && opcode[0] == op::CHUNK;
+                    (Some((format!("incomplete record at byte {offset}"), chunk)), offset)
+                }
                 Err(error) => break error.to_string(),
             };
-            let (opcode, body) = record;
-            let length = RECORD_HEADER + body.len() as u64;
-            match opcode {
-                op::CHUNK => {
-                    let contents = match decode_chunk(&path, offset, &body) {
-                        Ok(contents) => contents,
-                        Err(error) => break format!("damaged chunk: {error}"),
-                    };
-                    for (id, info, encoding, schema_encoding) in contents.channels {
-                        topics.entry(info.topic.to_string()).or_insert_with(|| TopicInfo {
-                            name: info.topic.to_string(),
-                            type_name: info.type_name.to_string(),
-                            message_encoding: encoding,
-                            schema_encoding,
-                            messages: 0,
-                        });
-                        channels.insert(id, info);
-                    }
-                    for (header, _) in &contents.messages {
-                        *counts.entry(header.channel_id).or_default() += 1;
-                        let t = header.log_time;
-                        time_range = Some(time_range.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
-                    }
-                    message_count += contents.messages.len() as u64;
-                    chunks.push(ChunkLocation { offset, length });
+            let Some((what, chunk)) = damage else {
+                offset = next;
+                continue;
+            };
+            match resync::next_good_chunk(records, offset + 1) {
+                Ok(Resumed { at: Some(at), damaged_chunks }) => {
+                    scan.skipped(offset, at, usize::from(chunk) + damaged_chunks, what);
+                    offset = at;
                 }
-                op::METADATA => match parse_metadata(&path, offset, &body) {
-                    Ok(m) => metadata.push(m),
-                    Err(error) => break error.to_string(),
-                },
-                op::ATTACHMENT => match parse_attachment(&path, offset, &body) {
-                    Ok(a) => attachments.push(a),
-                    Err(error) => break error.to_string(),
-                },
-                // The data section is whole; what follows (the summary) was cut.
-                op::DATA_END => {
-                    offset += length;
-                    break "end of the data section (the summary after it is incomplete)"
-                        .to_owned();
-                }
-                op::FOOTER => {
-                    offset += length;
-                    break "footer".to_owned();
-                }
-                _ => {}
+                Ok(Resumed { at: None, .. }) => break what,
+                Err(error) => break format!("{what}; looking for a chunk after it: {error}"),
             }
-            offset += length;
         };
+        Ok(scan.into_reader(records, why, offset, &stopped))
+    }
+}
+
+/// What a scanned record means for the scan.
+enum Step {
+    On,
+    /// The data section ends here.
+    End(&'static str),
+    /// The record is damaged: the scan goes on at the next good chunk, if any.
+    Damaged(String),
+}
+
+/// What the scan of a file without a usable summary found.
+#[derive(Default)]
+struct Scan {
+    chunks: Vec<ChunkLocation>,
+    channels: HashMap<u16, ChannelInfo>,
+    topics: BTreeMap<String, TopicInfo>,
+    counts: HashMap<u16, u64>,
+    metadata: Vec<LoggedMetadata>,
+    attachments: Vec<LoggedAttachment>,
+    message_count: u64,
+    time_range: Option<(u64, u64)>,
+    skipped_chunks: usize,
+    skipped_bytes: u64,
+    /// Where the first damage was, and what it was.
+    first_damage: Option<(u64, String)>,
+}
+
+impl Scan {
+    fn record(&mut self, path: &Path, offset: u64, opcode: u8, body: &[u8]) -> Step {
+        match opcode {
+            op::CHUNK => match decode_chunk(path, offset, body) {
+                Ok(contents) => {
+                    let length = RECORD_HEADER + body.len() as u64;
+                    self.chunk(ChunkLocation { offset, length }, contents);
+                    Step::On
+                }
+                Err(error) => Step::Damaged(format!("damaged chunk: {error}")),
+            },
+            op::METADATA => match parse_metadata(path, offset, body) {
+                Ok(m) => {
+                    self.metadata.push(m);
+                    Step::On
+                }
+                Err(error) => Step::Damaged(error.to_string()),
+            },
+            op::ATTACHMENT => match parse_attachment(path, offset, body) {
+                Ok(a) => {
+                    self.attachments.push(a);
+                    Step::On
+                }
+                Err(error) => Step::Damaged(error.to_string()),
+            },
+            op::MESSAGE_INDEX if !resync::message_index_fits(body) => {
+                Step::Damaged(format!("damaged message index at byte {offset}"))
+            }
+            // The data section is whole; what follows (the summary) was cut.
+            op::DATA_END => {
+                Step::End("end of the data section (the summary after it is incomplete)")
+            }
+            op::FOOTER => Step::End("footer"),
+            // Opcodes MCAP reserves and no writer uses: not a record boundary.
+            0x00 | 0x10..=0x7f => {
+                Step::Damaged(format!("no record at byte {offset} (opcode {opcode:#04x})"))
+            }
+            // Other records (and private ones, 0x80 and up) are skipped, as MCAP says.
+            _ => Step::On,
+        }
+    }
+
+    fn chunk(&mut self, location: ChunkLocation, contents: ChunkContents) {
+        for (id, info, encoding, schema_encoding) in contents.channels {
+            self.topics.entry(info.topic.to_string()).or_insert_with(|| TopicInfo {
+                name: info.topic.to_string(),
+                type_name: info.type_name.to_string(),
+                message_encoding: encoding,
+                schema_encoding,
+                messages: 0,
+            });
+            self.channels.insert(id, info);
+        }
+        for (header, _) in &contents.messages {
+            *self.counts.entry(header.channel_id).or_default() += 1;
+            let t = header.log_time;
+            self.time_range = Some(self.time_range.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
+        }
+        self.message_count += contents.messages.len() as u64;
+        self.chunks.push(location);
+    }
+
+    /// The damaged stretch from `from` to `to` (the next good chunk) was passed over.
+    fn skipped(&mut self, from: u64, to: u64, chunks: usize, what: String) {
+        self.skipped_chunks += chunks;
+        self.skipped_bytes += to - from;
+        self.first_damage.get_or_insert((from, what));
+    }
+
+    fn into_reader(self, records: &RecordFile, why: &str, offset: u64, stopped: &str) -> LogReader {
+        let Scan { chunks, channels, mut topics, counts, metadata, attachments, .. } = self;
         for (id, n) in &counts {
             if let Some(info) = channels.get(id)
                 && let Some(topic) = topics.get_mut(&*info.topic)
@@ -265,24 +344,33 @@ impl LogReader {
                 topic.messages += n;
             }
         }
-        Ok(LogReader {
-            path,
+        let mut stopped = format!("{why}; read up to byte {offset}: stopped at {stopped}");
+        if let Some((at, what)) = &self.first_damage {
+            stopped.push_str(&format!(
+                "; skipped {} damaged chunks ({} bytes), the first at byte {at}: {what}",
+                self.skipped_chunks, self.skipped_bytes
+            ));
+        }
+        LogReader {
+            path: records.path.clone(),
             file_bytes: records.len,
             complete: false,
             recovery: Some(Recovery {
                 valid_bytes: offset,
                 file_bytes: records.len,
                 chunks: chunks.len(),
-                messages: message_count,
-                stopped: format!("{why}; read up to byte {offset}: stopped at {stopped}"),
+                messages: self.message_count,
+                skipped_chunks: self.skipped_chunks,
+                skipped_bytes: self.skipped_bytes,
+                stopped,
             }),
             chunks,
             channels,
             topics: topics.into_values().collect(),
-            message_count,
-            time_range: time_range.map(|(a, b)| (Time::from_nanos(a), Time::from_nanos(b))),
+            message_count: self.message_count,
+            time_range: self.time_range.map(|(a, b)| (Time::from_nanos(a), Time::from_nanos(b))),
             metadata,
             attachments,
-        })
+        }
     }
 }

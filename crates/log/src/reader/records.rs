@@ -104,7 +104,7 @@ pub(super) struct ChunkContents {
 
 /// The largest record (or decompressed chunk) a log may hold. A damaged length field must
 /// give an error, not an attempt to allocate exabytes.
-const MAX_RECORD_BYTES: usize = 256 << 20;
+pub(super) const MAX_RECORD_BYTES: usize = 256 << 20;
 
 pub(super) fn decode_chunk(
     path: &Path,

@@ -143,7 +143,9 @@ impl WriterThread {
         };
         let id = writer.add_channel(schema_id, &topic.name, encoding.mcap_name(), &metadata);
         let channel = ChannelState { id, wrapped };
-        *self.topic(topic.id).channel(encoding) = Some(channel);
+        let state = self.topic(topic.id);
+        *state.channel(encoding) = Some(channel);
+        state.logged = true;
         channel
     }
 }

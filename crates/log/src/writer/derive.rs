@@ -24,6 +24,12 @@ pub trait Derive: Send {
         package: &dyn ErasedPackage,
         records: &mut DerivedRecords,
     );
+
+    /// The log goes on in a new file (its size cap,
+    /// [`McapTapOptions::max_file_size`](crate::McapTapOptions::max_file_size)): records
+    /// written only when something changes should be written again, so that each file holds
+    /// them. Nothing by default.
+    fn next_file(&mut self) {}
 }
 
 /// Where a [`Derive`] puts the records it makes of a package.

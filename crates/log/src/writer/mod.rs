@@ -5,14 +5,15 @@
 //! packages to, with its [`scoped`] form and a host's own [`sender`]; [`gather`], how packages
 //! are handed over and batched for the writer thread; the state they [`shared`] with it, and
 //! the [`topics`]; the writer [`thread`], how it [`write`](mod@write)s messages and the
-//! [`channels`] it creates; the [`encoding`] helpers, and what a log may
-//! [`derive`](mod@derive) from its packages.
+//! [`channels`] it creates, and how a long log is split into [`parts`]; the [`encoding`]
+//! helpers, and what a log may [`derive`](mod@derive) from its packages.
 
 mod channels;
 mod derive;
 mod encoding;
 mod gather;
 mod options;
+mod parts;
 mod run_info;
 mod scoped;
 mod sender;
@@ -35,10 +36,11 @@ use gather::{
 };
 use options::ZSTD_LEVEL;
 pub use options::{LogCompression, LogSummary, McapTapOptions, WhenFull};
+use parts::{Parts, Preamble, part_path, start_file, sync};
 pub use run_info::{ConfigFormat, RunInfo};
 pub use scoped::ScopedTap;
 use sender::McapSender;
-use shared::{Command, Shared};
+use shared::{Command, Failure, Shared};
 pub use tap::McapTap;
 use thread::{AGE_CHECK_EVERY, OpenChunk, WriterThread};
 use topics::{Topic, TopicCache};

@@ -2,6 +2,7 @@
 //! holds.
 
 use std::collections::BTreeMap;
+use std::path::PathBuf;
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
@@ -71,6 +72,17 @@ pub struct McapTapOptions {
     /// package type that CDR cannot describe (see [`strata_runtime::cdr`]) is logged as
     /// MessagePack, and so are application records.
     pub encoding: Encoding,
+    /// Each chunk, once written, is synced to the disk (`File::sync_data`, on the writer
+    /// thread): a power cut or a crash of the machine then loses at most the open chunk, not
+    /// whatever the operating system had not written yet. Off by default: a simulated match
+    /// writes hundreds of chunks per second of real time and loses nothing a rerun would not
+    /// give back; `strata robot` turns it on.
+    pub sync_chunks: bool,
+    /// A log that grows past this many bytes goes on in a new file, each file finished and
+    /// whole on its own (see [`McapTap::part_path`](crate::McapTap::part_path)): checked when a
+    /// chunk is written, so a file exceeds it by at most a chunk and its summary. `None`: one
+    /// file, however long the run.
+    pub max_file_size: Option<u64>,
 }
 
 impl Default for McapTapOptions {
@@ -84,6 +96,8 @@ impl Default for McapTapOptions {
             max_chunk_age: Duration::from_millis(500),
             compression: LogCompression::Zstd,
             encoding: Encoding::Cdr,
+            sync_chunks: false,
+            max_file_size: None,
         }
     }
 }
@@ -98,8 +112,12 @@ pub struct LogSummary {
     pub dropped: u64,
     /// Packages whose value could not be encoded (not written).
     pub serialize_errors: u64,
-    /// Size of the file.
+    /// Size of the file (of all its files, when it was split at its size cap).
     pub bytes: u64,
+    /// The files written, in order: the log's path, then its parts past the size cap
+    /// ([`McapTapOptions::max_file_size`]).
+    #[serde(default)]
+    pub files: Vec<PathBuf>,
     /// Number of topics (channels).
     pub topics: usize,
     /// Drops per topic, for the topics that had any.

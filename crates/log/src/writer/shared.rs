@@ -67,8 +67,31 @@ pub(super) struct Shared {
     /// [`McapTap::set_derive`](crate::McapTap::set_derive)); asked about each package topic when it
     /// is created, run on the writer thread.
     pub(super) derive: Mutex<Option<Box<dyn Derive>>>,
+    /// The writer thread's first write error, set the moment it happens.
+    pub(super) failure: OnceLock<Failure>,
     #[cfg(test)]
     pub(super) gate: Arc<test_gate::Gate>,
+    /// Chunks synced to the disk.
+    #[cfg(test)]
+    pub(super) syncs: AtomicU64,
+}
+
+/// A write that failed: the file and the error. Kept as text, since `io::Error` does not
+/// clone and the error is reported to every caller of [`McapTap::error`](crate::McapTap::error).
+#[derive(Debug)]
+pub(super) struct Failure {
+    pub(super) path: PathBuf,
+    pub(super) kind: std::io::ErrorKind,
+    pub(super) message: String,
+}
+
+impl Failure {
+    pub(super) fn error(&self) -> LogError {
+        LogError::Write {
+            path: self.path.clone(),
+            source: std::io::Error::new(self.kind, self.message.clone()),
+        }
+    }
 }
 
 impl Shared {
@@ -212,8 +235,20 @@ impl Shared {
         self.serialize_errors.fetch_add(1, Ordering::Relaxed);
     }
 
+    /// Records the writer's first write error and stops taking records: they are counted as
+    /// dropped from now on, at the sender, instead of queued for a writer that cannot write.
+    pub(super) fn fail(&self, path: &std::path::Path, error: &std::io::Error) {
+        let failure =
+            Failure { path: path.to_path_buf(), kind: error.kind(), message: error.to_string() };
+        let _ = self.failure.set(failure);
+        self.accepting.store(false, Ordering::Release);
+    }
+
     /// Queues a command that must not be lost (metadata): waits for room in the queue.
     pub(super) fn send_control(&self, command: Command) -> Result<(), LogError> {
+        if let Some(failure) = self.failure.get() {
+            return Err(failure.error());
+        }
         if !self.accepting.load(Ordering::Acquire) {
             return Err(LogError::Invalid {
                 path: self.path.clone(),

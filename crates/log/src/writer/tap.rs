@@ -3,25 +3,23 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
-use std::io::BufWriter;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, PoisonError, RwLock};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError, RwLock};
 use std::thread::JoinHandle;
 
 use serde::Serialize;
 use strata_runtime::{ErasedPackage, GraphDescription, Tap, TapOutput, TapRecord, TapSender, Time};
 
 use crate::error::LogError;
-use crate::mcap_file::{ChunkCompression, McapFile};
 use crate::{CONFIG_ATTACHMENT_PREFIX, GRAPH_METADATA, RUN_METADATA};
 
 #[cfg(test)]
 use super::test_gate;
 use super::{
-    BATCH, Command, Derive, EncodedRecord, Gathering, Locked, LogCompression, LogSummary,
-    McapSender, McapTapOptions, Offered, Payload, RunInfo, ScopedTap, Shared, TopicCache,
-    WAIT_QUEUE, WhenFull, WriterThread, ZSTD_LEVEL,
+    BATCH, Command, Derive, EncodedRecord, Failure, Gathering, Locked, LogSummary, McapSender,
+    McapTapOptions, Offered, Parts, Payload, RunInfo, ScopedTap, Shared, TopicCache, WAIT_QUEUE,
+    WhenFull, WriterThread, part_path, start_file,
 };
 
 /// A [`Tap`] that logs every package into an MCAP file.
@@ -58,24 +56,14 @@ impl std::fmt::Debug for McapTap {
 }
 
 impl McapTap {
-    /// Creates (truncates) `path` and starts the writer thread.
+    /// Creates (truncates) `path` and starts the writer thread. With a size cap
+    /// ([`McapTapOptions::max_file_size`]) the log goes on in [`McapTap::part_path`]s.
     pub fn create(path: impl AsRef<Path>, options: McapTapOptions) -> Result<McapTap, LogError> {
         let path = path.as_ref().to_path_buf();
         let file = File::create(&path)
             .map_err(|source| LogError::Create { path: path.clone(), source })?;
-        let compression = match options.compression {
-            LogCompression::Zstd => ChunkCompression::Zstd(ZSTD_LEVEL),
-            LogCompression::Lz4 => ChunkCompression::Lz4,
-            LogCompression::None => ChunkCompression::None,
-        };
-        let writer = McapFile::new(
-            BufWriter::with_capacity(1 << 20, file),
-            "strata",
-            &format!("strata-log {}", env!("CARGO_PKG_VERSION")),
-            compression,
-            usize::try_from(options.chunk_size.max(1024)).unwrap_or(usize::MAX),
-        )
-        .map_err(|source| LogError::Write { path: path.clone(), source })?;
+        let writer = start_file(file, &options)
+            .map_err(|source| LogError::Write { path: path.clone(), source })?;
         // A sender that waits gets a short queue: it waits anyway when the writer falls
         // behind, and the fewer packages the queue holds, the fewer buffers (world states'
         // object lists, for one) stay out of their modules' reuse.
@@ -100,12 +88,18 @@ impl McapTap {
             record_topics: RwLock::new(HashMap::new()),
             sender_schemas: Mutex::new(HashMap::new()),
             derive: Mutex::new(None),
+            failure: OnceLock::new(),
             #[cfg(test)]
             gate: Arc::new(test_gate::Gate::default()),
+            #[cfg(test)]
+            syncs: AtomicU64::new(0),
         });
         let thread = WriterThread {
             shared: Arc::clone(&shared),
             writer: Some(writer),
+            path: path.clone(),
+            sync: options.sync_chunks,
+            parts: Parts::default(),
             options,
             topics: Vec::new(),
             schemas: HashMap::new(),
@@ -130,8 +124,25 @@ impl McapTap {
         })
     }
 
+    /// The log's (first) file.
     pub fn path(&self) -> &Path {
         &self.shared.path
+    }
+
+    /// The path of file `part` of a log whose first file is `path`, when the log is split at
+    /// its size cap ([`McapTapOptions::max_file_size`]): `path` itself for part 0, then `-1`,
+    /// `-2`... after its stem (`robot.mcap`, `robot-1.mcap`, `robot-2.mcap`).
+    pub fn part_path(path: impl AsRef<Path>, part: u32) -> PathBuf {
+        part_path(path.as_ref(), part)
+    }
+
+    /// The error of the first write that failed (a full disk, a file size limit, a removed
+    /// drive), from the moment the writer thread met it: from then on nothing more is written,
+    /// records are counted as dropped, metadata is refused with this error, and
+    /// [`McapTap::finish`] returns it. The complete chunks written before it stay readable
+    /// ([`LogReader`](crate::LogReader) recovers them).
+    pub fn error(&self) -> Option<LogError> {
+        self.shared.failure.get().map(Failure::error)
     }
 
     /// A tap that logs under `prefix` (e.g. `"blue3/"`), sharing this log: for several hosts
@@ -264,7 +275,8 @@ impl McapTap {
 
     /// Writes what is queued, the drop statistics and the summary and footer, and closes the
     /// file. Records arriving afterwards are counted as dropped. Calling it again returns the
-    /// same summary.
+    /// same summary. After a failed write ([`McapTap::error`]) the file is left as it is and
+    /// the error is returned.
     pub fn finish(&self) -> Result<LogSummary, LogError> {
         let mut stored = self.summary.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(summary) = stored.as_ref() {

@@ -99,3 +99,74 @@ fn wait_mode_loses_nothing_through_a_tiny_queue() {
     assert_eq!((summary.messages, summary.dropped), (2000, 0));
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
+
+/// Records on one topic, one per millisecond of log time.
+fn record_values(tap: &McapTap, n: u64) {
+    for i in 0..n {
+        tap.record("test/values", "u64", Time::from_nanos(i * 1_000_000), &serde_json::json!(i));
+    }
+}
+
+#[test]
+fn each_chunk_is_synced_when_asked_and_only_then() {
+    let dir = std::env::temp_dir().join(format!("strata-log-sync-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap_or_default();
+    for sync_chunks in [true, false] {
+        let path = dir.join(format!("sync-{sync_chunks}.mcap"));
+        let options = McapTapOptions {
+            sync_chunks,
+            when_full: WhenFull::Wait,
+            max_chunk_span: Duration::from_millis(10),
+            ..McapTapOptions::default()
+        };
+        let tap = McapTap::create(&path, options).expect("create");
+        tap.write_metadata("test.setup", [("k".to_owned(), "v".to_owned())].into())
+            .expect("metadata");
+        record_values(&tap, 500);
+        let summary = tap.finish().expect("finish");
+        assert_eq!(summary.messages, 500);
+        let chunks = crate::LogReader::open(&path).expect("open").chunk_count() as u64;
+        assert!(chunks >= 40, "{chunks} chunks");
+        // Every chunk once written, the metadata record, and the finished file.
+        let expected = if sync_chunks { chunks + 2 } else { 0 };
+        assert_eq!(tap.shared.syncs.load(std::sync::atomic::Ordering::Relaxed), expected);
+    }
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+#[test]
+#[cfg(target_os = "linux")]
+fn a_file_that_cannot_be_synced_is_written_without() {
+    // fsync(2) on /dev/null fails with EINVAL, as on a pipe: nothing to sync, no failure.
+    let options = McapTapOptions { sync_chunks: true, ..McapTapOptions::default() };
+    let tap = McapTap::create("/dev/null", options).expect("create");
+    record_values(&tap, 1000);
+    assert!(tap.finish().is_ok(), "{:?}", tap.error());
+    assert!(tap.error().is_none());
+    assert_eq!(tap.shared.syncs.load(std::sync::atomic::Ordering::Relaxed), 0);
+}
+
+#[test]
+#[cfg(target_os = "linux")]
+fn after_a_failed_write_records_are_dropped_at_the_sender() {
+    // /dev/full fails every write with ENOSPC: the first chunk's flush fails.
+    let options = McapTapOptions { max_chunk_span: Duration::from_millis(5), ..Default::default() };
+    let tap = McapTap::create("/dev/full", options).expect("create");
+    record_values(&tap, 100);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while (tap.error().is_none() || !tap.shared.sender.is_empty()) && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert!(tap.error().is_some(), "the failure is known before finish");
+    assert!(tap.shared.sender.is_empty(), "the writer took what was queued");
+    // Held, the writer would leave in the queue whatever was still queued for it.
+    tap.gate().set_closed(true);
+    let dropped = tap.dropped();
+    record_values(&tap, 50);
+    let (queued, counted) = (!tap.shared.sender.is_empty(), tap.dropped() - dropped);
+    // Opened before asserting: a held writer would keep the tap's drop from finishing.
+    tap.gate().set_closed(false);
+    assert!(!queued, "nothing is queued for a writer that cannot write");
+    assert!(counted >= 50, "{counted} dropped");
+    assert!(matches!(tap.finish(), Err(crate::LogError::Write { .. })));
+}

@@ -1,11 +1,11 @@
 //! The writer thread: takes the queue's commands, writes them into the MCAP file, closes
 //! chunks by size, log time and age, and finishes the file.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::HashMap;
 use std::fs::File;
 use std::io::BufWriter;
-use std::sync::atomic::Ordering;
-use std::sync::{Arc, PoisonError};
+use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, RecvTimeoutError};
@@ -17,8 +17,8 @@ use crate::error::LogError;
 use crate::mcap_file::McapFile;
 
 use super::{
-    CdrSchema, ChannelState, Command, LogSummary, McapTapOptions, Payload, Queued, Shared, Topic,
-    WhenFull,
+    CdrSchema, ChannelState, Command, LogSummary, McapTapOptions, Parts, Payload, Preamble, Queued,
+    Shared, Topic, WhenFull, sync,
 };
 
 /// How long the writer of a sender that waits looks for the next command before sleeping.
@@ -49,7 +49,14 @@ pub(super) struct OpenChunk {
 pub(super) struct WriterThread {
     pub(super) shared: Arc<Shared>,
     pub(super) writer: Option<McapFile<BufWriter<File>>>,
+    /// The file being written: the log's path, or its current part past the size cap.
+    pub(super) path: PathBuf,
     pub(super) options: McapTapOptions,
+    /// Whether chunks are synced to the disk: the options', until the file turns out to be one
+    /// that cannot be (`/dev/null`, a pipe).
+    pub(super) sync: bool,
+    /// The files of a log split at its size cap.
+    pub(super) parts: Parts,
     /// What the writer knows of each topic, by topic id (ids are dense).
     pub(super) topics: Vec<TopicState>,
     /// MCAP schema id per type name, encoding and wrapping.
@@ -78,9 +85,11 @@ pub(super) struct TopicState {
     pub(super) encoding: Option<Encoding>,
     /// Its type's CDR schema, when it is written in CDR.
     pub(super) cdr: Option<Arc<CdrSchema>>,
-    /// Its channel per encoding (JSON, MessagePack, CDR): a topic whose values CDR cannot
-    /// write has a second, MessagePack channel.
+    /// Its channel per encoding (JSON, MessagePack, CDR) in the current file: a topic whose
+    /// values CDR cannot write has a second, MessagePack channel.
     pub(super) channels: [Option<ChannelState>; 3],
+    /// It had a channel in some file of the log.
+    pub(super) logged: bool,
 }
 
 impl TopicState {
@@ -178,10 +187,10 @@ impl WriterThread {
                     self.shared.recycle(batch);
                 }
                 Command::Metadata { name, entries } => {
-                    self.apply(|w| w.write_metadata(&name, &entries));
+                    self.preamble(Preamble::Metadata { name, entries });
                 }
                 Command::Attachment { name, media_type, time, data } => {
-                    self.apply(|w| w.write_attachment(time, time, &name, &media_type, &data));
+                    self.preamble(Preamble::Attachment { name, media_type, time, data });
                 }
                 Command::Finish(reply) => {
                     // Whatever was queued after the finish request is late: count it.
@@ -209,70 +218,97 @@ impl WriterThread {
         if let Some(writer) = self.writer.as_mut()
             && let Err(error) = write(writer)
         {
-            self.error = Some(error);
+            self.fail(error);
         }
         // Metadata and attachments close the open chunk.
         self.chunk = None;
     }
 
-    pub(super) fn close_chunk(&mut self) {
-        self.chunk = None;
-        if self.error.is_some() {
-            return;
-        }
-        if let Some(writer) = self.writer.as_mut()
-            && let Err(error) = writer.close_chunk().and_then(|()| writer.flush())
-        {
+    /// Remembers the first write error, and has the tap report it and stop taking records at
+    /// once: a full disk must not go unnoticed until the log is finished.
+    pub(super) fn fail(&mut self, error: std::io::Error) {
+        if self.error.is_none() {
+            self.shared.fail(&self.path, &error);
             self.error = Some(error);
         }
     }
 
+    /// Closes the open chunk; past the size cap, the log goes on in a new file.
+    pub(super) fn close_chunk(&mut self) {
+        if !self.end_chunk() {
+            return;
+        }
+        let position = self.writer.as_ref().map_or(0, McapFile::position);
+        if self.options.max_file_size.is_some_and(|max| position >= max) {
+            self.next_part();
+        }
+    }
+
+    /// Closes the open chunk and makes it [durable](WriterThread::make_durable); `false`:
+    /// there was none, or the writer has failed.
+    pub(super) fn end_chunk(&mut self) -> bool {
+        self.chunk = None;
+        if self.error.is_some() {
+            return false;
+        }
+        let Some(writer) = self.writer.as_mut() else { return false };
+        match writer.close_chunk() {
+            Ok(true) => {
+                self.make_durable();
+                self.error.is_none()
+            }
+            Ok(false) => false,
+            Err(error) => {
+                self.fail(error);
+                false
+            }
+        }
+    }
+
+    /// Hands what was written to the operating system (a killed process then loses at most
+    /// the open chunk) and, when asked, syncs it to the disk (so does a power cut).
+    pub(super) fn make_durable(&mut self) {
+        if self.error.is_some() {
+            return;
+        }
+        let Some(writer) = self.writer.as_mut() else { return };
+        if let Err(error) = writer.flush() {
+            return self.fail(error);
+        }
+        if self.sync {
+            match sync(writer.get_ref().get_ref()) {
+                Ok(true) => self.count_sync(),
+                Ok(false) => self.sync = false,
+                Err(error) => self.fail(error),
+            }
+        }
+    }
+
     pub(super) fn finish(&mut self) -> Result<LogSummary, LogError> {
-        let path = self.shared.path.clone();
-        let dropped_by_topic: BTreeMap<String, u64> = self
-            .shared
-            .topics
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .iter()
-            .filter_map(|t| {
-                let n = t.dropped.load(Ordering::Relaxed);
-                (n > 0).then(|| (t.name.clone(), n))
-            })
-            .collect();
-        let mut summary = LogSummary {
-            messages: self.messages,
-            dropped: self.shared.dropped.load(Ordering::Relaxed),
-            serialize_errors: self.shared.serialize_errors.load(Ordering::Relaxed),
-            bytes: 0,
-            topics: self.topics.iter().filter(|t| t.channels.iter().any(Option::is_some)).count(),
-            dropped_by_topic,
-        };
-        let stats = BTreeMap::from([
-            ("messages".to_owned(), summary.messages.to_string()),
-            ("dropped".to_owned(), summary.dropped.to_string()),
-            ("serialize_errors".to_owned(), summary.serialize_errors.to_string()),
-            (
-                "dropped_by_topic".to_owned(),
-                serde_json::to_string(&summary.dropped_by_topic).unwrap_or_default(),
-            ),
-        ]);
+        let path = self.path.clone();
+        // The last chunk is synced like the others, before the statistics.
+        self.end_chunk();
+        let counts = self.counts();
+        let stats = counts.since(&self.parts.start).metadata();
         self.apply(|w| w.write_metadata(STATS_METADATA, &stats));
+        if let Some(source) = self.error.take() {
+            self.writer = None;
+            return Err(LogError::Write { path, source });
+        }
         let Some(writer) = self.writer.take() else {
             return Err(LogError::WriterGone { path });
         };
-        if let Some(source) = self.error.take() {
-            return Err(LogError::Write { path, source });
-        }
-        let buffered =
-            writer.finish().map_err(|source| LogError::Write { path: path.clone(), source })?;
-        let file = buffered
-            .into_inner()
-            .map_err(|e| LogError::Write { path: path.clone(), source: e.into_error() })?;
-        summary.bytes = file
-            .metadata()
-            .map(|m| m.len())
-            .map_err(|source| LogError::Write { path: path.clone(), source })?;
-        Ok(summary)
+        let bytes = self.finish_file(writer).map_err(|source| LogError::Write { path, source })?;
+        let mut files = std::mem::take(&mut self.parts.finished);
+        files.push(self.path.clone());
+        Ok(LogSummary {
+            messages: counts.messages,
+            dropped: counts.dropped,
+            serialize_errors: counts.serialize_errors,
+            bytes: self.parts.bytes + bytes,
+            files,
+            topics: self.topics.iter().filter(|t| t.logged).count(),
+            dropped_by_topic: counts.dropped_by_topic,
+        })
     }
 }

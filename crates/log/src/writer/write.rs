@@ -123,10 +123,8 @@ impl WriterThread {
             }
         };
         self.shared_channels.insert(record.type_name, (channel, seq + 1));
-        match writer.write_message(channel, seq as u32, log_time, log_time, &record.bytes) {
-            Ok(()) => self.messages += 1,
-            Err(error) => self.error = Some(error),
-        }
+        writer.write_message(channel, seq as u32, log_time, log_time, &record.bytes);
+        self.messages += 1;
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -145,33 +143,21 @@ impl WriterThread {
             return;
         }
         let channel = self.channel(topic, encoding, schema.as_deref(), value);
-        let result = {
-            let payload = if channel.wrapped {
-                let (prefix, suffix) = wrap_frame(encoding);
-                self.scratch.clear();
-                self.scratch.extend_from_slice(prefix);
-                self.scratch.extend_from_slice(value);
-                self.scratch.extend_from_slice(suffix);
-                &self.scratch[..]
-            } else {
-                value
-            };
-            match self.writer.as_mut() {
-                // MCAP sequences are 32 bits; readers unwrap them per channel.
-                Some(writer) => {
-                    writer.write_message(channel.id, seq as u32, log_time, stamp, payload)
-                }
-                None => Ok(()),
-            }
+        let payload = if channel.wrapped {
+            let (prefix, suffix) = wrap_frame(encoding);
+            self.scratch.clear();
+            self.scratch.extend_from_slice(prefix);
+            self.scratch.extend_from_slice(value);
+            self.scratch.extend_from_slice(suffix);
+            &self.scratch[..]
+        } else {
+            value
         };
-        match result {
-            Ok(()) => self.messages += 1,
-            Err(error) => {
-                self.error = Some(error);
-                self.shared.drop_record(topic);
-                return;
-            }
-        }
+        let Some(writer) = self.writer.as_mut() else { return };
+        // MCAP sequences are 32 bits; readers unwrap them per channel.
+        writer.write_message(channel.id, seq as u32, log_time, stamp, payload);
+        self.messages += 1;
+        let full = writer.chunk_full();
         let chunk = self.chunk.get_or_insert_with(|| OpenChunk {
             first_log_time: log_time,
             opened: Instant::now(),
@@ -179,7 +165,8 @@ impl WriterThread {
         });
         chunk.messages += 1;
         let span = Duration::from_nanos(log_time.saturating_sub(chunk.first_log_time));
-        if span >= self.options.max_chunk_span
+        if full
+            || span >= self.options.max_chunk_span
             || (chunk.messages.is_multiple_of(AGE_CHECK_EVERY)
                 && chunk.opened.elapsed() >= self.options.max_chunk_age)
         {

@@ -75,6 +75,12 @@ pub fn load_log(path: &Path) -> Result<Arc<RwLock<ViewData>>> {
             "the log was not finished: showing the {} messages recovered from it",
             recovery.messages
         ));
+        if recovery.skipped_chunks > 0 {
+            data.warn(format!(
+                "{} damaged chunks of the log were skipped: their messages are missing",
+                recovery.skipped_chunks
+            ));
+        }
     }
     let data = Arc::new(RwLock::new(data));
     let shared = Arc::clone(&data);
