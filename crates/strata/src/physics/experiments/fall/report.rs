@@ -411,10 +411,12 @@ fn write_report(scenario: &Scenario, ctx: &mut Ctx<'_>, s: &Summary, plots: &Plo
          detector sees for about 450 ms; its \"percepts to command\" (from the percepts that \
          triggered the Fall command to the command) is the architecture's share, and compares \
          with the T1's newest percept to command. On the T1 the onset is a tilt of 20 degrees, \
-         which a fall passes well before the robot is on the ground; from there the fall \
-         detector orders the Fall once the tilt extrapolated 0.1 s ahead with the gyroscope \
-         passes 0.5 rad (28.6 degrees): a robot placed tilted at rest (the tilt push) takes tens \
-         to hundreds of ms to get there, which the first two rows hold.",
+         which a fall passes well before the robot is on the ground. The T1's fall detector \
+         (`strata_rcssmj::controller::fall_detector`, unless the team file sets its own) orders \
+         the Fall once the tilt extrapolated 0.1 s ahead with the gyroscope passes 0.5 rad \
+         (28.6 degrees), or once the tilt itself passes 20 degrees, from which no T1 in games \
+         caught itself: a fast fall can be ordered before its onset, a robot placed tilted at rest \
+         (the tilt push) at its first percept.",
     );
     md.heading("Counts");
     md.table(
