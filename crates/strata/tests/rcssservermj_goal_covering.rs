@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::cli::{physics_experiment, rcssservermj_installed};
+use common::cli::{physics_experiment, rcssservermj_installed, run, strata, temp_dir};
 
 /// One method, one rate, one 2.4 m trajectory: about 12 s of play.
 const SCENARIO: &str = r#"
@@ -43,7 +43,9 @@ fn the_keeper_runs_in_physics_and_its_ball_perception_is_reported() {
     if !rcssservermj_installed() {
         return;
     }
-    let (out, summary) = physics_experiment("goal-covering", SCENARIO, &[]);
+    let log = temp_dir("goal-covering-rcssservermj-log").join("keeper.mcap");
+    let log_arg = log.to_str().expect("a UTF-8 path");
+    let (out, summary) = physics_experiment("goal-covering", SCENARIO, &["--log", log_arg]);
     println!("{summary:#}");
     let runs = summary["runs"].as_array().expect("runs");
     assert_eq!(runs.len(), 1);
@@ -68,4 +70,9 @@ fn the_keeper_runs_in_physics_and_its_ball_perception_is_reported() {
     assert!(report.contains("Table 5"), "the report places the paper's table");
     let csv = std::fs::read_to_string(out.join("goal-covering.csv")).expect("the CSV");
     assert_eq!(csv.lines().count(), 2, "a header and one run: {csv}");
+    // `--log` records the first run's keeper, whose modules replay from it.
+    let info = run(&mut strata(&["log", "info", log_arg]));
+    assert!(info.status.success(), "the keeper's log opens");
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("world/world_state"), "the keeper's world model is logged: {text}");
 }

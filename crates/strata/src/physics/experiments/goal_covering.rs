@@ -220,6 +220,8 @@ struct Job<'a> {
     trajectory: &'a Trajectory,
     run: usize,
     seed: u64,
+    /// The keeper's log (`--log`: the first run only).
+    log: Option<PathBuf>,
 }
 
 fn run_one(
@@ -241,7 +243,7 @@ fn run_one(
         team_config: job.team_file.display().to_string(),
         seed: job.seed,
         team_port: None,
-        log: None,
+        log: job.log.clone(),
         status_interval: scenario.status_interval,
         duration: None,
         extra: Vec::new(),
@@ -437,6 +439,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
                         trajectory,
                         run,
                         seed: ctx.seed(run),
+                        log: if index == 0 { ctx.options.log.clone() } else { None },
                     };
                     bar.set_message(format!(
                         "run {} of {total}: {} at {hz} Hz, {}",
