@@ -321,6 +321,40 @@ mod tests {
         assert!((first - 1000.0 / 5.0 / 600.0).abs() < 1e-9, "{first}");
     }
 
+    /// Issue 30: values the robot does not know in fields it does not act on leave the game
+    /// followed; a state it does not know leaves the last state it understood.
+    #[test]
+    fn unknown_values_do_not_make_the_robot_deaf() {
+        let mut r = referee();
+        let mut bytes = packet(GameState::Ready, false);
+        bytes[8] = 9; // competition type
+        bytes[18 + 1] = 42; // our field players' colour
+        bytes[18 + 10 + 2 * 4] = 12; // player 5's penalty (we are player 2)
+        bytes[18 + 50 + 10] = 13; // an opponent's penalty
+        r.receive(Time::ZERO, &bytes).expect("followed");
+        let d = r.directive();
+        assert_eq!((d.state, d.penalized, d.connected), (GameState::Ready, false, true));
+
+        // A set play and a penalty of ours it does not know: a set play, and penalized.
+        let mut bytes = packet(GameState::Playing, false);
+        bytes[11] = 6;
+        bytes[18 + 10 + 2] = 12;
+        r.receive(Time::ZERO, &bytes).expect("followed");
+        let d = r.directive();
+        assert_eq!(
+            (d.state, d.set_play, d.penalized),
+            (GameState::Playing, SetPlay::Unknown(6), true)
+        );
+
+        let mut bytes = packet(GameState::Set, false);
+        bytes[10] = 6;
+        assert!(r.receive(Time::ZERO, &bytes).is_err());
+        assert_eq!((r.rejected, r.packets), (1, 2));
+        assert_eq!(r.directive(), d, "the last state understood is kept");
+        r.receive(Time::ZERO, &packet(GameState::Set, false)).expect("followed again");
+        assert_eq!(r.directive().state, GameState::Set);
+    }
+
     #[test]
     fn garbage_is_rejected_and_counted_and_other_games_ignored() {
         let mut r = referee();

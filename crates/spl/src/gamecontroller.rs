@@ -3,8 +3,18 @@
 //! `RoboCupGameControlReturnData` ("RGrt", version 4, 32 bytes) each robot sends back.
 //!
 //! Layout and constants follow `RoboCupGameControlData.h` of the RoboCup-SPL GameController3
-//! (`game_controller_msgs/headers`): packed, little-endian. Decoders check everything the
-//! GameController checks, plus every enumerated value, and never panic.
+//! (`game_controller_msgs/headers`, read at commit 36353e4, v5.0.0-7): packed, little-endian.
+//! Decoders never panic and reject no more than they must:
+//!
+//! - [`ReturnData::decode`] accepts exactly what GameController3 accepts from a robot (its
+//!   `game_controller_net/src/status_message_receiver.rs`, `game_controller_runtime/src/lib.rs`
+//!   and `game_controller_msgs/src/status_message.rs`), so a check here is never a surprise on
+//!   the field, in either direction.
+//! - [`GameControlData::decode`] rejects a packet only for what the robot cannot follow the
+//!   game without: length, header, version, the game state and the first-half flag. A value it
+//!   does not know in any other enumerated field (a newer GameController's competition type,
+//!   set play or penalty) is kept as `Unknown(raw)`, so the robot keeps following the game and
+//!   the packet still encodes back to the same bytes.
 
 use std::fmt;
 
@@ -46,7 +56,9 @@ fn list(values: &[u8]) -> String {
 }
 
 macro_rules! wire_enum {
-    ($(#[$meta:meta])* $name:ident, $what:literal {
+    // A closed enumeration: a byte outside it is an error ([`UnknownValue`]). Only for fields
+    // the robot cannot act on without knowing the value.
+    ($(#[$meta:meta])* closed $name:ident, $what:literal {
         $($(#[$vmeta:meta])* $variant:ident = $value:literal,)+
     }) => {
         $(#[$meta])*
@@ -79,11 +91,54 @@ macro_rules! wire_enum {
             }
         }
     };
+    // An open enumeration: every byte converts, one this version does not define to
+    // `Unknown(byte)`, which encodes back to the same byte.
+    ($(#[$meta:meta])* open $name:ident {
+        $($(#[$vmeta:meta])* $variant:ident = $value:literal,)+
+    }) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+        #[serde(rename_all = "snake_case")]
+        pub enum $name {
+            $($(#[$vmeta])* $variant,)+
+            /// A value this version does not define (a newer GameController's), as sent.
+            /// `From<u8>` gives it only for such values.
+            Unknown(u8),
+        }
+
+        impl $name {
+            /// Every defined wire value, ascending.
+            pub const VALUES: &'static [u8] = &[$($value),+];
+
+            /// Whether the value is one this version defines.
+            pub fn is_known(self) -> bool {
+                Self::VALUES.contains(&u8::from(self))
+            }
+        }
+
+        impl From<$name> for u8 {
+            fn from(value: $name) -> u8 {
+                match value {
+                    $($name::$variant => $value,)+
+                    $name::Unknown(raw) => raw,
+                }
+            }
+        }
+
+        impl From<u8> for $name {
+            fn from(value: u8) -> Self {
+                match value {
+                    $($value => $name::$variant,)+
+                    raw => $name::Unknown(raw),
+                }
+            }
+        }
+    };
 }
 
 wire_enum! {
     /// `TEAM_*`: jersey colours.
-    TeamColour, "team colour" {
+    open TeamColour {
         Blue = 0,
         Red = 1,
         Yellow = 2,
@@ -99,22 +154,26 @@ wire_enum! {
 
 wire_enum! {
     /// `COMPETITION_PHASE_*`.
-    CompetitionPhase, "competition phase" {
+    open CompetitionPhase {
         RoundRobin = 0,
         Playoff = 1,
     }
 }
 
 wire_enum! {
-    /// `COMPETITION_TYPE_*` (version 18 defines only the normal competition).
-    CompetitionType, "competition type" {
+    /// `COMPETITION_TYPE_*`.
+    open CompetitionType {
         Normal = 0,
+        /// The Most Passes Leaderboard challenge (GameController3's
+        /// `config/most_passes_leaderboard`).
+        MostPasses = 1,
     }
 }
 
 wire_enum! {
-    /// `GAME_PHASE_*`.
-    GamePhase, "game phase" {
+    /// `GAME_PHASE_*`. The robot only asks whether it is a penalty shoot-out, so a phase it
+    /// does not know is not one.
+    open GamePhase {
         Normal = 0,
         PenaltyShoot = 1,
         Overtime = 2,
@@ -123,8 +182,9 @@ wire_enum! {
 }
 
 wire_enum! {
-    /// `STATE_*`: the game state.
-    GameState, "state" {
+    /// `STATE_*`: the game state. Closed: a robot cannot follow a state it does not know, so
+    /// such a packet is rejected and the robot keeps the last state it understood.
+    closed GameState, "state" {
         Initial = 0,
         Ready = 1,
         Set = 2,
@@ -135,8 +195,8 @@ wire_enum! {
 }
 
 wire_enum! {
-    /// `SET_PLAY_*`.
-    SetPlay, "set play" {
+    /// `SET_PLAY_*`. A set play the robot does not know is still a set play (not `None`).
+    open SetPlay {
         None = 0,
         GoalKick = 1,
         PushingFreeKick = 2,
@@ -147,8 +207,9 @@ wire_enum! {
 }
 
 wire_enum! {
-    /// `PENALTY_*`.
-    Penalty, "penalty" {
+    /// `PENALTY_*`. A penalty the robot does not know is still a penalty (not `None`).
+    /// (GameController3's header defines `Manual`, but GameController3 never sends it.)
+    open Penalty {
         None = 0,
         IllegalBallContact = 1,
         PlayerPushing = 2,
@@ -187,14 +248,16 @@ impl fmt::Display for PacketType {
 pub enum DecodeError {
     #[error("{packet}: wrong length: expected {expected} bytes, got {actual}")]
     Length { packet: PacketType, expected: usize, actual: usize },
+    #[error("{packet}: too short: expected at least {minimum} bytes, got {actual}")]
+    TooShort { packet: PacketType, minimum: usize, actual: usize },
     #[error("{packet}: bad header \"{}\" (expected \"{}\")", found.escape_ascii(), expected.escape_ascii())]
     Header { packet: PacketType, expected: [u8; 4], found: [u8; 4] },
     #[error("{packet}: version {found} is not {expected}")]
     Version { packet: PacketType, expected: u8, found: u8 },
     #[error("{packet}: {field} value {value} out of range (valid: {valid})")]
     OutOfRange { packet: PacketType, field: String, value: u8, valid: String },
-    #[error("{packet}: {field} is {value}, not a finite number")]
-    NotFinite { packet: PacketType, field: &'static str, value: f32 },
+    #[error("{packet}: {field} is NaN")]
+    NotANumber { packet: PacketType, field: &'static str },
 }
 
 impl DecodeError {
@@ -209,6 +272,38 @@ impl DecodeError {
 
     fn range(packet: PacketType, field: impl Into<String>, value: u8, valid: &str) -> DecodeError {
         DecodeError::OutOfRange { packet, field: field.into(), value, valid: valid.to_owned() }
+    }
+
+    /// For a return packet, the reason GameController3 gives itself when it drops the packet
+    /// (the `bail!` text of `StatusMessage::try_from`; it logs the packet but shows no reason).
+    /// `None` for a control packet, which GameController3 only sends.
+    pub fn game_controller3_reason(&self) -> Option<&'static str> {
+        let return_packet = |packet: &PacketType| *packet == PacketType::Return;
+        Some(match self {
+            DecodeError::Length { packet, .. } | DecodeError::TooShort { packet, .. }
+                if return_packet(packet) =>
+            {
+                "wrong length"
+            }
+            DecodeError::Header { packet, .. } if return_packet(packet) => "wrong header",
+            DecodeError::Version { packet, .. } if return_packet(packet) => "wrong version",
+            DecodeError::OutOfRange { packet, field, .. } if return_packet(packet) => {
+                match field.as_str() {
+                    "player_number" => "invalid player number",
+                    "fallen" => "invalid fallen",
+                    _ => return None,
+                }
+            }
+            DecodeError::NotANumber { packet, field } if return_packet(packet) => {
+                match field.split('[').next() {
+                    Some("pose") => "invalid pose",
+                    Some("ball_age") => "invalid ball age",
+                    Some("ball") => "invalid ball",
+                    _ => return None,
+                }
+            }
+            _ => return None,
+        })
     }
 }
 
@@ -253,7 +348,7 @@ pub struct TeamInfo {
     pub team_number: u8,
     pub field_player_colour: TeamColour,
     pub goalkeeper_colour: TeamColour,
-    /// Player number of the goalkeeper, 1..=20; 0 when there is none.
+    /// Player number of the goalkeeper, 1..=20; 0 when there is none (as sent: not checked).
     pub goalkeeper: u8,
     pub score: u8,
     /// Penalty shot counter (outside a penalty shoot-out: the fallback-mode flag).
@@ -278,7 +373,7 @@ impl TeamInfo {
 pub struct GameControlData {
     /// Incremented with each packet sent (wraps).
     pub packet_number: u8,
-    /// Players on a team, at most [`MAX_NUM_PLAYERS`].
+    /// Players on a team; [`MAX_NUM_PLAYERS`] at most in any real game, but not checked.
     pub players_per_team: u8,
     pub competition_phase: CompetitionPhase,
     pub competition_type: CompetitionType,
@@ -331,12 +426,13 @@ impl<'a> Reader<'a> {
         self.take().map(i16::from_le_bytes)
     }
 
+    /// A float that is not NaN: ±inf passes, as GameController3 lets it pass.
     fn f32(&mut self, field: &'static str) -> Result<f32, DecodeError> {
         let value = self.take().map(f32::from_le_bytes)?;
-        if value.is_finite() {
-            Ok(value)
+        if value.is_nan() {
+            Err(DecodeError::NotANumber { packet: self.packet, field })
         } else {
-            Err(DecodeError::NotFinite { packet: self.packet, field, value })
+            Ok(value)
         }
     }
 
@@ -351,6 +447,11 @@ impl<'a> Reader<'a> {
             return Err(DecodeError::Version { packet, expected: version, found });
         }
         Ok(())
+    }
+
+    /// A value of an open enumeration: never an error.
+    fn open<T: From<u8>>(&mut self) -> Result<T, DecodeError> {
+        self.u8().map(T::from)
     }
 
     fn wire<T: TryFrom<u8, Error = UnknownValue>>(
@@ -400,36 +501,40 @@ impl<const N: usize> Writer<N> {
 }
 
 impl GameControlData {
-    /// Parses and validates a control packet.
+    /// Parses a control packet. Rejects only what a robot cannot follow the game without: a
+    /// length other than 118, a header other than `RGme`, a version other than 18, a state it
+    /// does not know and a first-half flag other than 0 or 1 (GameController3 writes only
+    /// those; anything else is not a packet to act on). Every other byte is kept as it is:
+    /// unknown enumerated values as `Unknown(raw)`, counts and player numbers (`players_per_team`,
+    /// `goalkeeper`) unchecked, since GameController3 does not bound them either and the robot
+    /// does not need them to be in range.
     pub fn decode(bytes: &[u8]) -> Result<GameControlData, DecodeError> {
         let packet = PacketType::Control;
         let mut r = Reader::new(bytes, packet, CONTROL_PACKET_SIZE)?;
         r.header(CONTROL_HEADER, CONTROL_VERSION)?;
         let packet_number = r.u8()?;
-        let max_players = MAX_NUM_PLAYERS as u8;
-        let players_per_team = r.bounded(|| "players_per_team".into(), 0, max_players)?;
-        let competition_phase = r.wire(|| "competition_phase".into())?;
-        let competition_type = r.wire(|| "competition_type".into())?;
-        let game_phase = r.wire(|| "game_phase".into())?;
+        let players_per_team = r.u8()?;
+        let competition_phase = r.open()?;
+        let competition_type = r.open()?;
+        let game_phase = r.open()?;
         let state = r.wire(|| "state".into())?;
-        let set_play = r.wire(|| "set_play".into())?;
+        let set_play = r.open()?;
         let first_half = r.bounded(|| "first_half".into(), 0, 1)? == 1;
         let kicking_team = Some(r.u8()?).filter(|&team| team != KICKING_TEAM_NONE);
         let secs_remaining = r.i16()?;
         let secondary_time = r.i16()?;
         let mut teams = [TeamInfo::default(); 2];
-        for (t, team) in teams.iter_mut().enumerate() {
-            let at = |name: &str| format!("teams[{t}].{name}");
+        for team in &mut teams {
             team.team_number = r.u8()?;
-            team.field_player_colour = r.wire(|| at("field_player_colour"))?;
-            team.goalkeeper_colour = r.wire(|| at("goalkeeper_colour"))?;
-            team.goalkeeper = r.bounded(|| at("goalkeeper"), 0, max_players)?;
+            team.field_player_colour = r.open()?;
+            team.goalkeeper_colour = r.open()?;
+            team.goalkeeper = r.u8()?;
             team.score = r.u8()?;
             team.penalty_shot = r.u8()?;
             team.single_shots = r.u16()?;
             team.message_budget = r.u16()?;
-            for (p, player) in team.players.iter_mut().enumerate() {
-                player.penalty = r.wire(|| at(&format!("players[{p}].penalty")))?;
+            for player in &mut team.players {
+                player.penalty = r.open()?;
                 player.secs_till_unpenalised = r.u8()?;
             }
         }
@@ -449,8 +554,8 @@ impl GameControlData {
         })
     }
 
-    /// The wire bytes. Values the wire cannot carry as meant (`players_per_team` or a goalkeeper
-    /// above 20, `kicking_team == Some(255)`) are written as they are; `decode` rejects them.
+    /// The wire bytes. `kicking_team == Some(255)`, which the wire cannot carry as meant, is
+    /// written as 255 and decodes as `None`.
     pub fn encode(&self) -> [u8; CONTROL_PACKET_SIZE] {
         let mut w = Writer::<CONTROL_PACKET_SIZE>::new();
         w.put(&CONTROL_HEADER);
@@ -545,8 +650,11 @@ pub struct ReturnData {
     /// 1..=20.
     pub player_number: u8,
     pub team_number: u8,
+    /// The wire's 1 (0 is `false`); GameController3 drops a packet with any other value, so
+    /// nothing is lost.
     pub fallen: bool,
     /// x, y (millimetres, field frame, x towards the goal the robot attacks), theta (radians).
+    /// Never NaN in a valid packet, but possibly infinite (as are `ball_age` and `ball`).
     pub pose: [f32; 3],
     /// Seconds since the ball was last seen; -1 if never.
     pub ball_age: f32,
@@ -558,14 +666,34 @@ impl ReturnData {
     /// `ball_age` for a robot that has not seen the ball.
     pub const BALL_NEVER_SEEN: f32 = -1.0;
 
-    /// Parses and validates a return packet with the GameController's rules (exact length,
-    /// header, version, player 1-20, fallen 0 or 1), and finite floats.
+    /// Judges a received datagram as GameController3 does, accepting exactly what it accepts:
+    /// at least 32 bytes, of which the first 32 are the packet, with header `RGrt`, version 4,
+    /// a player number of 1 to 20, `fallen` 0 or 1 and no NaN among the floats. Team numbers,
+    /// and infinite or absurd floats, pass: GameController3 does not check them.
     pub fn decode(bytes: &[u8]) -> Result<ReturnData, DecodeError> {
-        let mut r = Reader::new(bytes, PacketType::Return, RETURN_PACKET_SIZE)?;
+        let packet = PacketType::Return;
+        // GameController3 receives into a buffer one byte larger than the packet and hands on
+        // the first 32 bytes with a `too_long` flag that its runtime ignores for return packets
+        // (`status_message_receiver.rs`; `game_controller_runtime/src/lib.rs`,
+        // `Event::StatusMessage { host, data, .. }`): a longer datagram counts as its first 32
+        // bytes, a shorter one fails `StatusMessage::try_from`'s length check.
+        let Some(bytes) = bytes.get(..RETURN_PACKET_SIZE) else {
+            return Err(DecodeError::TooShort {
+                packet,
+                minimum: RETURN_PACKET_SIZE,
+                actual: bytes.len(),
+            });
+        };
+        // The rest is `StatusMessage::try_from` (`game_controller_msgs/src/status_message.rs`),
+        // check for check and in its order, so the first error here is the one it stops at.
+        let mut r = Reader::new(bytes, packet, RETURN_PACKET_SIZE)?;
         r.header(RETURN_HEADER, RETURN_VERSION)?;
         let player_number = r.bounded(|| "player_number".into(), 1, MAX_NUM_PLAYERS as u8)?;
+        // Not checked against the game's teams here: GameController3 accepts any team number
+        // and then counts the packet only if the team plays in its game.
         let team_number = r.u8()?;
         let fallen = r.bounded(|| "fallen".into(), 0, 1)? == 1;
+        // `is_nan` per float there, so ±inf passes here too.
         let pose = [r.f32("pose[0]")?, r.f32("pose[1]")?, r.f32("pose[2]")?];
         let ball_age = r.f32("ball_age")?;
         let ball = [r.f32("ball[0]")?, r.f32("ball[1]")?];
@@ -686,48 +814,76 @@ mod tests {
         assert_eq!(decode_err(&long), "control packet: wrong length: expected 118 bytes, got 119");
         assert_eq!(decode_err(&[]), "control packet: wrong length: expected 118 bytes, got 0");
 
+        // Only what the robot cannot follow the game without.
         let cases: &[(usize, u8, &str)] = &[
             (0, b'X', "control packet: bad header \"XGme\" (expected \"RGme\")"),
             (3, 0, "control packet: bad header \"RGm\\x00\" (expected \"RGme\")"),
             (4, 17, "control packet: version 17 is not 18"),
-            (6, 21, "control packet: players_per_team value 21 out of range (valid: 0-20)"),
-            (7, 2, "control packet: competition_phase value 2 out of range (valid: 0, 1)"),
-            (8, 1, "control packet: competition_type value 1 out of range (valid: 0)"),
-            (9, 4, "control packet: game_phase value 4 out of range (valid: 0, 1, 2, 3)"),
-            (10, 9, "control packet: state value 9 out of range (valid: 0, 1, 2, 3, 4, 5)"),
-            (11, 6, "control packet: set_play value 6 out of range (valid: 0, 1, 2, 3, 4, 5)"),
+            (4, 19, "control packet: version 19 is not 18"),
+            (10, 6, "control packet: state value 6 out of range (valid: 0, 1, 2, 3, 4, 5)"),
+            (10, 255, "control packet: state value 255 out of range (valid: 0, 1, 2, 3, 4, 5)"),
             (12, 2, "control packet: first_half value 2 out of range (valid: 0-1)"),
-            (
-                18 + 1,
-                10,
-                "control packet: teams[0].field_player_colour value 10 out of range \
-                 (valid: 0, 1, 2, 3, 4, 5, 6, 7, 8, 9)",
-            ),
-            (
-                18 + 50 + 2,
-                255,
-                "control packet: teams[1].goalkeeper_colour value 255 out of range \
-                 (valid: 0, 1, 2, 3, 4, 5, 6, 7, 8, 9)",
-            ),
-            (18 + 3, 21, "control packet: teams[0].goalkeeper value 21 out of range (valid: 0-20)"),
-            (
-                18 + 10 + 2 * 3,
-                12,
-                "control packet: teams[0].players[3].penalty value 12 out of range \
-                 (valid: 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 14, 15)",
-            ),
-            (
-                18 + 50 + 10 + 2 * 19,
-                13,
-                "control packet: teams[1].players[19].penalty value 13 out of range \
-                 (valid: 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 14, 15)",
-            ),
         ];
         for &(offset, value, expected) in cases {
             let mut bytes = good.clone();
             bytes[offset] = value;
             assert_eq!(decode_err(&bytes), expected, "byte {offset} = {value}");
         }
+    }
+
+    /// Issue 30: values the robot does not know, in fields it does not act on (or acts on only
+    /// as "not none"), used to make the whole packet undecodable, and the robot deaf.
+    #[test]
+    fn control_packet_keeps_values_it_does_not_know_and_still_decodes() {
+        let good = sample_bytes();
+        let mut bytes = good.clone();
+        bytes[6] = 21; // players_per_team above MAX_NUM_PLAYERS: GameController3 does not bound it
+        bytes[7] = 2; // competition_phase
+        bytes[8] = 7; // competition_type
+        bytes[9] = 4; // game_phase
+        bytes[11] = 6; // set_play
+        bytes[18 + 1] = 10; // teams[0].field_player_colour
+        bytes[18 + 50 + 2] = 255; // teams[1].goalkeeper_colour
+        bytes[18 + 3] = 21; // teams[0].goalkeeper
+        bytes[18 + 10 + 2 * 3] = 12; // teams[0].players[3].penalty
+        bytes[18 + 50 + 10 + 2 * 19] = 13; // teams[1].players[19].penalty
+        let data = GameControlData::decode(&bytes).expect("a robot must keep following the game");
+        assert_eq!(data.state, GameState::Playing);
+        assert_eq!(data.players_per_team, 21);
+        assert_eq!(data.competition_phase, CompetitionPhase::Unknown(2));
+        assert_eq!(data.competition_type, CompetitionType::Unknown(7));
+        assert_eq!(data.game_phase, GamePhase::Unknown(4));
+        assert_eq!(data.set_play, SetPlay::Unknown(6));
+        assert_ne!(data.set_play, SetPlay::None, "an unknown set play is a set play");
+        assert_eq!(data.teams[0].field_player_colour, TeamColour::Unknown(10));
+        assert_eq!(data.teams[1].goalkeeper_colour, TeamColour::Unknown(255));
+        assert_eq!(data.teams[0].goalkeeper, 21);
+        assert_eq!(data.teams[0].players[3].penalty, Penalty::Unknown(12));
+        assert_eq!(data.teams[1].players[19].penalty, Penalty::Unknown(13));
+        // The rest is the sample, and the packet encodes back to the very bytes received (the
+        // robot's link hands its canonical encoding on).
+        assert_eq!(data.teams[0].players[2], sample().teams[0].players[2]);
+        assert_eq!(data.encode().to_vec(), bytes);
+
+        // The Most Passes Leaderboard challenge: GameController3 sends competition type 1.
+        let mut bytes = good;
+        bytes[8] = 1;
+        let data = GameControlData::decode(&bytes).map(|d| d.competition_type);
+        assert_eq!(data, Ok(CompetitionType::MostPasses));
+    }
+
+    /// Every control packet GameController3 can send decodes: each value its
+    /// `control_message.rs` writes, in every field.
+    #[test]
+    fn every_value_game_controller3_sends_is_known() {
+        let known = |values: &[u8], sent: &[u8]| sent.iter().all(|v| values.contains(v));
+        assert!(known(CompetitionPhase::VALUES, &[0, 1]));
+        assert!(known(CompetitionType::VALUES, &[0, 1]));
+        assert!(known(GamePhase::VALUES, &[0, 1, 3]));
+        assert!(known(GameState::VALUES, &[0, 1, 2, 3, 4, 5]));
+        assert!(known(SetPlay::VALUES, &[0, 1, 2, 3, 4, 5]));
+        assert!(known(TeamColour::VALUES, &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9]));
+        assert!(known(Penalty::VALUES, &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 14]));
     }
 
     fn return_bytes() -> Vec<u8> {
@@ -760,55 +916,127 @@ mod tests {
         assert_eq!(bytes[8..12], [0x00, 0x80, 0xBB, 0x44]);
     }
 
+    /// What GameController3 rejects (`StatusMessage::try_from`), rejected with the field, the
+    /// value and GameController3's own reason.
     #[test]
     fn return_packet_rejections_say_what_is_wrong() {
         let good = return_bytes();
-        let err = |bytes: &[u8]| ReturnData::decode(bytes).map_err(|e| e.to_string());
+        let err = |bytes: &[u8]| match ReturnData::decode(bytes) {
+            Ok(data) => panic!("decoded {data:?}"),
+            Err(e) => (e.to_string(), e.game_controller3_reason()),
+        };
         assert_eq!(
             err(&good[..31]),
-            Err("return packet: wrong length: expected 32 bytes, got 31".into())
+            (
+                "return packet: too short: expected at least 32 bytes, got 31".into(),
+                Some("wrong length")
+            )
         );
+        assert_eq!(err(&[]).1, Some("wrong length"));
+        // A control packet sent to the return port: long enough, but not a return packet.
         assert_eq!(
             err(&sample_bytes()),
-            Err("return packet: wrong length: expected 32 bytes, got 118".into())
+            ("return packet: bad header \"RGme\" (expected \"RGrt\")".into(), Some("wrong header"))
         );
-        let cases: &[(usize, u8, &str)] = &[
-            (1, b'X', "return packet: bad header \"RXrt\" (expected \"RGrt\")"),
-            (4, 3, "return packet: version 3 is not 4"),
-            (5, 0, "return packet: player_number value 0 out of range (valid: 1-20)"),
-            (5, 21, "return packet: player_number value 21 out of range (valid: 1-20)"),
-            (7, 2, "return packet: fallen value 2 out of range (valid: 0-1)"),
+        let cases: &[(usize, u8, &str, &str)] = &[
+            (1, b'X', "return packet: bad header \"RXrt\" (expected \"RGrt\")", "wrong header"),
+            (4, 3, "return packet: version 3 is not 4", "wrong version"),
+            (4, 5, "return packet: version 5 is not 4", "wrong version"),
+            (
+                5,
+                0,
+                "return packet: player_number value 0 out of range (valid: 1-20)",
+                "invalid player number",
+            ),
+            (
+                5,
+                21,
+                "return packet: player_number value 21 out of range (valid: 1-20)",
+                "invalid player number",
+            ),
+            (7, 2, "return packet: fallen value 2 out of range (valid: 0-1)", "invalid fallen"),
+            (7, 255, "return packet: fallen value 255 out of range (valid: 0-1)", "invalid fallen"),
         ];
-        for &(offset, value, expected) in cases {
+        for &(offset, value, expected, reason) in cases {
             let mut bytes = good.clone();
             bytes[offset] = value;
-            assert_eq!(err(&bytes), Err(expected.to_owned()), "byte {offset} = {value}");
+            assert_eq!(err(&bytes), (expected.to_owned(), Some(reason)), "byte {offset} = {value}");
         }
-        let floats = ["pose[0]", "pose[1]", "pose[2]", "ball_age", "ball[0]", "ball[1]"];
-        for (i, field) in floats.iter().enumerate() {
-            for (bad, shown) in
-                [(f32::NAN, "NaN"), (f32::INFINITY, "inf"), (f32::NEG_INFINITY, "-inf")]
-            {
+        let floats = [
+            ("pose[0]", "invalid pose"),
+            ("pose[1]", "invalid pose"),
+            ("pose[2]", "invalid pose"),
+            ("ball_age", "invalid ball age"),
+            ("ball[0]", "invalid ball"),
+            ("ball[1]", "invalid ball"),
+        ];
+        for (i, (field, reason)) in floats.into_iter().enumerate() {
+            // Any NaN, whatever its sign and payload.
+            for nan in [f32::NAN, -f32::NAN, f32::from_bits(0x7F80_0001)] {
                 let mut bytes = good.clone();
-                bytes[8 + 4 * i..12 + 4 * i].copy_from_slice(&bad.to_le_bytes());
-                let expected = format!("return packet: {field} is {shown}, not a finite number");
-                assert_eq!(err(&bytes), Err(expected));
+                bytes[8 + 4 * i..12 + 4 * i].copy_from_slice(&nan.to_le_bytes());
+                assert_eq!(err(&bytes), (format!("return packet: {field} is NaN"), Some(reason)));
             }
         }
+        // The first failing check is the one GameController3 stops at.
+        let mut bytes = good.clone();
+        bytes[5] = 0;
+        bytes[7] = 9;
+        assert_eq!(err(&bytes).1, Some("invalid player number"));
+    }
+
+    /// Issue 30: what GameController3 accepts and the decoder used to reject.
+    #[test]
+    fn return_packets_game_controller3_accepts_are_accepted() {
+        let good = return_bytes();
+        // Infinite floats: GameController3 checks only `is_nan`.
+        let floats = ["pose[0]", "pose[1]", "pose[2]", "ball_age", "ball[0]", "ball[1]"];
+        for (i, field) in floats.iter().enumerate() {
+            for inf in [f32::INFINITY, f32::NEG_INFINITY] {
+                let mut bytes = good.clone();
+                bytes[8 + 4 * i..12 + 4 * i].copy_from_slice(&inf.to_le_bytes());
+                let data = ReturnData::decode(&bytes);
+                assert!(data.is_ok(), "{field} = {inf}: {data:?}");
+                let encoded = data.map(|d| d.encode().map(|b| b.to_vec()));
+                assert_eq!(encoded, Ok(Ok(bytes)), "{field} = {inf}");
+            }
+        }
+        // Longer datagrams: GameController3 reads the first 32 bytes and ignores the rest.
+        for extra in [1, 2, 100, 65_000] {
+            let mut bytes = good.clone();
+            bytes.resize(RETURN_PACKET_SIZE + extra, 0xAB);
+            assert_eq!(ReturnData::decode(&bytes), Ok(return_sample()), "{extra} bytes more");
+        }
+        // Any team number, and absurd but finite values.
+        let mut bytes = good;
+        bytes[6] = 255;
+        bytes[8..12].copy_from_slice(&f32::MAX.to_le_bytes());
+        bytes[20..24].copy_from_slice(&(-1e30f32).to_le_bytes());
+        let data = ReturnData::decode(&bytes).expect("GameController3 accepts it");
+        assert_eq!((data.team_number, data.pose[0], data.ball_age), (255, f32::MAX, -1e30));
     }
 
     #[test]
     fn return_encode_refuses_what_the_gamecontroller_would_drop() {
         let mut data = return_sample();
         data.pose[2] = f32::NAN;
-        assert!(matches!(data.encode(), Err(DecodeError::NotFinite { field: "pose[2]", .. })));
+        assert!(matches!(data.encode(), Err(DecodeError::NotANumber { field: "pose[2]", .. })));
         let mut data = return_sample();
         data.player_number = 0;
         assert!(matches!(data.encode(), Err(DecodeError::OutOfRange { .. })));
+        // What it would not drop is sent.
+        let data = ReturnData { ball_age: f32::INFINITY, ..return_sample() };
+        assert!(data.encode().is_ok());
     }
 
     #[test]
-    fn enums_round_trip_and_reject_unknown_values() {
+    fn control_errors_have_no_game_controller3_reason() {
+        let error = GameControlData::decode(&return_bytes()).expect_err("a return packet");
+        assert_eq!(error.game_controller3_reason(), None);
+    }
+
+    #[test]
+    fn closed_enums_round_trip_and_reject_unknown_values() {
         for value in 0..=255u8 {
             if let Ok(state) = GameState::try_from(value) {
                 assert_eq!(u8::from(state), value);
@@ -817,14 +1045,35 @@ mod tests {
             }
         }
         assert_eq!(GameState::try_from(5), Ok(GameState::Standby));
-        assert_eq!(Penalty::try_from(14), Ok(Penalty::Substitute));
         assert_eq!(
-            Penalty::try_from(12).map_err(|e| e.to_string()),
-            Err("penalty value 12 out of range (valid: 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 14, 15)"
-                .into())
+            GameState::try_from(6).map_err(|e| e.to_string()),
+            Err("state value 6 out of range (valid: 0, 1, 2, 3, 4, 5)".into())
         );
+    }
+
+    #[test]
+    fn open_enums_keep_every_byte() {
+        fn check<T: From<u8> + Into<u8> + Copy + fmt::Debug + PartialEq>(
+            values: &[u8],
+            unknown: fn(u8) -> T,
+        ) {
+            for value in 0..=255u8 {
+                let typed = T::from(value);
+                assert_eq!(typed.into(), value);
+                assert_eq!(typed == unknown(value), !values.contains(&value), "{value}");
+            }
+        }
+        check(TeamColour::VALUES, TeamColour::Unknown);
+        check(CompetitionPhase::VALUES, CompetitionPhase::Unknown);
+        check(CompetitionType::VALUES, CompetitionType::Unknown);
+        check(GamePhase::VALUES, GamePhase::Unknown);
+        check(SetPlay::VALUES, SetPlay::Unknown);
+        check(Penalty::VALUES, Penalty::Unknown);
+        assert_eq!(Penalty::from(14), Penalty::Substitute);
+        assert_eq!(SetPlay::from(5), SetPlay::PenaltyKick);
         assert_eq!(TeamColour::VALUES.len(), 10);
-        assert_eq!(SetPlay::try_from(5), Ok(SetPlay::PenaltyKick));
+        assert!(Penalty::Manual.is_known());
+        assert!(!Penalty::Unknown(12).is_known());
     }
 
     #[test]
@@ -853,15 +1102,21 @@ mod tests {
         proptest::sample::select(values).prop_filter_map("defined", |v| T::try_from(v).ok())
     }
 
+    /// Any byte of an open enumeration, known or not.
+    fn open_value<T: From<u8> + fmt::Debug>() -> impl Strategy<Value = T> {
+        any::<u8>().prop_map(T::from)
+    }
+
     fn robot_info() -> impl Strategy<Value = RobotInfo> {
-        (wire_value(Penalty::VALUES), any::<u8>()).prop_map(|(penalty, secs_till_unpenalised)| {
-            RobotInfo { penalty, secs_till_unpenalised }
+        (open_value(), any::<u8>()).prop_map(|(penalty, secs_till_unpenalised)| RobotInfo {
+            penalty,
+            secs_till_unpenalised,
         })
     }
 
     fn team_info() -> impl Strategy<Value = TeamInfo> {
         (
-            (any::<u8>(), wire_value(TeamColour::VALUES), wire_value(TeamColour::VALUES), 0..=20u8),
+            (any::<u8>(), open_value(), open_value(), any::<u8>()),
             (any::<u8>(), any::<u8>(), any::<u16>(), any::<u16>()),
             proptest::array::uniform20(robot_info()),
         )
@@ -884,17 +1139,8 @@ mod tests {
 
     fn control() -> impl Strategy<Value = GameControlData> {
         (
-            (
-                any::<u8>(),
-                0..=20u8,
-                wire_value(CompetitionPhase::VALUES),
-                wire_value(CompetitionType::VALUES),
-            ),
-            (
-                wire_value(GamePhase::VALUES),
-                wire_value(GameState::VALUES),
-                wire_value(SetPlay::VALUES),
-            ),
+            (any::<u8>(), any::<u8>(), open_value(), open_value()),
+            (open_value(), wire_value(GameState::VALUES), open_value()),
             (any::<bool>(), proptest::option::of(0..255u8), any::<i16>(), any::<i16>()),
             [team_info(), team_info()],
         )
@@ -919,8 +1165,13 @@ mod tests {
             )
     }
 
-    fn finite() -> impl Strategy<Value = f32> {
-        any::<f32>().prop_filter("finite", |v| v.is_finite())
+    /// Any float GameController3 accepts: everything but NaN, infinities included.
+    fn not_nan() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            any::<f32>().prop_filter("not NaN", |v| !v.is_nan()),
+            Just(f32::INFINITY),
+            Just(f32::NEG_INFINITY),
+        ]
     }
 
     fn return_data() -> impl Strategy<Value = ReturnData> {
@@ -928,9 +1179,9 @@ mod tests {
             1..=20u8,
             any::<u8>(),
             any::<bool>(),
-            [finite(), finite(), finite()],
-            finite(),
-            [finite(), finite()],
+            [not_nan(), not_nan(), not_nan()],
+            not_nan(),
+            [not_nan(), not_nan()],
         )
             .prop_map(|(player_number, team_number, fallen, pose, ball_age, ball)| {
                 ReturnData { player_number, team_number, fallen, pose, ball_age, ball }
@@ -970,7 +1221,7 @@ mod tests {
         #[test]
         fn valid_headers_with_arbitrary_bodies_never_panic(
             body in proptest::collection::vec(any::<u8>(), 114),
-            ret in proptest::collection::vec(any::<u8>(), 28),
+            ret in proptest::collection::vec(any::<u8>(), 28..40),
         ) {
             let mut control = CONTROL_HEADER.to_vec();
             control.extend(&body);
@@ -982,7 +1233,8 @@ mod tests {
             bytes.extend(&ret);
             bytes[4] = RETURN_VERSION;
             if let Ok(data) = ReturnData::decode(&bytes) {
-                prop_assert_eq!(data.encode().map(|b| b.to_vec()), Ok(bytes));
+                // Only the first 32 bytes are the packet.
+                prop_assert_eq!(data.encode().map(|b| b.to_vec()), Ok(bytes[..32].to_vec()));
             }
         }
     }

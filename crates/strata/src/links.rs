@@ -637,6 +637,54 @@ mod tests {
         Ok(())
     }
 
+    /// Issue 30: a control packet with values the robot does not know in fields it does not
+    /// act on reaches the robot as sent; one it cannot follow (an unknown state) is dropped and
+    /// counted, and the link goes on listening.
+    #[test]
+    fn unknown_values_pass_and_a_rejected_packet_does_not_stop_the_link() -> Result<(), String> {
+        let port = free_udp_port()?;
+        let mut robot = UdpGameControllerLink::bind(7, port, 0).map_err(|e| e.to_string())?;
+        let gc = std::net::UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).map_err(|e| e.to_string())?;
+        let send = |bytes: &[u8]| {
+            gc.send_to(bytes, (Ipv4Addr::LOCALHOST, port)).map(drop).map_err(|e| e.to_string())
+        };
+        let mut data =
+            GameControlData { state: GameState::Playing, packet_number: 1, ..Default::default() };
+        data.teams[0].team_number = 7;
+        data.teams[1].team_number = 9;
+        let mut newer = data.encode();
+        newer[8] = 9; // competition type
+        newer[11] = 6; // set play
+        newer[18 + 10 + 2 * 4] = 12; // a team mate's penalty
+        newer[18 + 50 + 10] = 13; // an opponent's penalty
+        send(&newer)?;
+        let packets =
+            until("the control packet", || robot.receive(now()).ok().filter(|p| !p.is_empty()))?;
+        let bytes: Vec<&[u8]> = packets.iter().map(|p| p.bytes.as_slice()).collect();
+        assert_eq!(bytes, [newer.as_slice()], "handed over as sent");
+
+        // A state the robot does not know: dropped and counted, nothing handed over...
+        let mut unknown_state = data.encode();
+        unknown_state[10] = 6;
+        send(&unknown_state)?;
+        let mut handed = Vec::new();
+        until("the rejection", || {
+            handed.extend(robot.receive(now()).unwrap_or_default());
+            (robot.counters().snapshot().rejected == 1).then_some(())
+        })?;
+        assert_eq!(handed, Vec::new());
+        // ...and the next packet is heard.
+        let ready = GameControlData { state: GameState::Ready, packet_number: 3, ..data };
+        send(&ready.encode())?;
+        let packets =
+            until("the next packet", || robot.receive(now()).ok().filter(|p| !p.is_empty()))?;
+        assert_eq!(packets.len(), 1);
+        assert_eq!(GameControlData::decode(&packets[0].bytes), Ok(ready));
+        let stats = robot.counters().snapshot();
+        assert_eq!((stats.received, stats.rejected, stats.errors), (2, 1, 0));
+        Ok(())
+    }
+
     /// Sends `count` datagrams of `payload` to `port` on loopback.
     fn flood(port: u16, payload: &[u8], count: usize) -> Result<(), String> {
         let raw = std::net::UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).map_err(|e| e.to_string())?;

@@ -8,7 +8,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use anyhow::{Context, Result, bail};
 use clap::{Subcommand, ValueEnum};
 use serde_json::{Value, json};
-use strata_spl::gamecontroller::{GameControlData, PacketKind, ReturnData};
+use strata_spl::gamecontroller::{GameControlData, PacketKind, RETURN_PACKET_SIZE, ReturnData};
 use strata_spl::net::{self, MAX_TEAM_MESSAGE_SIZE};
 
 /// The `spl` subcommands.
@@ -44,7 +44,8 @@ pub enum SplCommand {
 pub enum Kind {
     /// RoboCupGameControlData ("RGme", version 18, 118 bytes).
     Control,
-    /// RoboCupGameControlReturnData ("RGrt", version 4, 32 bytes).
+    /// RoboCupGameControlReturnData ("RGrt", version 4, 32 bytes), judged as GameController3
+    /// judges it.
     Return,
     /// A team message: opaque bytes, at most 128.
     Team,
@@ -106,8 +107,8 @@ pub fn describe(bytes: &[u8], kind: Option<Kind>) -> Value {
         (None, PacketKind::Unknown) => return opaque("unknown", bytes),
     };
     let decoded = match kind {
-        Kind::Control => GameControlData::decode(bytes).map(|p| json!(p)),
-        Kind::Return => ReturnData::decode(bytes).map(|p| json!(p)),
+        Kind::Control => GameControlData::decode(bytes).map(|p| (json!(p), Vec::new())),
+        Kind::Return => ReturnData::decode(bytes).map(|p| (json!(p), return_notes(&p, bytes))),
         Kind::Team => return opaque("team", bytes),
     };
     let name = match kind {
@@ -115,15 +116,51 @@ pub fn describe(bytes: &[u8], kind: Option<Kind>) -> Value {
         Kind::Return => "return",
         Kind::Team => "team",
     };
-    match decoded {
-        Ok(packet) => json!({ "kind": name, "length": bytes.len(), "packet": packet }),
+    let mut value = match &decoded {
+        Ok((packet, _)) => json!({ "kind": name, "length": bytes.len(), "packet": packet }),
         Err(e) => json!({
             "kind": name,
             "length": bytes.len(),
             "error": e.to_string(),
             "hex": hex_dump(bytes),
         }),
+    };
+    // The return decoder judges as GameController3's receiver does, so its verdict is
+    // GameController3's, in GameController3's own words when it drops the packet.
+    if kind == Kind::Return {
+        value["game_controller3"] = json!(match &decoded {
+            Ok(_) => "accepts".to_owned(),
+            Err(e) => format!("drops it: {}", e.game_controller3_reason().unwrap_or("invalid")),
+        });
     }
+    if let Ok((_, notes)) = &decoded
+        && !notes.is_empty()
+    {
+        value["notes"] = json!(notes);
+    }
+    value
+}
+
+/// What JSON and a first look at an accepted return packet would hide.
+fn return_notes(data: &ReturnData, bytes: &[u8]) -> Vec<String> {
+    let mut notes = Vec::new();
+    if let Some(extra) = bytes.len().checked_sub(RETURN_PACKET_SIZE).filter(|&n| n > 0) {
+        notes.push(format!(
+            "{extra} bytes past the {RETURN_PACKET_SIZE}-byte packet: GameController3 ignores them"
+        ));
+    }
+    let floats = [
+        ("pose[0]", data.pose[0]),
+        ("pose[1]", data.pose[1]),
+        ("pose[2]", data.pose[2]),
+        ("ball_age", data.ball_age),
+        ("ball[0]", data.ball[0]),
+        ("ball[1]", data.ball[1]),
+    ];
+    for (field, value) in floats.into_iter().filter(|(_, v)| v.is_infinite()) {
+        notes.push(format!("{field} is {value} (null in JSON)"));
+    }
+    notes
 }
 
 /// Bytes that are not a GameController packet: on a team port, a team message.
@@ -178,7 +215,8 @@ mod tests {
     fn reports_bad_packets_and_team_messages() {
         let out = describe(b"RGrt\x04", None);
         assert_eq!(out["kind"], "return");
-        assert_eq!(out["error"], "return packet: wrong length: expected 32 bytes, got 5");
+        assert_eq!(out["error"], "return packet: too short: expected at least 32 bytes, got 5");
+        assert_eq!(out["game_controller3"], "drops it: wrong length");
         let out = describe(b"hello", None);
         assert_eq!(out["kind"], "unknown");
         assert_eq!(
@@ -190,5 +228,74 @@ mod tests {
         assert_eq!(out["kind"], "team");
         assert_eq!(out["error"], "129 bytes exceed the 128-byte team message limit");
         assert_eq!(out["hex"].as_array().map(Vec::len), Some(9));
+    }
+
+    fn return_packet() -> Vec<u8> {
+        let data = ReturnData {
+            player_number: 3,
+            team_number: 12,
+            fallen: false,
+            pose: [1.0, 2.0, 0.5],
+            ball_age: ReturnData::BALL_NEVER_SEEN,
+            ball: [0.0, 0.0],
+        };
+        data.encode().expect("valid").to_vec()
+    }
+
+    /// Issue 30: return packets are judged as GameController3 judges them, and a rejection
+    /// says which check of GameController3's fails.
+    #[test]
+    fn return_packets_get_game_controller3s_verdict() {
+        let good = return_packet();
+        let out = describe(&good, None);
+        assert_eq!((out["game_controller3"].as_str(), out.get("notes")), (Some("accepts"), None));
+        assert_eq!(out["packet"]["player_number"], 3);
+
+        let mut fallen = good.clone();
+        fallen[7] = 2;
+        let out = describe(&fallen, None);
+        assert_eq!(out["error"], "return packet: fallen value 2 out of range (valid: 0-1)");
+        assert_eq!(out["game_controller3"], "drops it: invalid fallen");
+
+        let mut nan = good.clone();
+        nan[20..24].copy_from_slice(&f32::NAN.to_le_bytes());
+        let out = describe(&nan, None);
+        assert_eq!(out["error"], "return packet: ball_age is NaN");
+        assert_eq!(out["game_controller3"], "drops it: invalid ball age");
+
+        // What GameController3 accepts although it looks wrong: said so, not rejected.
+        let mut odd = good;
+        odd[8..12].copy_from_slice(&f32::NEG_INFINITY.to_le_bytes());
+        odd.extend([0; 4]);
+        let out = describe(&odd, None);
+        assert_eq!(out["game_controller3"], "accepts");
+        assert_eq!(out.get("error"), None);
+        assert_eq!(
+            out["notes"],
+            json!([
+                "4 bytes past the 32-byte packet: GameController3 ignores them",
+                "pose[0] is -inf (null in JSON)"
+            ])
+        );
+
+        // A control packet on the return port, forced: GameController3's header check.
+        let control = GameControlData::default().encode();
+        let out = describe(&control, Some(Kind::Return));
+        assert_eq!(out["game_controller3"], "drops it: wrong header");
+        // Control packets are not GameController3's to judge.
+        assert_eq!(describe(&control, None).get("game_controller3"), None);
+    }
+
+    /// Issue 30: a control packet with values this version does not know decodes, and shows
+    /// them raw.
+    #[test]
+    fn control_packets_show_unknown_values_raw() {
+        let mut bytes = GameControlData::default().encode();
+        bytes[8] = 9; // competition type
+        bytes[11] = 7; // set play
+        let out = describe(&bytes, None);
+        assert_eq!(out.get("error"), None);
+        assert_eq!(out["packet"]["competition_type"], json!({ "unknown": 9 }));
+        assert_eq!(out["packet"]["set_play"], json!({ "unknown": 7 }));
     }
 }
