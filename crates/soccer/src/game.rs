@@ -321,7 +321,7 @@ mod tests {
         assert!((first - 1000.0 / 5.0 / 600.0).abs() < 1e-9, "{first}");
     }
 
-    /// Issue 30: values the robot does not know in fields it does not act on leave the game
+    /// Values the robot does not know in fields it does not act on leave the game
     /// followed; a state it does not know leaves the last state it understood.
     #[test]
     fn unknown_values_do_not_make_the_robot_deaf() {

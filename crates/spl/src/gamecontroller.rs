@@ -831,7 +831,7 @@ mod tests {
         }
     }
 
-    /// Issue 30: values the robot does not know, in fields it does not act on (or acts on only
+    /// Values the robot does not know, in fields it does not act on (or acts on only
     /// as "not none"), used to make the whole packet undecodable, and the robot deaf.
     #[test]
     fn control_packet_keeps_values_it_does_not_know_and_still_decodes() {
@@ -985,7 +985,7 @@ mod tests {
         assert_eq!(err(&bytes).1, Some("invalid player number"));
     }
 
-    /// Issue 30: what GameController3 accepts and the decoder used to reject.
+    /// What GameController3 accepts and the decoder used to reject.
     #[test]
     fn return_packets_game_controller3_accepts_are_accepted() {
         let good = return_bytes();

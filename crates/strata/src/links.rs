@@ -637,7 +637,7 @@ mod tests {
         Ok(())
     }
 
-    /// Issue 30: a control packet with values the robot does not know in fields it does not
+    /// A control packet with values the robot does not know in fields it does not
     /// act on reaches the robot as sent; one it cannot follow (an unknown state) is dropped and
     /// counted, and the link goes on listening.
     #[test]

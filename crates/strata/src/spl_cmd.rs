@@ -242,7 +242,7 @@ mod tests {
         data.encode().expect("valid").to_vec()
     }
 
-    /// Issue 30: return packets are judged as GameController3 judges them, and a rejection
+    /// Return packets are judged as GameController3 judges them, and a rejection
     /// says which check of GameController3's fails.
     #[test]
     fn return_packets_get_game_controller3s_verdict() {
@@ -286,7 +286,7 @@ mod tests {
         assert_eq!(describe(&control, None).get("game_controller3"), None);
     }
 
-    /// Issue 30: a control packet with values this version does not know decodes, and shows
+    /// A control packet with values this version does not know decodes, and shows
     /// them raw.
     #[test]
     fn control_packets_show_unknown_values_raw() {
