@@ -6,7 +6,7 @@
 use serde::{Deserialize, Serialize};
 use strata_robot::control::planning::{MessageBudget, OwnState, StandingStatus};
 use strata_robot::control::planning_module::Referee;
-use strata_robot::geometry::Pose;
+use strata_robot::geometry::{Field, Point, Pose};
 use strata_robot::world::{PosePrior, SymmetryHint, WorldCommand, WorldState};
 use strata_runtime::Time;
 use strata_spl::gamecontroller::{
@@ -74,6 +74,10 @@ pub struct GameControllerReferee {
     half_duration: f64,
     pending_commands: Vec<WorldCommand>,
     last_status: Option<Time>,
+    /// When the ball was last seen and where on the field: the world model forgets a ball it
+    /// has not seen for a while, but the return packet's ball age is the time since it was
+    /// last seen, whatever the world model still holds.
+    ball_seen: Option<(Time, Point<Field>)>,
     status_interval: f64,
     pub packets: u64,
     pub rejected: u64,
@@ -100,6 +104,7 @@ impl GameControllerReferee {
             half_duration,
             pending_commands: Vec::new(),
             last_status: None,
+            ball_seen: None,
             status_interval: 1.0,
             packets: 0,
             rejected: 0,
@@ -224,12 +229,20 @@ impl Referee for GameControllerReferee {
             return None;
         }
         self.last_status = Some(now);
-        let ball = world.and_then(|w| w.object(BALL)).filter(|b| b.last_seen.is_some());
-        let (ball_age, ball_position) = match (world, ball) {
-            (Some(w), Some(b)) => (
-                b.last_seen.map_or(-1.0, |t| (w.stamp - t).as_secs_f64() as f32),
-                [(b.position.x * 1000.0) as f32, (b.position.y * 1000.0) as f32],
-            ),
+        if let Some(b) = world.and_then(|w| w.object(BALL))
+            && let Some(seen) = b.last_seen
+            && self.ball_seen.is_none_or(|(t, _)| seen >= t)
+        {
+            self.ball_seen = Some((seen, b.field_position));
+        }
+        let (ball_age, ball_position) = match (world, self.ball_seen) {
+            (Some(w), Some((seen, position))) => {
+                let relative = own.pose.to_robot(position);
+                (
+                    (w.stamp - seen).as_secs_f64() as f32,
+                    [(relative.x * 1000.0) as f32, (relative.y * 1000.0) as f32],
+                )
+            }
             _ => (-1.0, [0.0, 0.0]),
         };
         let data = ReturnData {
@@ -292,6 +305,58 @@ mod tests {
         assert!(!r.penalized());
         // Back from a penalty: world modeling is told where the robot was placed.
         assert!(matches!(r.world_commands().as_slice(), [WorldCommand::SetHints { .. }]));
+    }
+
+    /// A robot at (1, 0) facing +x; the ball at field (3, 1), seen at `seen` (None: the
+    /// world model has forgotten it); the state's stamp `at`.
+    fn world(at: f64, seen: Option<f64>) -> WorldState {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let mut model =
+            strata_robot::world::WorldModel::new(crate::world_config::world_config(&field))
+                .expect("valid config");
+        let prior = PosePrior { pose: Pose::new(1.0, 0.0, 0.0), sigma: [0.1, 0.1, 0.05] };
+        model.command(WorldCommand::SetPose { prior }).expect("pose set");
+        let mut world = model.state();
+        world.stamp = Time::from_secs_f64(at);
+        let mut objects = world.objects.to_vec();
+        let ball = objects.iter_mut().find(|o| o.name.as_str() == BALL).expect("a ball");
+        ball.known = seen.is_some();
+        ball.last_seen = seen.map(Time::from_secs_f64);
+        ball.field_position = Point::new(3.0, 1.0);
+        ball.position = world.pose.pose.to_robot(ball.field_position);
+        world.objects = objects.into();
+        world
+    }
+
+    fn ball_of(packet: Option<Vec<u8>>) -> (f32, [f32; 2]) {
+        let data = ReturnData::decode(&packet.expect("a status packet")).expect("valid");
+        (data.ball_age, data.ball)
+    }
+
+    #[test]
+    fn ball_age_is_the_time_since_the_ball_was_seen_after_the_world_forgets_it() {
+        let mut r = referee();
+        r.receive(Time::ZERO, &packet(GameState::Playing, false)).expect("valid");
+        let own = OwnState {
+            id: 2,
+            status: StandingStatus::Stable,
+            penalized: false,
+            localized: true,
+            pose: Pose::new(1.0, 0.0, 0.0),
+            pose_confidence: 1.0,
+            objects: Vec::new(),
+        };
+        // Never seen: -1, as the return packet defines.
+        let (age, _) =
+            ball_of(r.status_packet(Time::from_secs_f64(0.5), &own, Some(&world(0.5, None))));
+        assert_eq!(age, -1.0);
+        let (age, ball) =
+            ball_of(r.status_packet(Time::from_secs_f64(2.0), &own, Some(&world(2.0, Some(1.5)))));
+        assert_eq!((age, ball), (0.5, [2000.0, 1000.0]));
+        // Forgotten by the world model: still the time since it was seen, where it was seen.
+        let (age, ball) =
+            ball_of(r.status_packet(Time::from_secs_f64(6.0), &own, Some(&world(6.0, None))));
+        assert_eq!((age, ball), (4.5, [2000.0, 1000.0]));
     }
 
     #[test]
