@@ -160,3 +160,56 @@ fn team_messages_over_udp_alone_are_for_the_physics_platform() {
         assert!(text.contains(needle), "{args:?}: {text}");
     }
 }
+
+/// The processes whose parent is `parent`, from /proc.
+fn children_of(parent: u32) -> Vec<u32> {
+    let Ok(entries) = std::fs::read_dir("/proc") else { return Vec::new() };
+    entries
+        .filter_map(|e| e.ok()?.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|pid| {
+            std::fs::read_to_string(format!("/proc/{pid}/stat")).ok().is_some_and(|stat| {
+                // The fields after the command name, which is in parentheses: state, ppid, ...
+                let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+                after.split_whitespace().nth(1) == Some(&parent.to_string())
+            })
+        })
+        .collect()
+}
+
+/// Running: neither gone nor a zombie waiting to be reaped.
+fn running(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).ok().is_some_and(|stat| {
+        let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+        after.split_whitespace().next().is_some_and(|state| state != "Z" && state != "X")
+    })
+}
+
+#[test]
+fn sigterm_stops_a_physics_game_with_its_server_and_robots() {
+    if !rcssservermj_installed() {
+        return;
+    }
+    let game = strata(&["match", "--engine", "rcssservermj", "--players", "1", "--half", "60"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("strata starts");
+    // The server and both robots.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let children = loop {
+        let children = children_of(game.id());
+        if children.len() >= 3 || std::time::Instant::now() > deadline {
+            break children;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    };
+    assert!(children.len() >= 3, "the server and two robots started: {children:?}");
+    let pid = nix::unistd::Pid::from_raw(i32::try_from(game.id()).expect("a pid"));
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).expect("SIGTERM sent");
+    let output = game.wait_with_output().expect("strata ends");
+    let text = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "an interrupted game is not a finished one: {text}");
+    assert!(text.contains("interrupted"), "the error says why: {text}");
+    let left: Vec<u32> = children.into_iter().filter(|&c| running(c)).collect();
+    assert!(left.is_empty(), "processes left running: {left:?}");
+}

@@ -174,6 +174,7 @@ struct Side {
 /// Plays a game; `progress` gets the fraction of play done and the score line.
 pub fn play(config: &GameConfig, progress: &mut dyn FnMut(f64, &str)) -> Result<MatchReport> {
     config.validate()?;
+    super::check_interrupt()?;
     let resolve = |arg: &str, which: &str| {
         TeamConfig::resolve(arg).with_context(|| format!("{which} team configuration `{arg}`"))
     };
@@ -410,6 +411,7 @@ impl HalfRun<'_> {
     ) -> Result<()> {
         let deadline = Instant::now() + self.config.join_timeout;
         loop {
+            super::check_interrupt()?;
             if ready() {
                 return Ok(());
             }
@@ -457,6 +459,7 @@ impl HalfRun<'_> {
         let mut nearest = [goal_x; 2];
         loop {
             std::thread::sleep(Duration::from_millis(100));
+            super::check_interrupt()?;
             let truth: MonitorState = server.truth();
             let sim = truth.sim_time.unwrap_or(sim_start);
             if sim > advanced.0 {

@@ -11,8 +11,25 @@ pub mod experiments;
 pub mod game;
 pub mod robot;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
+
 use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
+
+/// Fails once the user pressed Ctrl-C or the process got SIGTERM. Games and experiments in
+/// physics call it in every wait: the error stops them the way any failure does, with their
+/// robots stopped and the server killed, instead of the process dying with its children still
+/// running (a server in sync mode and robots waiting for it). The first call installs the
+/// handler, so each command calls it once as it starts.
+pub fn check_interrupt() -> anyhow::Result<()> {
+    static FLAG: OnceLock<Option<Arc<AtomicBool>>> = OnceLock::new();
+    let flag = FLAG.get_or_init(|| strata_runtime::signal::interrupt_flag().ok());
+    if flag.as_ref().is_some_and(|f| f.load(Ordering::SeqCst)) {
+        anyhow::bail!("interrupted (Ctrl-C or SIGTERM): robots stopped, server ended");
+    }
+    Ok(())
+}
 
 /// Which world a match or an experiment runs in.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]

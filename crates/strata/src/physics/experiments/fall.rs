@@ -295,6 +295,7 @@ struct Session {
 
 impl Session {
     fn start(launches: &[T1Launch], bar: ProgressBar) -> Result<Session> {
+        crate::physics::check_interrupt()?;
         let server = ServerProcess::start(&ServerOptions::default())
             .context("starting rcssservermj for the fall experiment")?;
         let mut robots = Vec::new();
@@ -309,6 +310,7 @@ impl Session {
     /// or the simulation stalled.
     fn next(&mut self) -> Result<MonitorState> {
         loop {
+            crate::physics::check_interrupt()?;
             for robot in &mut self.robots {
                 if let Some(status) = robot.exited() {
                     bail!(
@@ -360,6 +362,7 @@ impl Session {
     /// Like [`Session::next`], but before the robots join the server does not step: the state
     /// as it is.
     fn next_or_idle(&mut self) -> Result<MonitorState> {
+        crate::physics::check_interrupt()?;
         for robot in &mut self.robots {
             if let Some(status) = robot.exited() {
                 bail!(

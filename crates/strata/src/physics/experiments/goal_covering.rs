@@ -230,6 +230,7 @@ fn run_one(
     job: &Job<'_>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Run> {
+    crate::physics::check_interrupt()?;
     let server =
         ServerProcess::start(&ServerOptions::default()).context("starting rcssservermj")?;
     let wall = Instant::now();
@@ -289,6 +290,7 @@ fn wait_for_time(
     let mut last_time = None;
     let mut last_change = Instant::now();
     loop {
+        crate::physics::check_interrupt()?;
         let truth = server.truth();
         if until(&truth) {
             return Ok(truth);

@@ -384,6 +384,7 @@ struct RunInput<'a> {
 /// seconds after the kick-off.
 fn run_once(input: &RunInput<'_>, log: Option<PathBuf>, tick: &dyn Fn(u64)) -> Result<RunResult> {
     let scenario = input.scenario;
+    crate::physics::check_interrupt()?;
     let server =
         ServerProcess::start(&ServerOptions::default()).context("starting rcssservermj")?;
     let team_port = if scenario.team_messages { Some(free_udp_ports::<1>()?[0]) } else { None };
@@ -427,6 +428,7 @@ fn run_once(input: &RunInput<'_>, log: Option<PathBuf>, tick: &dyn Fn(u64)) -> R
     let mut ticked = 0u64;
     loop {
         std::thread::sleep(Duration::from_millis(20));
+        crate::physics::check_interrupt()?;
         for robot in &mut robots {
             if let Some(status) = robot.exited() {
                 bail!(
