@@ -51,7 +51,7 @@ pub use stats::{
     StatsCollector, Summary,
 };
 pub use tap::{Tap, TapOutput, TapRecord, TapSender, Taps};
-pub use threaded::{RunningHost, StopHandle, ThreadedHost};
+pub use threaded::{RunningHost, StatsProbe, StopHandle, ThreadedHost};
 pub use time::{Clock, ManualClock, MonotonicClock, Time};
 
 /// The RNG type modules receive.

@@ -121,6 +121,11 @@ impl ThreadedHost {
             }
             threads.push((module, handle));
         }
+        let probe = StatsProbe {
+            clock: shared.clock,
+            monitors: monitors.into(),
+            wall_start: Instant::now(),
+        };
         Ok(RunningHost {
             shared,
             threads,
@@ -128,8 +133,7 @@ impl ThreadedHost {
             failures: failure_rx,
             stop_rx,
             stop: StopHandle { tx: stop_tx, requested: Arc::new(AtomicBool::new(false)) },
-            monitors,
-            wall_start: Instant::now(),
+            probe,
         })
     }
 }
@@ -190,6 +194,49 @@ struct Monitor {
     stats: Arc<Mutex<StatsCollector>>,
 }
 
+/// Reads a running host's statistics from any thread: a process that reports its rates while
+/// it runs does so from a thread other than the one waiting in [`RunningHost::wait`]. Cheap to
+/// clone; it holds the statistics only, not the modules.
+#[derive(Clone)]
+pub struct StatsProbe {
+    clock: MonotonicClock,
+    monitors: Arc<[Monitor]>,
+    wall_start: Instant,
+}
+
+impl std::fmt::Debug for StatsProbe {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StatsProbe").field("modules", &self.monitors.len()).finish()
+    }
+}
+
+impl StatsProbe {
+    /// A snapshot of every module's statistics (as [`RunningHost::stats`]).
+    pub fn stats(&self) -> HostStats {
+        HostStats {
+            host: HostKind::Threaded,
+            elapsed_s: self.clock.now().as_secs_f64(),
+            wall_s: self.wall_start.elapsed().as_secs_f64(),
+            modules: self
+                .monitors
+                .iter()
+                .map(|m| {
+                    let inputs = m
+                        .inputs
+                        .iter()
+                        .map(|(name, slot)| InputStats {
+                            port: name.clone(),
+                            policy: slot.policy(),
+                            counters: slot.counters(),
+                        })
+                        .collect();
+                    m.stats.lock().unwrap_or_else(|e| e.into_inner()).snapshot(&m.name, inputs)
+                })
+                .collect(),
+        }
+    }
+}
+
 /// A host whose module threads are running.
 pub struct RunningHost {
     shared: Arc<Shared>,
@@ -199,8 +246,7 @@ pub struct RunningHost {
     failures: Receiver<Failure>,
     stop_rx: Receiver<()>,
     stop: StopHandle,
-    monitors: Vec<Monitor>,
-    wall_start: Instant,
+    probe: StatsProbe,
 }
 
 impl std::fmt::Debug for RunningHost {
@@ -222,7 +268,8 @@ impl RunningHost {
     /// The modules that asked for a real-time priority and did not get it, with the reason
     /// (for the caller to warn about: the host runs on, with the default policy).
     pub fn real_time_refusals(&self) -> Vec<(String, String)> {
-        self.monitors
+        self.probe
+            .monitors
             .iter()
             .filter_map(|m| match &m.stats.lock().unwrap_or_else(|e| e.into_inner()).scheduling {
                 Scheduling::RealTimeRefused { reason, .. } => {
@@ -235,27 +282,12 @@ impl RunningHost {
 
     /// A snapshot of every module's statistics, while running.
     pub fn stats(&self) -> HostStats {
-        HostStats {
-            host: HostKind::Threaded,
-            elapsed_s: self.shared.clock.now().as_secs_f64(),
-            wall_s: self.wall_start.elapsed().as_secs_f64(),
-            modules: self
-                .monitors
-                .iter()
-                .map(|m| {
-                    let inputs = m
-                        .inputs
-                        .iter()
-                        .map(|(name, slot)| InputStats {
-                            port: name.clone(),
-                            policy: slot.policy(),
-                            counters: slot.counters(),
-                        })
-                        .collect();
-                    m.stats.lock().unwrap_or_else(|e| e.into_inner()).snapshot(&m.name, inputs)
-                })
-                .collect(),
-        }
+        self.probe.stats()
+    }
+
+    /// Reads the statistics while another thread waits for the host to end.
+    pub fn stats_probe(&self) -> StatsProbe {
+        self.probe.clone()
     }
 
     /// Blocks until the host is asked to stop (stop handle, Ctrl-C) or a module fails, then

@@ -223,6 +223,38 @@ fn a_stop_handle_ends_wait_from_another_thread() {
     assert_eq!(stops.load(Ordering::SeqCst), 1);
 }
 
+/// A probe reads the statistics from another thread while the host's owner waits in `wait`,
+/// as a robot process's monitor does for its status lines.
+#[test]
+fn a_stats_probe_reads_a_host_that_another_thread_waits_for() {
+    let cycles = Arc::new(AtomicU64::new(0));
+    let stops = Arc::new(AtomicUsize::new(0));
+    let mut graph = GraphBuilder::new();
+    {
+        let (cycles, stops) = (Arc::clone(&cycles), Arc::clone(&stops));
+        graph.add("reactive", move |p| {
+            p.trigger(Trigger::every(Duration::from_millis(5)));
+            (Ticker { cycles, stops }, ())
+        });
+    }
+    let host = ThreadedHost::new(graph.build().expect("valid"), HostConfig::default())
+        .start()
+        .expect("starts");
+    let (probe, handle) = (host.stats_probe(), host.stop_handle());
+    let waiter = std::thread::spawn(move || host.wait());
+    let seen = |probe: &strata_runtime::StatsProbe| {
+        probe.stats().module("reactive").map_or(0, |m| m.cycles)
+    };
+    wait_until("cycles seen through the probe", || seen(&probe) >= 3);
+    let before = seen(&probe);
+    wait_until("more cycles", || seen(&probe) > before);
+    handle.stop();
+    let stats = waiter.join().expect("joins").expect("clean stop");
+    assert!(stats.module("reactive").expect("stats").cycles >= seen(&probe));
+    // The probe outlives the host: its last reading is the final one.
+    assert_eq!(seen(&probe), stats.module("reactive").expect("stats").cycles);
+}
+
 #[test]
 fn receiver_ready_messages_drive_a_pull_flow_across_threads() {
     struct OnDemand {

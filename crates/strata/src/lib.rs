@@ -2,6 +2,8 @@
 //! soccer application and the simulator (which the application itself never imports), their
 //! logs, the replay registry and the web viewer.
 
+pub mod chaos;
+pub mod children;
 pub mod experiments;
 pub mod links;
 pub mod logging;

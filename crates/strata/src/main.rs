@@ -15,6 +15,7 @@ use tracing_subscriber::filter::LevelFilter;
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
+mod chaos_cmd;
 mod demo;
 mod experiment_cmd;
 mod log_cmd;
@@ -103,6 +104,9 @@ enum Command {
     /// The paper's experiments (section 4) against baselines: goal-covering, rates, fall,
     /// team, or all. Writes a report with tables and plots, and the raw data.
     Experiment(experiment_cmd::ExperimentArgs),
+    /// A real-time game under faults (kill -9, SIGSTOP, a slow client, a connection flood,
+    /// garbage datagrams, a full log file), measured against its targets (docs/reliability.md).
+    Chaos(chaos_cmd::ChaosArgs),
 }
 
 fn main() -> ExitCode {
@@ -151,6 +155,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Server(args) => sim_cmd::run_server(args),
         Command::Robot(args) => robot_cmd::run(args),
         Command::Experiment(args) => experiment_cmd::run(args),
+        Command::Chaos(args) => chaos_cmd::run(args),
         Command::View(args) => view_cmd::run(args),
         Command::Replay(args) => replay_cmd::run(args, &strata::replay_registry::soccer()),
     }

@@ -458,6 +458,12 @@ pub fn run(args: RobotArgs) -> Result<()> {
     }
     running.stop_on_interrupt().context("installing the Ctrl-C handler")?;
     let stop = running.stop_handle();
+    let probe = running.stats_probe();
+    let layer_modules: Vec<(String, String)> = modules
+        .layers()
+        .iter()
+        .map(|(layer, module)| ((*layer).to_owned(), (*module).to_owned()))
+        .collect();
     let started = Instant::now();
     // The host's `wait` returns when asked to stop or when a module fails; a monitor thread
     // reports progress meanwhile and asks to stop at the end of `--duration` or when the
@@ -477,6 +483,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
             .name("robot-monitor".to_owned())
             .spawn(move || {
                 let mut last_status = Instant::now();
+                let mut rates = LayerMeter::new(layer_modules);
                 let mut log_failed = false;
                 while !done.load(Ordering::Relaxed) {
                     std::thread::sleep(Duration::from_millis(20));
@@ -501,6 +508,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
                             &team_counters,
                             &gc_counters,
                             accuracy.as_deref().and_then(Accuracy::snapshot),
+                            rates.read(&probe.stats()),
                         ));
                     }
                     let reason = if duration.is_some_and(|d| elapsed >= d) {
@@ -1260,6 +1268,12 @@ struct Status {
     messages_sent: u64,
     messages_received: u64,
     gc_packets: u64,
+    /// The teammates the planning layer counts on now (heard lately, standing, localized, not
+    /// penalized): one missing from here is one whose role the others take over.
+    available_teammates: Vec<u8>,
+    /// The three layers of hybrid control since the previous status line: a program watching
+    /// the robot sees its rates change while it runs, not only in the final report.
+    layers: Vec<LayerNow>,
     /// The newest self-localization against the ground truth (platforms that have one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pose: Option<PoseStatus>,
@@ -1267,6 +1281,54 @@ struct Status {
     /// compare with the server's ball.
     #[serde(skip_serializing_if = "Option::is_none")]
     ball: Option<BallStatus>,
+}
+
+/// One layer in a status line.
+#[derive(Debug, Serialize)]
+struct LayerNow {
+    layer: String,
+    /// Cycles since the robot started.
+    cycles: u64,
+    /// Cycles per second since the previous status line.
+    hz: f64,
+}
+
+/// Turns the host's cumulative cycle counts into each layer's rate between status lines.
+struct LayerMeter {
+    /// (layer, module) of the three layers.
+    layers: Vec<(String, String)>,
+    /// The host's elapsed time and each layer's cycles at the previous reading.
+    last: Option<(f64, Vec<u64>)>,
+}
+
+impl LayerMeter {
+    fn new(layers: Vec<(String, String)>) -> LayerMeter {
+        LayerMeter { layers, last: None }
+    }
+
+    fn read(&mut self, stats: &HostStats) -> Vec<LayerNow> {
+        let cycles: Vec<u64> = self
+            .layers
+            .iter()
+            .map(|(_, module)| stats.module(module).map_or(0, |m| m.cycles))
+            .collect();
+        let (since, before) = match &self.last {
+            Some((t, before)) => (stats.elapsed_s - t, before.clone()),
+            None => (stats.elapsed_s, vec![0; cycles.len()]),
+        };
+        let now = self
+            .layers
+            .iter()
+            .zip(cycles.iter().zip(before))
+            .map(|((layer, _), (&n, b))| LayerNow {
+                layer: layer.clone(),
+                cycles: n,
+                hz: if since > 0.0 { n.saturating_sub(b) as f64 / since } else { 0.0 },
+            })
+            .collect();
+        self.last = Some((stats.elapsed_s, cycles));
+        now
+    }
 }
 
 /// Whether the world model knows where the ball is, and where it puts it (team frame, m).
@@ -1296,6 +1358,7 @@ impl Status {
         team: &LinkCounters,
         gc: &LinkCounters,
         accuracy: Option<LocalizationAccuracy>,
+        layers: Vec<LayerNow>,
     ) -> Status {
         let decision = watch.latest();
         let connected = decision.as_ref().filter(|d| d.directive.connected);
@@ -1312,6 +1375,10 @@ impl Status {
             messages_sent: team.snapshot().sent,
             messages_received: planning.received,
             gc_packets: gc.snapshot().received,
+            available_teammates: decision.as_ref().map_or_else(Vec::new, |d| {
+                d.teammates.iter().filter(|t| t.available).map(|t| t.player).collect()
+            }),
+            layers,
             pose: accuracy.map(|a| PoseStatus {
                 estimate: [a.estimate[0], a.estimate[1], a.last_headings_deg[0]],
                 truth: [a.truth[0], a.truth[1], a.last_headings_deg[1]],

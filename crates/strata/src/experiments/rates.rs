@@ -11,7 +11,7 @@
 
 use std::io::{BufRead as _, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -26,6 +26,8 @@ use strata_sim::net::{Server, ServerOptions};
 use strata_sim::{GameState, NoiseLevel, RobotId, SimConfig, SimHandle, Simulation};
 use strata_soccer::field::TeamField;
 use strata_soccer::team::TeamConfig;
+
+use crate::children::Child;
 
 use super::plot::Bars;
 use super::report::{Markdown, num, verdict, write_csv};
@@ -269,15 +271,16 @@ fn sim_config(scenario: &Scenario, seed: u64) -> Result<SimConfig> {
 }
 
 /// Keeps the game going: the ball goes to a new random place now and then, and when it leaves
-/// the field or enters a goal, so the striker keeps walking and kicking.
-struct BallKeeper {
+/// the field or enters a goal, so the striker keeps walking and kicking (the chaos run's game
+/// too).
+pub(crate) struct BallKeeper {
     rng: ChaCha8Rng,
     last: Instant,
     period: Duration,
 }
 
 impl BallKeeper {
-    fn new(seed: u64, period: f64) -> BallKeeper {
+    pub(crate) fn new(seed: u64, period: f64) -> BallKeeper {
         BallKeeper {
             rng: ChaCha8Rng::seed_from_u64(seed ^ 0x7261_7465),
             last: Instant::now(),
@@ -285,7 +288,7 @@ impl BallKeeper {
         }
     }
 
-    fn tend(&mut self, sim: &SimHandle) -> Result<()> {
+    pub(crate) fn tend(&mut self, sim: &SimHandle) -> Result<()> {
         let mut sim = sim.lock();
         let (hl, hw) = (sim.field().half_length(), sim.field().half_width());
         let ball = sim.ball().position;
@@ -357,36 +360,6 @@ pub(crate) fn figures(stats: &HostStats, modules: &RobotModules) -> Vec<(String,
         .collect()
 }
 
-/// A robot process; killed if dropped while running. Its output is read as it comes, so a
-/// full pipe never blocks it.
-struct RobotProcess {
-    child: Child,
-    player: u8,
-    stdout: Option<std::thread::JoinHandle<String>>,
-    stderr: Option<std::thread::JoinHandle<String>>,
-}
-
-fn drain(
-    pipe: Option<impl std::io::Read + Send + 'static>,
-) -> Option<std::thread::JoinHandle<String>> {
-    pipe.map(|mut pipe| {
-        std::thread::spawn(move || {
-            let mut text = String::new();
-            let _ = pipe.read_to_string(&mut text);
-            text
-        })
-    })
-}
-
-impl Drop for RobotProcess {
-    fn drop(&mut self) {
-        if matches!(self.child.try_wait(), Ok(None)) {
-            let _ = self.child.kill();
-            let _ = self.child.wait();
-        }
-    }
-}
-
 fn run_tcp(
     scenario: &Scenario,
     ctx_dir: &Path,
@@ -416,7 +389,8 @@ fn run_tcp(
 
     let mut processes = Vec::new();
     for robot in &scenario.robots {
-        let child = Command::new(exe)
+        let mut command = Command::new(exe);
+        command
             .args(["robot", "--platform", "sim", "--server", &addr])
             .args(["--team", &team_number.to_string(), "--player", &robot.player.to_string()])
             .arg("--team-config")
@@ -426,15 +400,9 @@ fn run_tcp(
             .args(["--gc-wait", "0", "--json", "--status-interval", "3600"])
             .args(["--duration", &scenario.duration.to_string()])
             .args(["--seed", &(seed * 10 + u64::from(robot.player)).to_string()])
-            .args(["--real-time-priority", &scenario.real_time_priority.to_string()])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .with_context(|| format!("starting `{} robot`", exe.display()))?;
-        let mut child = child;
-        let (stdout, stderr) = (drain(child.stdout.take()), drain(child.stderr.take()));
-        processes.push(RobotProcess { child, player: robot.player, stdout, stderr });
+            .args(["--real-time-priority", &scenario.real_time_priority.to_string()]);
+        let name = format!("`{} robot` (player {})", exe.display(), robot.player);
+        processes.push((robot.player, Child::spawn(&name, &mut command)?));
     }
     // Place each robot where its role starts once its process has joined the world.
     let mut placed = vec![false; scenario.robots.len()];
@@ -461,8 +429,8 @@ fn run_tcp(
             ticked = whole;
         }
         let mut running = 0;
-        for p in &mut processes {
-            if p.child.try_wait().context("waiting for a robot process")?.is_none() {
+        for (_, p) in &mut processes {
+            if p.try_wait()?.is_none() {
                 running += 1;
             }
         }
@@ -476,10 +444,9 @@ fn run_tcp(
     let _ = server.stop();
     let mut out = Vec::new();
     let mut scheduling = Vec::new();
-    for mut p in processes {
-        let status = p.child.wait().context("waiting for a robot process")?;
-        let stdout = p.stdout.take().and_then(|h| h.join().ok()).unwrap_or_default();
-        let stderr = p.stderr.take().and_then(|h| h.join().ok()).unwrap_or_default();
+    for (player, mut p) in processes {
+        let status = p.wait()?;
+        let (stdout, stderr) = (p.stdout(), p.stderr());
         let report = BufReader::new(stdout.as_bytes())
             .lines()
             .map_while(Result::ok)
@@ -487,8 +454,7 @@ fn run_tcp(
             .find(|v| v.get("type").and_then(|t| t.as_str()) == Some("report"));
         let Some(report) = report else {
             bail!(
-                "robot {} ({status}) printed no report; its stderr ends with: {}",
-                p.player,
+                "robot {player} ({status}) printed no report; its stderr ends with: {}",
                 stderr
                     .lines()
                     .rev()
@@ -502,8 +468,8 @@ fn run_tcp(
         };
         let host: HostStats =
             serde_json::from_value(report.get("host").cloned().unwrap_or_default())
-                .with_context(|| format!("robot {}: reading its host statistics", p.player))?;
-        let prefix = format!("t{}/{}", team_number, p.player);
+                .with_context(|| format!("robot {player}: reading its host statistics"))?;
+        let prefix = format!("t{team_number}/{player}");
         out.push(figures(&host, &RobotModules::new(&prefix)));
         scheduling.push(scheduling_note(&host, &RobotModules::new(&prefix)));
     }
