@@ -13,6 +13,7 @@
 
 use std::io;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr, UdpSocket};
+use std::time::Duration;
 
 use socket2::{Domain, Protocol, Socket, Type};
 use thiserror::Error;
@@ -96,13 +97,32 @@ fn bind_nonblocking(addr: SocketAddr) -> Result<UdpSocket, NetError> {
     Ok(socket)
 }
 
-/// Receives one datagram without blocking: `None` when none is waiting.
+/// Receives one datagram, waiting as the socket is set to: `None` when none came.
 fn receive_raw(socket: &UdpSocket) -> Result<Option<(Vec<u8>, SocketAddr)>, NetError> {
     let mut buffer = [0u8; RECEIVE_BUFFER];
     match socket.recv_from(&mut buffer) {
         Ok((size, from)) => Ok(Some((buffer[..size].to_vec(), from))),
-        Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(None),
+        // A read timeout shows as either, depending on the platform.
+        Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+            Ok(None)
+        }
         Err(e) => Err(NetError::Receive(e)),
+    }
+}
+
+/// `None`: calls return at once (the sockets' default). `Some(wait)`: a receive waits up to
+/// `wait` for a datagram and a send up to `wait` for room, for a thread of its own that
+/// drains the socket without spinning.
+fn set_wait(socket: &UdpSocket, wait: Option<Duration>) -> io::Result<()> {
+    match wait {
+        None => socket.set_nonblocking(true),
+        Some(wait) => {
+            // A zero timeout would mean "wait forever" to the OS.
+            let wait = wait.max(Duration::from_millis(1));
+            socket.set_read_timeout(Some(wait))?;
+            socket.set_write_timeout(Some(wait))?;
+            socket.set_nonblocking(false)
+        }
     }
 }
 
@@ -127,6 +147,11 @@ impl GameControllerSocket {
     /// The bound address (the actual port when bound to 0).
     pub fn local_addr(&self) -> io::Result<SocketAddr> {
         self.socket.local_addr()
+    }
+
+    /// How long `receive` and sends wait (see [`TeamSocket::set_wait`]).
+    pub fn set_wait(&self, wait: Option<Duration>) -> io::Result<()> {
+        set_wait(&self.socket, wait)
     }
 
     /// One control packet, if one is waiting. Call until `Ok(None)` to drain the queue; a
@@ -184,6 +209,12 @@ impl TeamSocket {
     /// Where `send` sends.
     pub fn destinations(&self) -> &[SocketAddr] {
         &self.destinations
+    }
+
+    /// How long `receive` and `send` wait: `None` (the default) returns at once; `Some(wait)`
+    /// waits up to `wait`, for a thread of its own that drains the socket without spinning.
+    pub fn set_wait(&self, wait: Option<Duration>) -> io::Result<()> {
+        set_wait(&self.socket, wait)
     }
 
     /// Sends one team message to every destination. The socket does not count messages: the

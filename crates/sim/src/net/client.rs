@@ -124,10 +124,13 @@ impl Connection {
                 ),
                 _ => format!("cannot send to the simulator: {e}"),
             };
+            // Recorded before the shutdown, which the reader thread would otherwise report
+            // first as the simulator closing the connection.
+            let reason = self.inbox().closed.get_or_insert(reason).clone();
             // Part of a frame may have gone out: nothing more can be sent on this stream. Closing
             // it ends the reader thread, and the server removes the robot.
             let _ = writer.shutdown(Shutdown::Both);
-            self.inbox().closed.get_or_insert(reason).clone()
+            reason
         })
     }
 }

@@ -274,7 +274,8 @@ fn phase_figures(game: &Game, windows: &[Window]) -> Vec<Phase> {
 
 /// What the robots counted of the garbage, from their final reports: the target's
 /// GameController link (rejected and ignored), and for the team port every robot of the
-/// team (datagrams over 128 bytes rejected by the link, the rest by the message decoder).
+/// team (datagrams over 128 bytes rejected by the link, the rest by the message decoder, or
+/// dropped by the link's queue had more than it holds arrived between two planning cycles).
 fn count_garbage(game: &Game, garbage: &mut Garbage) {
     let number = |report: &serde_json::Value, path: &[&str]| {
         path.iter().try_fold(report, |v, key| v.get(key)).and_then(|v| v.as_u64()).unwrap_or(0)
@@ -289,6 +290,7 @@ fn count_garbage(game: &Game, garbage: &mut Garbage) {
                         + number(report, &["game_controller_link", "ignored"]);
                 } else if port.port_kind == "team" && robot.key.team == target.team {
                     counted += number(report, &["team_link", "rejected"])
+                        + number(report, &["team_link", "dropped"])
                         + number(report, &["planning", "rejected"]);
                 }
             }

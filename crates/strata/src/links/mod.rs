@@ -27,12 +27,16 @@ use strata_spl::net::{
 };
 use strata_spl::{GameControllerSocket, TeamSocket};
 
-/// Datagrams one `receive` call reads at most, whatever becomes of them (handed over, or dropped
-/// as garbage, oversized or another game's): a flood on the port (a misconfigured robot, a
-/// replayed capture, an attacker) must not keep the planning layer in one cycle forever. What
-/// is left waits for the next cycle in the kernel's buffer, which drops the excess of a flood
-/// that outlasts it. The default of both links; `set_receive_limit` changes it.
-pub const MAX_PACKETS_PER_RECEIVE: usize = 256;
+mod receiver;
+
+use receiver::{READ_WAIT, Read, Receiver};
+
+/// Packets a link keeps for the robot between two planning cycles, at most (the default of
+/// both links; `set_queue_capacity` changes it). Each link's socket is drained by a thread of
+/// its own, which drops garbage and other games' packets as they come (`receiver`), so only
+/// packets the link cannot tell from real ones fill this queue: at the 10 Hz planning cycle,
+/// more than 10,000 of them a second. Beyond it the oldest go (counted as `dropped`).
+pub const RECEIVE_QUEUE_CAPACITY: usize = 1024;
 
 /// Counters of one link, shared between the link (inside the planning module's thread) and
 /// whoever reports on it.
@@ -43,6 +47,7 @@ pub struct LinkCounters {
     rejected: AtomicU64,
     ignored: AtomicU64,
     errors: AtomicU64,
+    dropped: AtomicU64,
     largest_sent: AtomicU64,
     largest_received: AtomicU64,
 }
@@ -70,6 +75,10 @@ impl LinkCounters {
         self.errors.fetch_add(1, Ordering::Relaxed);
     }
 
+    fn dropped(&self) {
+        self.dropped.fetch_add(1, Ordering::Relaxed);
+    }
+
     pub fn snapshot(&self) -> LinkStats {
         LinkStats {
             sent: self.sent.load(Ordering::Relaxed),
@@ -77,6 +86,7 @@ impl LinkCounters {
             rejected: self.rejected.load(Ordering::Relaxed),
             ignored: self.ignored.load(Ordering::Relaxed),
             errors: self.errors.load(Ordering::Relaxed),
+            dropped: self.dropped.load(Ordering::Relaxed),
             largest_sent: self.largest_sent.load(Ordering::Relaxed),
             largest_received: self.largest_received.load(Ordering::Relaxed),
         }
@@ -96,6 +106,10 @@ pub struct LinkStats {
     pub ignored: u64,
     /// Send or receive failures of the socket.
     pub errors: u64,
+    /// Packets for the robot dropped unread because more than the link's queue holds arrived
+    /// between two planning cycles (the oldest go first).
+    #[serde(default)]
+    pub dropped: u64,
     /// Size of the largest datagram sent / received, bytes.
     pub largest_sent: u64,
     pub largest_received: u64,
@@ -169,9 +183,9 @@ pub fn directed_broadcast(interface: &str) -> Result<Ipv4Addr, String> {
 /// The team radio over SPL team-message broadcasts.
 #[derive(Debug)]
 pub struct UdpTeamLink {
-    socket: TeamSocket,
+    socket: Arc<TeamSocket>,
+    receiver: Receiver<Vec<u8>>,
     counters: Arc<LinkCounters>,
-    receive_limit: usize,
 }
 
 impl UdpTeamLink {
@@ -180,17 +194,37 @@ impl UdpTeamLink {
     pub fn bind(port: u16, broadcast: Ipv4Addr) -> Result<UdpTeamLink, NetError> {
         let any = SocketAddr::new(IpAddr::V4(Ipv4Addr::UNSPECIFIED), port);
         let socket = TeamSocket::bind(any, vec![SocketAddr::new(IpAddr::V4(broadcast), port)])?;
-        Ok(UdpTeamLink { socket, counters: Arc::default(), receive_limit: MAX_PACKETS_PER_RECEIVE })
+        socket.set_wait(Some(READ_WAIT)).map_err(NetError::Receive)?;
+        let socket = Arc::new(socket);
+        let counters = Arc::<LinkCounters>::default();
+        let reading = Arc::clone(&socket);
+        let receiver = Receiver::spawn(
+            format!("team-link-{port}"),
+            RECEIVE_QUEUE_CAPACITY,
+            Arc::clone(&counters),
+            move || match reading.receive() {
+                Ok(Some(received)) => Read::Packet(received.data),
+                Ok(None) => Read::Nothing,
+                // Another robot's oversized message costs that message only.
+                Err(NetError::TooLarge { size, from }) => {
+                    tracing::debug!(size, ?from, "oversized team message dropped");
+                    Read::Rejected
+                }
+                Err(error) => Read::Failed(error.to_string()),
+            },
+        )
+        .map_err(NetError::Receive)?;
+        Ok(UdpTeamLink { socket, receiver, counters })
     }
 
-    /// Datagrams one `receive` reads at most ([`MAX_PACKETS_PER_RECEIVE`] by default).
-    pub fn receive_limit(&self) -> usize {
-        self.receive_limit
+    /// Messages kept between two receives at most ([`RECEIVE_QUEUE_CAPACITY`] by default).
+    pub fn queue_capacity(&self) -> usize {
+        self.receiver.capacity()
     }
 
-    /// Sets how many datagrams one `receive` reads at most (at least one).
-    pub fn set_receive_limit(&mut self, limit: usize) {
-        self.receive_limit = limit.max(1);
+    /// Sets how many messages are kept between two receives at most (at least one).
+    pub fn set_queue_capacity(&mut self, capacity: usize) {
+        self.receiver.set_capacity(capacity);
     }
 
     pub fn counters(&self) -> Arc<LinkCounters> {
@@ -226,33 +260,14 @@ impl TeamLink for UdpTeamLink {
     }
 
     fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
-        let mut packets = Vec::new();
-        // Counts datagrams read, not packets kept: a flood of rejected ones must end the call
-        // as surely as a flood of good ones.
-        for _ in 0..self.receive_limit {
-            match self.socket.receive() {
-                Ok(Some(received)) => {
-                    self.counters.received(received.data.len());
-                    packets.push(ReceivedPacket { received: now, bytes: received.data });
-                }
-                Ok(None) => break,
-                // Another robot's oversized message costs that message only.
-                Err(NetError::TooLarge { size, from }) => {
-                    self.counters.rejected();
-                    tracing::debug!(size, ?from, "oversized team message dropped");
-                }
-                Err(error) => {
-                    self.counters.error();
-                    if packets.is_empty() {
-                        return Err(LinkError::Io(error.to_string()));
-                    }
-                    // Hand over what arrived; the error shows again on the next call if it
-                    // persists.
-                    break;
-                }
-            }
-        }
-        Ok(packets)
+        let messages = self.receiver.take().map_err(LinkError::Io)?;
+        Ok(messages
+            .into_iter()
+            .map(|bytes| {
+                self.counters.received(bytes.len());
+                ReceivedPacket { received: now, bytes }
+            })
+            .collect())
     }
 }
 
@@ -260,14 +275,14 @@ impl TeamLink for UdpTeamLink {
 /// control packets come from.
 #[derive(Debug)]
 pub struct UdpGameControllerLink {
-    socket: GameControllerSocket,
-    team_number: u8,
+    socket: Arc<GameControllerSocket>,
+    /// The canonical encoding of each control packet for this team, and its sender.
+    receiver: Receiver<(Vec<u8>, IpAddr)>,
     return_port: u16,
     /// The GameController's address, learned from the newest valid control packet (a field
     /// may switch to a backup GameController during a game).
     game_controller: Option<IpAddr>,
     counters: Arc<LinkCounters>,
-    receive_limit: usize,
 }
 
 impl UdpGameControllerLink {
@@ -280,24 +295,46 @@ impl UdpGameControllerLink {
     ) -> Result<UdpGameControllerLink, NetError> {
         let socket =
             GameControllerSocket::bind(SocketAddr::new(IpAddr::V4(Ipv4Addr::UNSPECIFIED), port))?;
-        Ok(UdpGameControllerLink {
-            socket,
-            team_number,
-            return_port,
-            game_controller: None,
-            counters: Arc::default(),
-            receive_limit: MAX_PACKETS_PER_RECEIVE,
-        })
+        socket.set_wait(Some(READ_WAIT)).map_err(NetError::Receive)?;
+        let socket = Arc::new(socket);
+        let counters = Arc::<LinkCounters>::default();
+        let reading = Arc::clone(&socket);
+        let receiver = Receiver::spawn(
+            format!("gc-link-{port}"),
+            RECEIVE_QUEUE_CAPACITY,
+            Arc::clone(&counters),
+            move || match reading.receive() {
+                // Another field's GameController on a shared network: neither its game nor
+                // its address are ours.
+                Ok(Some(received)) if received.data.team(team_number).is_none() => Read::Ignored,
+                // The socket validated the packet; its canonical encoding is what the referee
+                // decodes (the same bytes, for a valid packet).
+                Ok(Some(received)) => {
+                    Read::Packet((received.data.encode().to_vec(), received.from.ip()))
+                }
+                Ok(None) => Read::Nothing,
+                // Anything else on the port (another version's packets, garbage) is skipped:
+                // the robot keeps the game state it has.
+                Err(NetError::Decode { from, source }) => {
+                    tracing::debug!(%from, %source, "datagram on the GameController port dropped");
+                    Read::Rejected
+                }
+                Err(error) => Read::Failed(error.to_string()),
+            },
+        )
+        .map_err(NetError::Receive)?;
+        Ok(UdpGameControllerLink { socket, receiver, return_port, game_controller: None, counters })
     }
 
-    /// Datagrams one `receive` reads at most ([`MAX_PACKETS_PER_RECEIVE`] by default).
-    pub fn receive_limit(&self) -> usize {
-        self.receive_limit
+    /// Control packets kept between two receives at most ([`RECEIVE_QUEUE_CAPACITY`] by
+    /// default).
+    pub fn queue_capacity(&self) -> usize {
+        self.receiver.capacity()
     }
 
-    /// Sets how many datagrams one `receive` reads at most (at least one).
-    pub fn set_receive_limit(&mut self, limit: usize) {
-        self.receive_limit = limit.max(1);
+    /// Sets how many control packets are kept between two receives at most (at least one).
+    pub fn set_queue_capacity(&mut self, capacity: usize) {
+        self.receiver.set_capacity(capacity);
     }
 
     pub fn counters(&self) -> Arc<LinkCounters> {
@@ -316,40 +353,15 @@ impl UdpGameControllerLink {
 
 impl ExternalLink for UdpGameControllerLink {
     fn receive(&mut self, now: Time) -> Result<Vec<ReceivedPacket>, LinkError> {
-        let mut packets = Vec::new();
-        // Every datagram read counts, whatever its fate (see the team link).
-        for _ in 0..self.receive_limit {
-            match self.socket.receive() {
-                // Another field's GameController on a shared network: neither its game nor
-                // its address are ours.
-                Ok(Some(received)) if received.data.team(self.team_number).is_none() => {
-                    self.counters.ignored();
-                }
-                Ok(Some(received)) => {
-                    self.game_controller = Some(received.from.ip());
-                    // The socket validated the packet; its canonical encoding is what the
-                    // referee decodes (the same bytes, for a valid packet).
-                    let bytes = received.data.encode().to_vec();
-                    self.counters.received(bytes.len());
-                    packets.push(ReceivedPacket { received: now, bytes });
-                }
-                Ok(None) => break,
-                // Anything else on the port (another version's packets, garbage) is skipped:
-                // the robot keeps the game state it has.
-                Err(NetError::Decode { from, source }) => {
-                    self.counters.rejected();
-                    tracing::debug!(%from, %source, "datagram on the GameController port dropped");
-                }
-                Err(error) => {
-                    self.counters.error();
-                    if packets.is_empty() {
-                        return Err(LinkError::Io(error.to_string()));
-                    }
-                    break;
-                }
-            }
-        }
-        Ok(packets)
+        let packets = self.receiver.take().map_err(LinkError::Io)?;
+        Ok(packets
+            .into_iter()
+            .map(|(bytes, from)| {
+                self.game_controller = Some(from);
+                self.counters.received(bytes.len());
+                ReceivedPacket { received: now, bytes }
+            })
+            .collect())
     }
 
     fn send(&mut self, _now: Time, payload: &[u8]) -> Result<(), LinkError> {
@@ -685,52 +697,85 @@ mod tests {
         Ok(())
     }
 
-    /// Sends `count` datagrams of `payload` to `port` on loopback.
-    fn flood(port: u16, payload: &[u8], count: usize) -> Result<(), String> {
+    /// Sends `count` datagrams of `payload` to `port` on loopback, in steps the link's thread
+    /// keeps up with (`read` counts what it has read), so the kernel drops none.
+    fn flood(port: u16, payload: &[u8], count: u64, read: impl Fn() -> u64) -> Result<(), String> {
         let raw = std::net::UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).map_err(|e| e.to_string())?;
-        for _ in 0..count {
+        let start = read();
+        for sent in 1..=count {
             raw.send_to(payload, (Ipv4Addr::LOCALHOST, port)).map_err(|e| e.to_string())?;
+            if sent % 64 == 0 || sent == count {
+                until("the link to read the flood", || (read() >= start + sent).then_some(()))?;
+            }
         }
         Ok(())
     }
 
+    /// The robot does not read between its planning cycles: thousands of datagrams that are
+    /// no packet of its game arriving meanwhile must not cost it one that is.
     #[test]
-    fn a_flood_of_garbage_on_the_game_controller_port_is_read_a_capped_batch_per_receive()
-    -> Result<(), String> {
+    fn a_flood_of_garbage_between_two_receives_costs_no_control_packet() -> Result<(), String> {
         let port = free_udp_port()?;
         let mut robot = UdpGameControllerLink::bind(7, port, 0).map_err(|e| e.to_string())?;
-        assert_eq!(robot.receive_limit(), MAX_PACKETS_PER_RECEIVE);
-        robot.set_receive_limit(8);
-        // Garbage and another game's valid packets: neither is handed over, both count.
-        flood(port, b"RGme, but not really", 12)?;
-        flood(port, &GameControlData::default().encode(), 8)?;
-        // Loopback queues a datagram before `send_to` returns: all 20 wait in the buffer.
-        assert_eq!(robot.receive(now()), Ok(Vec::new()));
+        assert_eq!(robot.queue_capacity(), RECEIVE_QUEUE_CAPACITY);
+        let counters = robot.counters();
+        let read = || {
+            let stats = counters.snapshot();
+            stats.rejected + stats.ignored
+        };
+        let gc = std::net::UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).map_err(|e| e.to_string())?;
+        let mut ours = GameControlData { state: GameState::Playing, ..Default::default() };
+        ours.teams[0].team_number = 7;
+        for round in 0..5u8 {
+            // Garbage and another game's valid packets, then one of ours.
+            flood(port, b"RGme, but not really", 400, read)?;
+            flood(port, &GameControlData::default().encode(), 400, read)?;
+            ours.packet_number = round;
+            gc.send_to(&ours.encode(), (Ipv4Addr::LOCALHOST, port)).map_err(|e| e.to_string())?;
+        }
+        let mut packets = Vec::new();
+        until("our five control packets", || {
+            packets.extend(robot.receive(now()).unwrap_or_default());
+            (packets.len() >= 5).then_some(())
+        })?;
+        let numbers: Vec<u8> = packets
+            .iter()
+            .filter_map(|p| GameControlData::decode(&p.bytes).ok())
+            .map(|d| d.packet_number)
+            .collect();
+        assert_eq!(numbers, [0, 1, 2, 3, 4]);
         let stats = robot.counters().snapshot();
-        assert_eq!(stats.rejected + stats.ignored, 8, "one receive reads at most the cap");
-        assert_eq!(robot.receive(now()), Ok(Vec::new()));
-        assert_eq!(robot.receive(now()), Ok(Vec::new()));
-        let stats = robot.counters().snapshot();
-        assert_eq!((stats.rejected, stats.ignored, stats.received), (12, 8, 0));
+        assert_eq!(
+            (stats.rejected, stats.ignored, stats.received, stats.dropped),
+            (2000, 2000, 5, 0)
+        );
         Ok(())
     }
 
+    /// Only messages the link cannot tell from real ones fill its queue; past its capacity the
+    /// oldest go, counted, and the newest are handed over.
     #[test]
-    fn a_flood_of_oversized_team_messages_is_read_a_capped_batch_per_receive() -> Result<(), String>
-    {
+    fn a_full_team_queue_keeps_the_newest_messages() -> Result<(), String> {
         let port = free_udp_port()?;
         let mut link = UdpTeamLink::bind(port, LOOPBACK_BROADCAST).map_err(|e| e.to_string())?;
-        assert_eq!(link.receive_limit(), MAX_PACKETS_PER_RECEIVE);
-        link.set_receive_limit(5);
-        flood(port, &[7; MAX_TEAM_MESSAGE_SIZE + 1], 12)?;
-        assert_eq!(link.receive(now()), Ok(Vec::new()));
-        assert_eq!(link.counters().snapshot().rejected, 5, "one receive reads at most the cap");
-        // Valid messages behind the flood arrive in later cycles.
-        flood(port, b"ours", 1)?;
-        assert_eq!(link.receive(now()), Ok(Vec::new()));
+        assert_eq!(link.queue_capacity(), RECEIVE_QUEUE_CAPACITY);
+        link.set_queue_capacity(4);
+        let counters = link.counters();
+        let read = || {
+            let stats = counters.snapshot();
+            stats.rejected + stats.dropped
+        };
+        flood(port, &[7; MAX_TEAM_MESSAGE_SIZE + 1], 500, read)?;
+        let raw = std::net::UdpSocket::bind((Ipv4Addr::LOCALHOST, 0)).map_err(|e| e.to_string())?;
+        for n in 0..10u8 {
+            raw.send_to(&[n], (Ipv4Addr::LOCALHOST, port)).map_err(|e| e.to_string())?;
+        }
+        until("six messages dropped", || (counters.snapshot().dropped == 6).then_some(()))?;
         let packets = link.receive(now()).map_err(|e| e.to_string())?;
-        assert_eq!(packets.iter().map(|p| p.bytes.as_slice()).collect::<Vec<_>>(), [b"ours"]);
-        assert_eq!(link.counters().snapshot().rejected, 12);
+        let bytes: Vec<&[u8]> = packets.iter().map(|p| p.bytes.as_slice()).collect();
+        assert_eq!(bytes, [[6u8].as_slice(), &[7], &[8], &[9]]);
+        let stats = link.counters().snapshot();
+        assert_eq!((stats.rejected, stats.dropped, stats.received), (500, 6, 4));
         Ok(())
     }
 
