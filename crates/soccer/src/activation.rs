@@ -252,10 +252,14 @@ fn head_primitives<'a>(
             &[names::SEARCH_OBJECT_ELLIPSE]
         }
         _ => {
-            // Tracking needs a position worth pointing at: a known object, or a landmark
-            // predicted from a pose that is not lost.
-            let trackable =
-                objects().iter().any(|o| o.known || (o.map_position.is_some() && !world.pose.lost));
+            // Tracking needs a position worth pointing at: a tracked object, or a landmark
+            // predicted from a pose that is not lost. A track not yet confident enough to be
+            // known counts: seen once at the edge of a search (a far ball, a few frames), it
+            // is confirmed by looking at it, or dropped when looking shows nothing, where the
+            // search would sweep past it and let it fade.
+            let trackable = objects()
+                .iter()
+                .any(|o| o.tracked || (o.map_position.is_some() && !world.pose.lost));
             if trackable {
                 &[names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
             } else {
