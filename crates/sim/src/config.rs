@@ -420,6 +420,10 @@ pub struct RefereeConfig {
     pub kick_off_team: usize,
     pub half_duration: f64,
     pub initial_duration: f64,
+    /// Seconds the automatic referee stays in Standby before signalling Ready (the gesture
+    /// robots must see under the current SPL rules). 0: no Standby, Initial goes straight to
+    /// Ready. GameController3 has Standby whenever `delay_after_ready` is not 0.
+    pub standby_duration: f64,
     pub ready_duration: f64,
     pub set_duration: f64,
     pub half_time_break: f64,
@@ -442,6 +446,21 @@ pub struct RefereeConfig {
     pub packet_rate: f64,
     /// Probability that a robot misses a control packet.
     pub packet_loss: f64,
+    /// GameController3 broadcasts a delayed copy of the game, because robots must see the
+    /// referee's Ready gesture and hear the kick-off whistle themselves: for this many seconds
+    /// after Standby -> Ready the control packets still say Standby. The world acts on the true
+    /// state at once. GameController3's champions-cup value is 45 s (as long as the kick-off's
+    /// Ready, so robots never receive Ready). 0: every state is sent at once, as
+    /// GameController3's `--no-delay` does; the default, because the robots do not yet act on
+    /// the gesture and whistle themselves and would stand through Ready. Takes effect only when
+    /// the game passes through Standby (`standby_duration`, or a state set by hand).
+    pub delay_after_ready: f64,
+    /// Seconds after Set -> Playing (the kick-off whistle) during which packets still say Set
+    /// (GameController3: 15 s; default 0, see `delay_after_ready`).
+    pub delay_after_playing: f64,
+    /// Seconds after a goal during which packets still say Playing with the old score
+    /// (GameController3: 15 s; default 0, see `delay_after_ready`).
+    pub delay_after_goal: f64,
 }
 
 impl Default for RefereeConfig {
@@ -466,6 +485,7 @@ impl Default for RefereeConfig {
             kick_off_team: 0,
             half_duration: 600.0,
             initial_duration: 2.0,
+            standby_duration: 0.0,
             ready_duration: 45.0,
             set_duration: 5.0,
             half_time_break: 10.0,
@@ -486,6 +506,9 @@ impl Default for RefereeConfig {
             message_budget: 1200,
             packet_rate: 2.0,
             packet_loss: 0.0,
+            delay_after_ready: 0.0,
+            delay_after_playing: 0.0,
+            delay_after_goal: 0.0,
         }
     }
 }
@@ -724,12 +747,16 @@ impl SimConfig {
         v.positive("referee.half_duration", f.half_duration)?;
         for (name, value) in [
             ("referee.initial_duration", f.initial_duration),
+            ("referee.standby_duration", f.standby_duration),
             ("referee.ready_duration", f.ready_duration),
             ("referee.set_duration", f.set_duration),
             ("referee.half_time_break", f.half_time_break),
             ("referee.penalty_duration", f.penalty_duration),
             ("referee.set_play_duration", f.set_play_duration),
             ("referee.leaving_field_margin", f.leaving_field_margin),
+            ("referee.delay_after_ready", f.delay_after_ready),
+            ("referee.delay_after_playing", f.delay_after_playing),
+            ("referee.delay_after_goal", f.delay_after_goal),
         ] {
             v.non_negative(name, value)?;
         }

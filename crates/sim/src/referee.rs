@@ -1,10 +1,15 @@
-//! The referee and the GameController it emulates: game states (Initial, Ready, Set, Playing,
-//! Finished), kick-offs, goals, two halves, ball-out set plays (kick-in, goal kick, corner kick)
-//! with the ball placed as the rules place it, the leaving-the-field penalty, the team message
-//! budget, and the control packets (`RGme` v18, from the `spl` crate's encoder).
+//! The referee and the GameController it emulates: game states (Initial, Standby, Ready, Set,
+//! Playing, Finished), kick-offs, goals, two halves, ball-out set plays (kick-in, goal kick,
+//! corner kick) with the ball placed as the rules place it, the leaving-the-field penalty, the
+//! team message budget, and the control packets (`RGme` v18, from the `spl` crate's encoder).
 //!
 //! The referee decides; the world acts on its decisions (moves the ball and robots, penalizes)
 //! and records them as events. It looks at the world only through [`RefereeView`].
+//!
+//! Like GameController3, the control packets can show a delayed copy of the game (see
+//! [`RefereeConfig::delay_after_ready`]): robots must see the referee's Ready gesture and hear
+//! the kick-off whistle themselves, so for a while after those (and after a goal) the packets
+//! keep showing the game as it was. The world always acts on the true game.
 
 use serde::{Deserialize, Serialize};
 use strata_robot::{Field as FieldFrame, Point};
@@ -54,6 +59,24 @@ pub(crate) enum Decision {
     SetPlayOver,
 }
 
+/// The game as the control packets show it during a delay: what a packet needs of the game
+/// before the delayed transition, with that game's own timers running on.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+struct Delayed {
+    /// How long the packets show this copy, s.
+    duration: f64,
+    /// How long they have shown it, s. Counted up like `state_time` so that a delay as long as
+    /// the state it hides ends in the same step (45 s of Ready behind 45 s of Standby).
+    elapsed: f64,
+    state: GameState,
+    set_play: SetPlay,
+    first_half: bool,
+    kicking_team: Option<usize>,
+    score: [u8; 2],
+    clock: f64,
+    set_play_time: f64,
+}
+
 /// The referee's state.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub(crate) struct Referee {
@@ -80,6 +103,8 @@ pub(crate) struct Referee {
     set_play_time: f64,
     set_play_ball: Option<Point<FieldFrame>>,
     last_ball_status: BallStatus,
+    /// What the control packets show instead of the true game, while a delay runs.
+    delayed: Option<Delayed>,
 }
 
 impl Referee {
@@ -102,6 +127,7 @@ impl Referee {
             set_play_time: 0.0,
             set_play_ball: None,
             last_ball_status: BallStatus::InPlay,
+            delayed: None,
         }
     }
 
@@ -119,6 +145,18 @@ impl Referee {
     }
 
     fn enter(&mut self, state: GameState, out: &mut Vec<Decision>) {
+        match (self.state, state) {
+            (GameState::Standby, GameState::Ready) => {
+                self.fork(self.copy(), self.config.delay_after_ready);
+            }
+            (GameState::Set, GameState::Playing) => {
+                self.fork(self.copy(), self.config.delay_after_playing);
+            }
+            // Other transitions are not delayed, and the copy (Standby, Set, or the Playing
+            // before a goal) cannot follow them, so GameController3 stops delaying and the
+            // robots see the true game at once.
+            _ => self.delayed = None,
+        }
         self.state = state;
         self.state_time = 0.0;
         if state != GameState::Playing {
@@ -134,17 +172,76 @@ impl Referee {
         self.kicking_team = Some(team);
         self.set_play_time = 0.0;
         self.set_play_ball = Some(ball);
+        // Set plays are not delayed: GameController3 applies one to its delayed copy where the
+        // copy could take it (Playing), and otherwise stops delaying.
+        match self.delayed.as_mut() {
+            Some(copy) if copy.state == GameState::Playing => {
+                copy.set_play = set_play;
+                copy.kicking_team = Some(team);
+                copy.set_play_time = 0.0;
+            }
+            _ => self.delayed = None,
+        }
     }
 
-    /// Counts a team message. Returns whether it is within the budget; outside Ready, Set and
-    /// Playing messages are not counted (as the GameController does).
+    /// The game as it is now, for packets to show during a delay that starts now.
+    fn copy(&self) -> Delayed {
+        Delayed {
+            duration: 0.0,
+            elapsed: 0.0,
+            state: self.state,
+            set_play: self.set_play,
+            first_half: self.first_half,
+            kicking_team: self.kicking_team,
+            score: self.score,
+            clock: self.clock,
+            set_play_time: self.set_play_time,
+        }
+    }
+
+    /// Holds the packets at `copy` for `duration`. Replaces a running delay, as GameController3
+    /// forks the true game again; a zero delay just ends the running one.
+    fn fork(&mut self, copy: Delayed, duration: f64) {
+        self.delayed = (duration > 0.0).then_some(Delayed { duration, elapsed: 0.0, ..copy });
+    }
+
+    /// Counts a running delay down and runs the copy's timers by its own state's rules (the
+    /// clock and a set play's time only in Playing), as GameController3 seeks its delayed game.
+    fn advance_delay(&mut self, dt: f64) {
+        let Some(copy) = self.delayed.as_mut() else { return };
+        copy.elapsed += dt;
+        if copy.elapsed >= copy.duration {
+            self.delayed = None;
+            return;
+        }
+        if copy.state == GameState::Playing {
+            copy.clock = (copy.clock - dt).max(0.0);
+            if copy.set_play != SetPlay::None {
+                copy.set_play_time += dt;
+                if copy.set_play_time >= self.config.set_play_duration {
+                    copy.set_play = SetPlay::None;
+                }
+            }
+        }
+    }
+
+    /// Counts a team message. Returns whether it is within the budget; outside Standby, Ready,
+    /// Set and Playing messages are not counted (as GameController3 does).
     pub fn count_message(&mut self, team: usize, legal: bool) -> bool {
-        if !matches!(self.state, GameState::Ready | GameState::Set | GameState::Playing) {
+        if !matches!(
+            self.state,
+            GameState::Standby | GameState::Ready | GameState::Set | GameState::Playing
+        ) {
             return true;
         }
         if self.budget[team] == 0 || !legal {
             self.illegal_communication[team] = true;
             self.score[team] = 0;
+            // A delayed copy is always in a state that counts messages, so GameController3
+            // zeroes its score too (and its budget stays equal to the true one).
+            if let Some(copy) = self.delayed.as_mut() {
+                copy.score[team] = 0;
+            }
             false
         } else {
             self.budget[team] -= 1;
@@ -155,12 +252,21 @@ impl Referee {
     /// Advances the referee by `dt` and appends its decisions.
     pub fn update(&mut self, dt: f64, view: &RefereeView<'_>, out: &mut Vec<Decision>) {
         self.state_time += dt;
+        self.advance_delay(dt);
         let auto = self.config.auto;
         match self.state {
             GameState::Initial if auto && self.state_time >= self.config.initial_duration => {
                 if self.kicking_team.is_none() {
                     self.kicking_team = Some(self.config.kick_off_team);
                 }
+                let next = if self.config.standby_duration > 0.0 {
+                    GameState::Standby
+                } else {
+                    GameState::Ready
+                };
+                self.enter(next, out);
+            }
+            GameState::Standby if auto && self.state_time >= self.config.standby_duration => {
                 self.enter(GameState::Ready, out);
             }
             GameState::Ready if auto && self.state_time >= self.config.ready_duration => {
@@ -205,6 +311,13 @@ impl Referee {
             if self.set_play_time >= self.config.set_play_duration || moved {
                 self.set_play = SetPlay::None;
                 self.set_play_ball = None;
+                // A copy in Playing has the true game's set play (forked with it, or given it by
+                // `start_set_play`), so it ends with it.
+                if let Some(copy) = self.delayed.as_mut()
+                    && copy.state == GameState::Playing
+                {
+                    copy.set_play = SetPlay::None;
+                }
                 out.push(Decision::SetPlayOver);
             }
         }
@@ -217,6 +330,7 @@ impl Referee {
                 BallStatus::InPlay => {}
                 BallStatus::Goal(side) => {
                     let team = 1 - self.defender_of(side);
+                    let before = self.copy();
                     if !self.illegal_communication[team] {
                         self.score[team] = self.score[team].saturating_add(1);
                     }
@@ -225,8 +339,10 @@ impl Referee {
                         self.kicking_team = Some(1 - team);
                         self.last_touch = None;
                         self.enter(GameState::Ready, out);
+                        self.fork(before, self.config.delay_after_goal);
                         return;
                     }
+                    self.fork(before, self.config.delay_after_goal);
                 }
                 BallStatus::OutOverSideLine(_) | BallStatus::OutOverGoalLine(_) => {
                     let (set_play, team, place) = self.out_decision(status, view);
@@ -308,7 +424,8 @@ impl Referee {
         }
     }
 
-    /// The control packet, with each robot's penalty from `player`.
+    /// The control packet, with each robot's penalty from `player`. During a delay it shows the
+    /// delayed copy of the game; the budget is the true one, which the copy's always equals.
     pub fn control_data(
         &mut self,
         teams: &[crate::config::TeamConfig; 2],
@@ -317,12 +434,14 @@ impl Referee {
     ) -> GameControlData {
         let packet_number = self.packet_number;
         self.packet_number = self.packet_number.wrapping_add(1);
-        let secondary = match self.state {
+        let shown = self.delayed.unwrap_or_else(|| self.copy());
+        // A copy is never in Ready or Finished, so `state_time` there is the shown game's.
+        let secondary = match shown.state {
             GameState::Ready => self.config.ready_duration - self.state_time,
-            GameState::Playing if self.set_play != SetPlay::None => {
-                self.config.set_play_duration - self.set_play_time
+            GameState::Playing if shown.set_play != SetPlay::None => {
+                self.config.set_play_duration - shown.set_play_time
             }
-            GameState::Finished if self.first_half && !self.game_over => {
+            GameState::Finished if shown.first_half && !self.game_over => {
                 self.config.half_time_break - self.state_time
             }
             _ => 0.0,
@@ -334,7 +453,7 @@ impl Referee {
             slot.field_player_colour = team.field_player_colour;
             slot.goalkeeper_colour = team.goalkeeper_colour;
             slot.goalkeeper = team.goalkeeper;
-            slot.score = self.score[t];
+            slot.score = shown.score[t];
             slot.message_budget = self.budget[t];
             for p in 1..=players_per_team {
                 if let Some(robot) = slot.players.get_mut(usize::from(p) - 1) {
@@ -348,11 +467,11 @@ impl Referee {
             competition_phase: CompetitionPhase::RoundRobin,
             competition_type: CompetitionType::Normal,
             game_phase: GamePhase::Normal,
-            state: self.state,
-            set_play: self.set_play,
-            first_half: self.first_half,
-            kicking_team: self.kicking_team.map(|t| teams[t].number),
-            secs_remaining: seconds_i16(self.clock),
+            state: shown.state,
+            set_play: shown.set_play,
+            first_half: shown.first_half,
+            kicking_team: shown.kicking_team.map(|t| teams[t].number),
+            secs_remaining: seconds_i16(shown.clock),
             secondary_time: seconds_i16(secondary.max(0.0)),
             teams: info,
         }
@@ -362,4 +481,245 @@ impl Referee {
 /// Whole seconds for a packet, rounded up (a clock showing 0 has run out).
 fn seconds_i16(seconds: f64) -> i16 {
     seconds.ceil().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::SimConfig;
+
+    /// A referee and the field it watches; steps of 1 s keep every sum of times exact.
+    struct Game {
+        referee: Referee,
+        field: Field,
+        ball: Point<FieldFrame>,
+    }
+
+    impl Game {
+        fn new(config: RefereeConfig) -> Game {
+            Game {
+                referee: Referee::new(&config),
+                field: Field::preset("spl").expect("the spl preset"),
+                ball: Point::new(0.0, 0.0),
+            }
+        }
+
+        fn step(&mut self) -> Vec<Decision> {
+            let view =
+                RefereeView { field: &self.field, ball: self.ball, ball_radius: 0.05, robots: &[] };
+            let mut out = Vec::new();
+            self.referee.update(1.0, &view, &mut out);
+            out
+        }
+
+        fn set(&mut self, state: GameState) {
+            self.referee.set_state(state, &mut Vec::new());
+        }
+
+        fn packet(&mut self) -> GameControlData {
+            let teams = self.referee.config.teams.clone();
+            self.referee.control_data(&teams, 7, |_, _| RobotInfo::default())
+        }
+
+        /// Puts the ball in the goal team 0 attacks.
+        fn score_for_team_0(&mut self) {
+            self.ball = Point::new(self.field.half_length() + 0.2, 0.0);
+        }
+    }
+
+    fn scores(packet: &GameControlData) -> [u8; 2] {
+        [packet.teams[0].score, packet.teams[1].score]
+    }
+
+    fn delays(ready: f64, playing: f64, goal: f64) -> RefereeConfig {
+        RefereeConfig {
+            delay_after_ready: ready,
+            delay_after_playing: playing,
+            delay_after_goal: goal,
+            ..RefereeConfig::default()
+        }
+    }
+
+    #[test]
+    fn by_default_packets_show_every_state_at_once() {
+        let mut game = Game::new(RefereeConfig::default());
+        let mut seen = Vec::new();
+        for _ in 0..60 {
+            game.step();
+            let packet = game.packet();
+            assert_eq!(packet.state, game.referee.state);
+            if seen.last() != Some(&packet.state) {
+                seen.push(packet.state);
+            }
+        }
+        // No Standby without `standby_duration`.
+        assert_eq!(
+            seen,
+            [GameState::Initial, GameState::Ready, GameState::Set, GameState::Playing]
+        );
+        game.score_for_team_0();
+        game.step();
+        let packet = game.packet();
+        assert_eq!((packet.state, scores(&packet)), (GameState::Ready, [1, 0]));
+        assert!(game.referee.delayed.is_none());
+    }
+
+    #[test]
+    fn the_kick_off_whistle_reaches_the_packets_after_delay_after_playing() {
+        let mut game = Game::new(delays(0.0, 15.0, 0.0));
+        game.set(GameState::Set);
+        game.set(GameState::Playing);
+        assert_eq!(game.packet().state, GameState::Set);
+        for second in 1..=15 {
+            game.step();
+            assert_eq!(game.referee.state, GameState::Playing, "the world plays at once");
+            let packet = game.packet();
+            if second < 15 {
+                assert_eq!(packet.state, GameState::Set, "after {second} s");
+                // Set's clock stands still in the copy while the true one runs.
+                assert_eq!(packet.secs_remaining, 600);
+            } else {
+                assert_eq!(packet.state, GameState::Playing, "after {second} s");
+                assert_eq!(packet.secs_remaining, 585);
+            }
+        }
+    }
+
+    #[test]
+    fn a_goal_keeps_the_old_score_and_playing_in_packets_for_delay_after_goal() {
+        let mut game = Game::new(delays(0.0, 0.0, 15.0));
+        game.set(GameState::Playing);
+        game.step();
+        game.score_for_team_0();
+        let decisions = game.step();
+        assert!(decisions.contains(&Decision::Goal { team: 0 }));
+        assert_eq!((game.referee.state, game.referee.score), (GameState::Ready, [1, 0]));
+        let packet = game.packet();
+        assert_eq!((packet.state, scores(&packet)), (GameState::Playing, [0, 0]));
+        assert_eq!(packet.kicking_team, Some(10), "the old kicking team");
+        for second in 1..=15 {
+            game.step();
+            let packet = game.packet();
+            if second < 15 {
+                assert_eq!((packet.state, scores(&packet)), (GameState::Playing, [0, 0]));
+                // The copy's clock runs on in its Playing (598 s at the goal).
+                assert_eq!(packet.secs_remaining, 598 - second);
+            } else {
+                assert_eq!((packet.state, scores(&packet)), (GameState::Ready, [1, 0]));
+                assert_eq!(packet.secondary_time, 30, "45 s of Ready, 15 s gone");
+                assert_eq!(packet.kicking_team, Some(20));
+                assert_eq!(packet.secs_remaining, 598);
+            }
+        }
+    }
+
+    #[test]
+    fn a_goal_during_the_playing_delay_starts_its_own_delay_from_the_true_playing() {
+        let mut game = Game::new(delays(0.0, 15.0, 15.0));
+        game.set(GameState::Set);
+        game.set(GameState::Playing);
+        for _ in 0..5 {
+            game.step();
+        }
+        assert_eq!(game.packet().state, GameState::Set);
+        game.score_for_team_0();
+        game.step();
+        for second in 1..=15 {
+            let packet = game.packet();
+            assert_eq!((packet.state, scores(&packet)), (GameState::Playing, [0, 0]), "{second}");
+            game.step();
+        }
+        let packet = game.packet();
+        assert_eq!((packet.state, scores(&packet)), (GameState::Ready, [1, 0]));
+    }
+
+    #[test]
+    fn a_ball_out_during_the_playing_delay_shows_playing_and_the_set_play_at_once() {
+        let mut game = Game::new(delays(0.0, 15.0, 0.0));
+        game.set(GameState::Set);
+        game.set(GameState::Playing);
+        game.step();
+        game.ball = Point::new(1.0, game.field.half_width() + 0.3);
+        game.step();
+        let packet = game.packet();
+        assert_eq!((packet.state, packet.set_play), (GameState::Playing, SetPlay::KickIn));
+    }
+
+    #[test]
+    fn the_ready_gesture_is_delayed_and_set_ends_the_delay_at_once() {
+        let mut game = Game::new(RefereeConfig { standby_duration: 3.0, ..delays(10.0, 0.0, 0.0) });
+        // Initial 2 s, Standby 3 s: Ready at 5 s, shown from 15 s.
+        for second in 1..=16 {
+            game.step();
+            let packet = game.packet();
+            let expected = match second {
+                0..2 => GameState::Initial,
+                2..15 => GameState::Standby,
+                _ => GameState::Ready,
+            };
+            assert_eq!(packet.state, expected, "after {second} s");
+            if second >= 5 {
+                assert_eq!(game.referee.state, GameState::Ready);
+            }
+            if second == 15 {
+                assert_eq!(packet.secondary_time, 35);
+            }
+        }
+
+        let mut game = Game::new(RefereeConfig { standby_duration: 3.0, ..delays(45.0, 0.0, 0.0) });
+        for _ in 0..8 {
+            game.step();
+        }
+        assert_eq!(
+            (game.referee.state, game.packet().state),
+            (GameState::Ready, GameState::Standby)
+        );
+        game.set(GameState::Set);
+        assert_eq!(game.packet().state, GameState::Set);
+    }
+
+    #[test]
+    fn with_champions_cup_delays_robots_never_receive_ready() {
+        let mut game =
+            Game::new(RefereeConfig { standby_duration: 3.0, ..delays(45.0, 15.0, 15.0) });
+        let mut seen = Vec::new();
+        for _ in 0..80 {
+            game.step();
+            let state = game.packet().state;
+            if seen.last() != Some(&state) {
+                seen.push(state);
+            }
+        }
+        assert_eq!(
+            seen,
+            [GameState::Initial, GameState::Standby, GameState::Set, GameState::Playing]
+        );
+    }
+
+    #[test]
+    fn illegal_communication_zeroes_the_delayed_score_too() {
+        let mut game = Game::new(delays(0.0, 0.0, 15.0));
+        game.set(GameState::Playing);
+        game.referee.score = [2, 0];
+        game.score_for_team_0();
+        game.step();
+        assert_eq!(scores(&game.packet()), [2, 0]);
+        assert!(!game.referee.count_message(0, false));
+        assert_eq!(scores(&game.packet()), [0, 0]);
+    }
+
+    #[test]
+    fn delays_and_standby_must_be_finite_and_not_negative() {
+        for key in
+            ["delay_after_ready", "delay_after_playing", "delay_after_goal", "standby_duration"]
+        {
+            for value in ["-1.0", "nan", "inf"] {
+                let text = format!("[referee]\n{key} = {value}\n");
+                let error = SimConfig::from_toml_str(&text, "x.toml").expect_err(&text);
+                assert!(error.to_string().contains(&format!("`referee.{key}`")), "{error}");
+            }
+            let text = format!("[referee]\n{key} = 15.0\n");
+            SimConfig::from_toml_str(&text, "x.toml").expect(&text);
+        }
+    }
 }
