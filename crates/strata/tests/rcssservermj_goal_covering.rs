@@ -55,6 +55,10 @@ fn the_keeper_runs_in_physics_and_its_ball_perception_is_reported() {
     assert!(samples >= 30, "{samples} samples");
     let unknown = one["ball_unknown"].as_f64().expect("a ball-unknown fraction");
     assert!((0.0..=1.0).contains(&unknown), "ball unknown {unknown}");
+    // The short path passes 4.5 m from the keeper, well within the camera's 10 m: every sample
+    // is in range, so both figures are the same.
+    assert_eq!(one["in_range"].as_f64(), Some(1.0), "{one}");
+    assert_eq!(one["ball_unknown_in_range"].as_f64(), Some(unknown), "{one}");
     let pose = one["pose_error_m"].as_f64().expect("a pose error");
     assert!(pose.is_finite() && pose >= 0.0, "pose error {pose}");
     let conditions = summary["conditions"].as_array().expect("conditions");
