@@ -427,6 +427,8 @@ pub fn sensor_frame(packet: &SensorPacket, stamp: Time) -> Result<SensorFrame, P
         camera: None,
         // LoLA cannot tell: a carried NAO shows through its feet (`pose.kidnap_on_lift`).
         placed: false,
+        // LoLA carries no audio; a whistle detector reads the microphones through ALSA.
+        whistle: None,
     })
 }
 

@@ -757,6 +757,8 @@ fn cycle(
         battery: None,
         camera,
         placed: false,
+        // rcssservermj has no sound.
+        whistle: None,
     };
     if let Some(game) = &perception.game {
         *session.game.lock().unwrap_or_else(PoisonError::into_inner) = Some(game.clone());

@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! Platform ─sensor frame─▶ Perception ─percepts (Latest)─▶ Reactive ─commands (Queue)─▶ Actuation ─▶ Platform
-//!                              └─percepts (Queue)─▶ World ◀─odometry (Merge)──────────────┘   │
+//!                              ├─percepts (Queue)─▶ World ◀─odometry (Merge)──────────────┘   │
+//!                              └─signals (Queue)─▶ Planning (the referee's whistle, gestures)
 //!                                                    │       Reactive ◀─messages (Queue)───────┘
 //!                                world state (Latest)├──────▶ Reactive, Deliberative, Planning
 //!   team ◀─▶ Planning ─decision (Latest)─▶ Deliberative ─score vectors (Latest)─▶ Reactive
@@ -32,7 +33,7 @@ use crate::control::planning_module::{
 use crate::control::reactive::ReactiveLayer;
 use crate::control::scores::Goal;
 use crate::geometry::Odometry;
-use crate::percept::Percepts;
+use crate::percept::{Percepts, Signal};
 use crate::perception::{PerceptionConfig, PerceptionModule};
 use crate::platform::{ExternalLink, MotionFeedback, SharedPlatform, TeamLink};
 use crate::world::{ConfigError, WorldModelConfig, WorldState, add_world_module};
@@ -230,12 +231,13 @@ where
 
     let platform = parts.platform.clone();
     let perception_config = parts.perception;
-    let percepts_out = graph.add(&names.perception, |p| {
+    let (percepts_out, signals_out) = graph.add(&names.perception, |p| {
         p.trigger(Trigger::every(timing.perception.period(83.3)));
         p.real_time();
         p.processing_time(timing.perception.processing());
         let out = p.output::<Percepts>("percepts");
-        (PerceptionModule::new(platform, perception_config, out), out)
+        let signals = p.output::<Signal>("signals");
+        (PerceptionModule::new(platform, perception_config, out, signals), (out, signals))
     });
 
     let actuation_config = parts.actuation;
@@ -300,6 +302,7 @@ where
         let ports = PlanningPorts {
             world: p.input("world", Policy::Latest),
             stability: p.input("stability", Policy::Latest),
+            signals: p.input("signals", Policy::queue(32)),
             decision: p.output("decision"),
             team_estimates: p.output("team_estimates"),
             world_commands: p.output("world_commands"),
@@ -329,5 +332,6 @@ where
     graph.connect(planning.decision, deliberative.assignment);
     graph.connect(planning.team_estimates, world.team);
     graph.connect(planning.world_commands, world.commands);
+    graph.connect(signals_out, planning.signals);
     Ok(names)
 }

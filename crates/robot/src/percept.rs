@@ -7,6 +7,34 @@ use strata_runtime::Time;
 use crate::geometry::{Point, Robot};
 use crate::platform::{Buttons, FootContact, HeadAngles, InertialData, ObjectClass};
 
+/// A signal perceived in one sensor frame — the referee's whistle heard, a gesture seen: an
+/// event, not an object to track. Perception sends signals to the planning layer, whose
+/// external device (the GameController) weighs them against its packets.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Signal {
+    /// When it was perceived (the image's or the frame's time).
+    pub stamp: Time,
+    pub kind: SignalKind,
+    /// The detector's confidence in [0, 1] (1 for a camera detection).
+    pub confidence: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SignalKind {
+    /// The platform's whistle detector fired.
+    Whistle,
+    /// The camera saw an object of a signal class ([`crate::perception::PerceptionConfig::
+    /// signal_classes`]): the referee, its variant the gesture.
+    Sight {
+        class: ObjectClass,
+        variant: Option<u16>,
+        /// Ground distance, m, and direction relative to the body's heading, rad.
+        range: f64,
+        bearing: f64,
+    },
+}
+
 /// One object seen, relative to the robot's body, with the noise perception expects on it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Observation {

@@ -6,8 +6,10 @@ use serde::{Deserialize, Serialize};
 use strata_runtime::{Context, Module, ModuleError, Output};
 
 use crate::geometry::normalize_angle;
-use crate::percept::{CameraPercepts, Observation, Percepts, ViewCone};
-use crate::platform::{PlatformError, PlatformInfo, SensorFrame, SharedPlatform, lock_platform};
+use crate::percept::{CameraPercepts, Observation, Percepts, Signal, SignalKind, ViewCone};
+use crate::platform::{
+    ObjectClass, PlatformError, PlatformInfo, SensorFrame, SharedPlatform, lock_platform,
+};
 
 /// The measurement noise perception attributes to each observation (what world modeling
 /// uses as R). Range noise grows with distance.
@@ -20,22 +22,44 @@ pub struct PerceptionConfig {
     pub range_sigma_per_metre: f64,
     /// Bearing standard deviation, rad.
     pub bearing_sigma: f64,
+    /// Classes the camera reports that are signals, not objects to track (the referee, whose
+    /// variant is its gesture): they go to the planning layer as [`Signal`]s, not to world
+    /// modeling.
+    pub signal_classes: Vec<ObjectClass>,
 }
 
 impl Default for PerceptionConfig {
     fn default() -> Self {
-        PerceptionConfig { range_sigma: 0.05, range_sigma_per_metre: 0.08, bearing_sigma: 0.035 }
+        PerceptionConfig {
+            range_sigma: 0.05,
+            range_sigma_per_metre: 0.08,
+            bearing_sigma: 0.035,
+            signal_classes: Vec::new(),
+        }
     }
 }
 
-/// Converts one sensor frame into percepts. Detections with non-finite numbers are dropped
-/// (and counted by the caller): a filter fed a NaN is lost for good.
+/// Converts one sensor frame into percepts, and appends the signals it carried to `signals`.
+/// Detections with non-finite numbers are dropped (and counted by the caller): a filter fed a
+/// NaN is lost for good; so is a whistle whose confidence is not a number.
 pub fn percepts_from_frame(
     frame: &SensorFrame,
     info: &PlatformInfo,
     config: &PerceptionConfig,
+    signals: &mut Vec<Signal>,
 ) -> (Percepts, usize) {
     let mut rejected = 0;
+    if let Some(confidence) = frame.whistle {
+        if confidence.is_finite() {
+            signals.push(Signal {
+                stamp: frame.stamp,
+                kind: SignalKind::Whistle,
+                confidence: confidence.clamp(0.0, 1.0),
+            });
+        } else {
+            rejected += 1;
+        }
+    }
     let camera = frame.camera.as_ref().map(|camera| {
         let observations = camera
             .detections
@@ -51,11 +75,22 @@ pub fn percepts_from_frame(
                 }
                 // Bearings come relative to the camera axis; the body frame adds the head yaw
                 // at the time the image was taken, not the current one.
+                let bearing = normalize_angle(d.bearing + camera.head.yaw);
+                if config.signal_classes.contains(&d.class) {
+                    let kind = SignalKind::Sight {
+                        class: d.class,
+                        variant: d.variant,
+                        range: d.range,
+                        bearing,
+                    };
+                    signals.push(Signal { stamp: camera.stamp, kind, confidence: 1.0 });
+                    return None;
+                }
                 Some(Observation {
                     class: d.class,
                     variant: d.variant,
                     range: d.range,
-                    bearing: normalize_angle(d.bearing + camera.head.yaw),
+                    bearing,
                     orientation: d.orientation.map(|o| normalize_angle(o + camera.head.yaw)),
                     range_sigma: config.range_sigma + config.range_sigma_per_metre * d.range,
                     bearing_sigma: config.bearing_sigma,
@@ -91,6 +126,9 @@ pub struct PerceptionModule {
     info: PlatformInfo,
     config: PerceptionConfig,
     percepts: Output<Percepts>,
+    signals: Output<Signal>,
+    /// Reused for every frame's signals (nearly always none).
+    frame_signals: Vec<Signal>,
     rejected_detections: u64,
     malformed_frames: u64,
 }
@@ -109,6 +147,7 @@ impl PerceptionModule {
         platform: SharedPlatform,
         config: PerceptionConfig,
         percepts: Output<Percepts>,
+        signals: Output<Signal>,
     ) -> PerceptionModule {
         let info = lock_platform(&platform).info();
         PerceptionModule {
@@ -116,6 +155,8 @@ impl PerceptionModule {
             info,
             config,
             percepts,
+            signals,
+            frame_signals: Vec::new(),
             rejected_detections: 0,
             malformed_frames: 0,
         }
@@ -136,7 +177,8 @@ impl Module for PerceptionModule {
             }
             Err(error) => return Err(Box::new(error)),
         };
-        let (percepts, rejected) = percepts_from_frame(&frame, &self.info, &self.config);
+        let (percepts, rejected) =
+            percepts_from_frame(&frame, &self.info, &self.config, &mut self.frame_signals);
         if rejected > 0 {
             self.rejected_detections += rejected as u64;
             tracing::warn!(
@@ -148,6 +190,9 @@ impl Module for PerceptionModule {
         }
         let stamp = percepts.stamp;
         ctx.send_stamped(self.percepts, percepts, stamp);
+        for signal in self.frame_signals.drain(..) {
+            ctx.send_stamped(self.signals, signal, signal.stamp);
+        }
         Ok(())
     }
 }
@@ -194,9 +239,11 @@ mod tests {
             }),
             ..SensorFrame::default()
         };
+        let mut signals = Vec::new();
         let (percepts, rejected) =
-            percepts_from_frame(&frame, &info(), &PerceptionConfig::default());
+            percepts_from_frame(&frame, &info(), &PerceptionConfig::default(), &mut signals);
         assert_eq!(rejected, 1);
+        assert!(signals.is_empty());
         let camera = percepts.camera.expect("camera percepts");
         assert_eq!(camera.observations.len(), 1);
         let o = camera.observations[0];
@@ -205,5 +252,63 @@ mod tests {
         assert!((o.range_sigma - (0.05 + 0.16)).abs() < 1e-12);
         assert!((camera.view.direction - 0.5).abs() < 1e-12);
         assert_eq!(percepts.stamp, Time::from_nanos(7));
+    }
+
+    #[test]
+    fn signal_classes_and_the_whistle_become_signals_not_observations() {
+        let referee = ObjectClass(4);
+        let frame = SensorFrame {
+            stamp: Time::from_nanos(9),
+            whistle: Some(1.5),
+            camera: Some(CameraFrame {
+                stamp: Time::from_nanos(5),
+                head: HeadAngles { yaw: -0.5, pitch: 0.2 },
+                detections: vec![
+                    Detection {
+                        class: referee,
+                        variant: Some(1),
+                        range: 5.0,
+                        bearing: 0.25,
+                        orientation: None,
+                    },
+                    Detection {
+                        class: ObjectClass(1),
+                        variant: None,
+                        range: 2.0,
+                        bearing: 0.0,
+                        orientation: None,
+                    },
+                ],
+                footprint: None,
+            }),
+            ..SensorFrame::default()
+        };
+        let config =
+            PerceptionConfig { signal_classes: vec![referee], ..PerceptionConfig::default() };
+        let mut signals = Vec::new();
+        let (percepts, rejected) = percepts_from_frame(&frame, &info(), &config, &mut signals);
+        assert_eq!(rejected, 0);
+        assert_eq!(percepts.observations().len(), 1, "the ball only");
+        assert_eq!(percepts.observations()[0].class, ObjectClass(1));
+        assert_eq!(signals.len(), 2);
+        // Clamped to [0, 1], stamped with the frame.
+        assert_eq!(
+            signals[0],
+            Signal { stamp: Time::from_nanos(9), kind: SignalKind::Whistle, confidence: 1.0 }
+        );
+        let SignalKind::Sight { class, variant, range, bearing } = signals[1].kind else {
+            panic!("a sight: {:?}", signals[1]);
+        };
+        assert_eq!(
+            (class, variant, range, signals[1].stamp),
+            (referee, Some(1), 5.0, Time::from_nanos(5))
+        );
+        assert!((bearing + 0.25).abs() < 1e-12, "in the body frame: {bearing}");
+
+        // A whistle that is not a number is dropped and counted.
+        let garbled = SensorFrame { whistle: Some(f64::NAN), ..SensorFrame::default() };
+        signals.clear();
+        let (_, rejected) = percepts_from_frame(&garbled, &info(), &config, &mut signals);
+        assert_eq!((rejected, signals.len()), (1, 0));
     }
 }

@@ -116,6 +116,10 @@ pub struct SensorFrame {
     /// modeling takes it as a kidnap. False when the platform cannot tell.
     #[serde(default)]
     pub placed: bool,
+    /// The platform's whistle detector fired since the last frame, with this confidence in
+    /// [0, 1]; `None` when it did not (or the platform has no microphone).
+    #[serde(default)]
+    pub whistle: Option<f64>,
 }
 
 strata_runtime::text_and_binary_enum! {

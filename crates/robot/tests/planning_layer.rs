@@ -129,6 +129,7 @@ fn message(sender: u8, x: f64, ball: f64, role: Role) -> TeamMessage<Mission, Ro
         pose: Pose::new(x, 0.0, 0.0),
         pose_confidence: 0.9,
         objects: ball_at(ball),
+        signal: None,
     }
 }
 

@@ -387,6 +387,18 @@ impl RobotMarks {
     }
 }
 
+/// The referee showing a gesture, as cameras see it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GestureSight {
+    pub position: Point<FieldFrame>,
+    /// The gesture's code (`strata_spl::Gesture`), reported as the detection's variant.
+    pub gesture: u16,
+    /// How far cameras see it, m.
+    pub range: f64,
+    /// Probability that an image whose view holds it reports it.
+    pub detection: f64,
+}
+
 /// The robot taking the image.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Viewer {
@@ -586,6 +598,54 @@ impl Camera<'_> {
         self.false_positive(rng, out);
     }
 
+    /// Appends the referee's gesture to an image's detections when the view holds the referee:
+    /// a point within the horizontal field of view and the gesture's own range (whatever the
+    /// head pitch: a person is tall), not behind another robot, the camera not blind. Range
+    /// and bearing carry the camera's noise; the detection probability is the gesture's own,
+    /// flat over its range.
+    pub fn capture_gesture(
+        &self,
+        viewer: &Viewer,
+        robots: &RobotMarks,
+        referee: &GestureSight,
+        rng: &mut Stream,
+        out: &mut Vec<Detection>,
+    ) {
+        if viewer.blind {
+            return;
+        }
+        let (sin, cos) = viewer.axis;
+        let (ox, oy) = (viewer.pose.x, viewer.pose.y);
+        let to_local = |x: f64, y: f64| {
+            let dx = x - ox;
+            let dy = y - oy;
+            (cos * dx + sin * dy, -sin * dx + cos * dy)
+        };
+        let (x, y) = to_local(referee.position.x, referee.position.y);
+        let range = referee.range;
+        if !(x > 0.0 && y.abs() <= x * self.tan_half && x * x + y * y <= range * range) {
+            return;
+        }
+        let local = Local::new(x, y);
+        let radius = self.robot_radius;
+        let own = viewer.index.unwrap_or(usize::MAX);
+        // The referee stands farther than the camera's range, so the robots that hide it are
+        // not all among an image's occluders: every robot is tested, for a detection made.
+        let hidden = |target: &Local| {
+            robots.marks.iter().any(|m| {
+                let (mx, my) = to_local(m.x, m.y);
+                m.slot != own
+                    && length(mx, my) < target.distance - radius
+                    && mx * target.x + my * target.y > 0.0
+                    && (mx * target.y - my * target.x).abs() < radius * target.distance
+            })
+        };
+        let reporter = Reporter::new(self.noise, self.config.range, viewer.head_rate);
+        let class = class(ObjectKind::Referee);
+        let (variant, detection) = (Some(referee.gesture), referee.detection);
+        reporter.report_with(rng, out, class, variant, &local, Facing::None, detection, &hidden);
+    }
+
     /// Now and then an object that is not there.
     fn false_positive(&self, rng: &mut Stream, out: &mut Vec<Detection>) {
         let config = self.config;
@@ -649,13 +709,32 @@ impl<'a> Reporter<'a> {
         factor: f64,
         hidden: &impl Fn(&Local) -> bool,
     ) {
-        // Two words: 32 bits decide the detection, three normal samples give the noise (a
-        // zero deviation adds exactly zero, so the zero-noise mode stays exact).
         // Distances are not negative.
         let t = local.distance * self.inv_range;
         let t = if t < 1.0 { t } else { 1.0 };
+        let probability = (self.near + self.slope * t) * factor;
+        self.report_with(rng, out, class, variant, local, facing, probability, hidden);
+    }
+
+    /// Reports `local` with `probability`, with noise, unless it is `hidden` (tested only for
+    /// a detection the draw decided to make).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn report_with(
+        &self,
+        rng: &mut Stream,
+        out: &mut Vec<Detection>,
+        class: ObjectClass,
+        variant: Option<u16>,
+        local: &Local,
+        facing: Facing,
+        probability: f64,
+        hidden: &impl Fn(&Local) -> bool,
+    ) {
+        // Two words: 32 bits decide the detection, three normal samples give the noise (a
+        // zero deviation adds exactly zero, so the zero-noise mode stays exact).
         let first = rng.next_u64();
-        let detected = Stream::unit_from(first as u32) < (self.near + self.slope * t) * factor;
+        let detected = Stream::unit_from(first as u32) < probability;
         if !detected || hidden(local) {
             return;
         }

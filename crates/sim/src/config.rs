@@ -450,17 +450,70 @@ pub struct RefereeConfig {
     /// referee's Ready gesture and hear the kick-off whistle themselves: for this many seconds
     /// after Standby -> Ready the control packets still say Standby. The world acts on the true
     /// state at once. GameController3's champions-cup value is 45 s (as long as the kick-off's
-    /// Ready, so robots never receive Ready). 0: every state is sent at once, as
-    /// GameController3's `--no-delay` does; the default, because the robots do not yet act on
-    /// the gesture and whistle themselves and would stand through Ready. Takes effect only when
-    /// the game passes through Standby (`standby_duration`, or a state set by hand).
+    /// Ready, so robots never receive Ready; [`RefereeConfig::game_controller3`]). 0 (the code's
+    /// default): every state is sent at once, as GameController3's `--no-delay` does. Takes
+    /// effect only when the game passes through Standby (`standby_duration`, or a state set by
+    /// hand).
     pub delay_after_ready: f64,
     /// Seconds after Set -> Playing (the kick-off whistle) during which packets still say Set
-    /// (GameController3: 15 s; default 0, see `delay_after_ready`).
+    /// (GameController3: 15 s; code default 0, see `delay_after_ready`).
     pub delay_after_playing: f64,
     /// Seconds after a goal during which packets still say Playing with the old score
-    /// (GameController3: 15 s; default 0, see `delay_after_ready`).
+    /// (GameController3: 15 s; code default 0, see `delay_after_ready`).
     pub delay_after_goal: f64,
+    /// The head referee's Ready gesture and whistle, as robots' cameras and microphones
+    /// perceive them (`[referee.signals]`).
+    pub signals: SignalConfig,
+}
+
+/// The signals robots must perceive themselves under the current SPL rules (see
+/// [`RefereeConfig::delay_after_ready`]): the head referee's Ready gesture, reported by cameras
+/// as an `ObjectKind::Referee` detection with the variant `Gesture::Ready`, and the whistle at
+/// the kick-off and at a goal, reported in sensor frames (`SensorFrame::whistle`). The referee
+/// stands on the halfway line, `behind_line` outside the side line at negative y of the field
+/// frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SignalConfig {
+    /// Emulates the signals at all. Off in code (`SimConfig::default()`, GameController3's
+    /// `--no-delay`), so that worlds built without a configuration file draw exactly what they
+    /// draw without signals; [`RefereeConfig::game_controller3`] and `config/default.toml`
+    /// turn them on.
+    pub enabled: bool,
+    /// How far outside the side line the referee stands, m.
+    pub behind_line: f64,
+    /// How long the Ready gesture is shown from the moment the true game goes Standby -> Ready
+    /// (it ends early when the game leaves Ready), s.
+    pub gesture_duration: f64,
+    /// How far a camera sees the gesture, m. A person is larger than the ball: the camera's
+    /// `range` does not limit it.
+    pub gesture_range: f64,
+    /// Probability that an image whose view holds the gesturing referee (within the
+    /// horizontal field of view and `gesture_range`, not behind a robot, the camera not blind)
+    /// reports it.
+    pub gesture_detection: f64,
+    /// Robots farther than this from the referee do not hear the whistle, m.
+    pub whistle_range: f64,
+    /// Probability that a robot within `whistle_range` misses a whistle.
+    pub whistle_miss: f64,
+    /// False whistle detections per robot and minute, at any time (per sensor frame with
+    /// probability `whistle_false_rate / 60 * timing.sensor_period`).
+    pub whistle_false_rate: f64,
+}
+
+impl Default for SignalConfig {
+    fn default() -> Self {
+        SignalConfig {
+            enabled: false,
+            behind_line: 0.6,
+            gesture_duration: 5.0,
+            gesture_range: 10.0,
+            gesture_detection: 0.85,
+            whistle_range: 12.0,
+            whistle_miss: 0.05,
+            whistle_false_rate: 0.05,
+        }
+    }
 }
 
 impl Default for RefereeConfig {
@@ -509,9 +562,46 @@ impl Default for RefereeConfig {
             delay_after_ready: 0.0,
             delay_after_playing: 0.0,
             delay_after_goal: 0.0,
+            signals: SignalConfig::default(),
         }
     }
 }
+
+impl RefereeConfig {
+    /// GameController3's default timing (v5.0.0, champions cup): Standby before Ready, packets
+    /// held 45 s after the Ready gesture, 15 s after the kick-off whistle and after a goal, and
+    /// the referee's signals emulated so that robots can act on them. What `strata match`
+    /// plays and `config/default.toml` ships; the code's default is GameController3's
+    /// `--no-delay` (every state sent at once, no signals).
+    pub fn game_controller3(self) -> RefereeConfig {
+        RefereeConfig {
+            standby_duration: GC3_STANDBY,
+            delay_after_ready: 45.0,
+            delay_after_playing: 15.0,
+            delay_after_goal: 15.0,
+            signals: SignalConfig { enabled: true, ..self.signals },
+            ..self
+        }
+    }
+
+    /// GameController3's `--no-delay`: no Standby, every state sent at once, no signals (the
+    /// robots follow the packets alone).
+    pub fn no_delay(self) -> RefereeConfig {
+        let defaults = RefereeConfig::default();
+        RefereeConfig {
+            standby_duration: defaults.standby_duration,
+            delay_after_ready: defaults.delay_after_ready,
+            delay_after_playing: defaults.delay_after_playing,
+            delay_after_goal: defaults.delay_after_goal,
+            signals: SignalConfig { enabled: false, ..self.signals },
+            ..self
+        }
+    }
+}
+
+/// How long the simulated referee waits in Standby before its Ready gesture, s: robots enter,
+/// stand and localize first (GameController3's Standby has no timer; the referee decides).
+const GC3_STANDBY: f64 = 10.0;
 
 /// Team broadcast emulation: the simulator forwards a robot's team messages to its teammates.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -773,6 +863,18 @@ impl SimConfig {
         }
         v.positive("referee.packet_rate", f.packet_rate)?;
         v.range("referee.packet_loss", f.packet_loss, 0.0, 1.0)?;
+        let s = &f.signals;
+        for (name, value) in [
+            ("referee.signals.behind_line", s.behind_line),
+            ("referee.signals.gesture_duration", s.gesture_duration),
+            ("referee.signals.gesture_range", s.gesture_range),
+            ("referee.signals.whistle_range", s.whistle_range),
+            ("referee.signals.whistle_false_rate", s.whistle_false_rate),
+        ] {
+            v.non_negative(name, value)?;
+        }
+        v.range("referee.signals.gesture_detection", s.gesture_detection, 0.0, 1.0)?;
+        v.range("referee.signals.whistle_miss", s.whistle_miss, 0.0, 1.0)?;
         Ok(())
     }
 
@@ -852,7 +954,35 @@ mod tests {
     fn the_shipped_default_file_is_the_default_config() {
         let parsed = SimConfig::from_toml_str(SimConfig::DEFAULT_TOML, "config/default.toml")
             .expect("the default config parses");
-        assert_eq!(parsed, SimConfig::default());
+        // The one difference: the file has GameController3's timing and the referee's signals,
+        // the code GameController3's `--no-delay`.
+        let mut expected = SimConfig::default();
+        expected.referee = expected.referee.game_controller3();
+        assert_eq!(parsed, expected);
+    }
+
+    #[test]
+    fn bad_signal_values_name_their_key() {
+        for (key, value) in [
+            ("behind_line", "-0.1"),
+            ("gesture_duration", "nan"),
+            ("gesture_range", "-1.0"),
+            ("gesture_detection", "1.5"),
+            ("whistle_range", "inf"),
+            ("whistle_miss", "-0.01"),
+            ("whistle_false_rate", "-1.0"),
+        ] {
+            let text = format!("[referee.signals]\n{key} = {value}\n");
+            let error = SimConfig::from_toml_str(&text, "x.toml").expect_err(&text);
+            assert!(error.to_string().contains(&format!("`referee.signals.{key}`")), "{error}");
+        }
+        let error = SimConfig::from_toml_str("[referee.signals]\nwhistle = 1.0\n", "x.toml")
+            .expect_err("unknown key");
+        assert!(error.to_string().contains("whistle"), "{error}");
+        let config = SimConfig::from_toml_str("[referee.signals]\nenabled = true\n", "x.toml")
+            .expect("valid");
+        assert!(config.referee.signals.enabled);
+        assert_eq!(config.referee.signals.whistle_range, 12.0);
     }
 
     #[test]

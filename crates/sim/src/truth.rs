@@ -223,6 +223,15 @@ strata_runtime::text_and_binary_enum! {
         IllegalCommunication {
             team: usize,
         },
+        /// The head referee whistled (the kick-off, or a goal): these robots hear it, in their
+        /// next sensor frame (`referee.signals`); the others were out of range or missed it.
+        Whistle {
+            robots: Vec<RobotId>,
+        },
+        /// A robot's whistle detector fired with no whistle.
+        FalseWhistle {
+            robot: RobotId,
+        },
     }
     text: #[serde(tag = "event", rename_all = "snake_case")]
     binary: #[serde(rename_all = "snake_case")]

@@ -252,6 +252,7 @@ fn main() {
                 pose: Pose::new(-2.0 + f64::from(id) * 0.3, 1.0, 0.0),
                 pose_confidence: 0.8,
                 objects: ball_at(0.6),
+                signal: None,
             };
             message::encode(&m).expect("encodes")
         })

@@ -229,6 +229,7 @@ fn need_to_look(goal: &HeadGoal, world: &WorldState, objects: &[&ObjectEstimate]
             HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
                 1.0 - world.pose.confidence
             }
+            // The gesture is not in the world model: the need lasts as long as the goal.
             _ => 1.0,
         };
     }
@@ -245,12 +246,16 @@ fn head_primitives<'a>(
     match goal {
         HeadGoal::ObserveTogether { .. } => &[names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE],
         HeadGoal::Scan => &[names::SEARCH_OBJECT_ELLIPSE],
-        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } if !world.pose.lost => {
+        HeadGoal::ObservePartner { .. }
+        | HeadGoal::ObserveFieldLine { .. }
+        | HeadGoal::ObserveReferee { .. }
+            if !world.pose.lost =>
+        {
             &[names::LOOK_AT_TARGET]
         }
-        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } => {
-            &[names::SEARCH_OBJECT_ELLIPSE]
-        }
+        HeadGoal::ObservePartner { .. }
+        | HeadGoal::ObserveFieldLine { .. }
+        | HeadGoal::ObserveReferee { .. } => &[names::SEARCH_OBJECT_ELLIPSE],
         _ => {
             // Tracking needs a position worth pointing at: a tracked object, or a landmark
             // predicted from a pose that is not lost. A track not yet confident enough to be

@@ -41,7 +41,7 @@ use crate::game::{GameDirective, Kicking};
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
 use crate::primitives::{MotionModel, TOGETHER_RANGE, facing, names};
 use crate::situation::{ball, best_instance, obstacle_ahead};
-use crate::value::{GoToBallValue, GoalCoveringValue, PositionValue};
+use crate::value::{GoToBallValue, GoalCoveringValue, PositionValue, RefereeVisibilityValue};
 use crate::world_config::{BALL, landmark_groups};
 
 /// What the planning layer sends soccer's deliberative layer.
@@ -98,6 +98,12 @@ pub struct BehaviorConfig {
     pub no_second_touch: bool,
     /// How far from the ball the taker keeps while it may not touch it, m.
     pub let_go_distance: f64,
+    /// Where the head referee stands: on the halfway line, this far outside the side line at
+    /// the field's negative y in the first half (teams change ends at half time, the referee
+    /// stays), m (the built-in simulator's `referee.signals.behind_line`).
+    pub referee_behind_line: f64,
+    /// How far the referee's gesture can be seen, m.
+    pub referee_range: f64,
 }
 
 impl Default for BehaviorConfig {
@@ -112,6 +118,8 @@ impl Default for BehaviorConfig {
             set_play_distance: 0.0,
             no_second_touch: false,
             let_go_distance: 0.8,
+            referee_behind_line: 0.6,
+            referee_range: 10.0,
         }
     }
 }
@@ -201,6 +209,7 @@ impl Ctx {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum S {
     Initial,
+    Standby,
     Ready,
     Set,
     Playing,
@@ -218,8 +227,16 @@ pub enum S {
     DefenderPositioning,
 }
 
-const TOP: [S; 7] =
-    [S::Initial, S::Ready, S::Set, S::Playing, S::Finished, S::Penalized, S::KeepingDistance];
+const TOP: [S; 8] = [
+    S::Initial,
+    S::Standby,
+    S::Ready,
+    S::Set,
+    S::Playing,
+    S::Finished,
+    S::Penalized,
+    S::KeepingDistance,
+];
 const FIELD_ROLES: [(S, Role); 5] = [
     (S::Striker, Role::Striker),
     (S::StrikerCover, Role::StrikerCover),
@@ -234,7 +251,8 @@ fn phase(ctx: &Ctx) -> S {
         return S::Penalized;
     }
     match d.state {
-        GameState::Initial | GameState::Standby => S::Initial,
+        GameState::Initial => S::Initial,
+        GameState::Standby => S::Standby,
         GameState::Ready => S::Ready,
         GameState::Set => S::Set,
         GameState::Playing if waits_for_kick_off(&d, ctx.player) => S::Ready,
@@ -591,6 +609,59 @@ fn going_to_field_position(ctx: &mut Ctx, target: Pose) -> Status {
     Status::Running
 }
 
+/// Watching the referee (Standby): standing still, as the rules demand, the head trades the
+/// referee, for its Ready gesture, against landmarks: the referee's value function says how
+/// surely a look would show it (E[V], which the pose's uncertainty lowers), active vision how
+/// much each landmark would raise that by localizing. Sure of its pose, the robot watches the
+/// referee; unsure, it localizes first.
+fn watching_referee(ctx: &mut Ctx) -> Status {
+    ctx.set_body(BodyGoal::Stand);
+    let referee = ctx.field.referee(ctx.config.referee_behind_line);
+    // Teams change ends at half time and the referee does not: in the team frame it is on the
+    // other side in the second half.
+    let referee =
+        if ctx.directive().first_half { referee } else { Point::new(-referee.x, -referee.y) };
+    let watch = HeadGoal::ObserveReferee { position: referee };
+    let active = matches!(
+        ctx.config.gaze,
+        GazeStrategy::ActiveVision | GazeStrategy::ActiveVisionTaskValue | GazeStrategy::Entropy
+    );
+    // The baselines have no value functions: they just watch.
+    let Some(world) = ctx.world.take_if(|_| active) else {
+        ctx.out.head = ScoreVector::single(watch);
+        return Status::Running;
+    };
+    let (lo, hi) = ctx.vision.config.yaw_limits;
+    let value = RefereeVisibilityValue {
+        referee,
+        gaze: world.pose.pose.to_robot(referee).bearing().clamp(lo.min(hi), hi.max(lo)),
+        fov: ctx.config.fov,
+        range: ctx.config.referee_range,
+    };
+    let mut gazes = std::mem::take(&mut ctx.gazes);
+    let mut looks = std::mem::take(&mut ctx.gaze_looks);
+    gaze_candidates(ctx, &world, &mut gazes, &mut looks);
+    ctx.vision.config.criterion = Criterion::MaxExpectedTaskValue;
+    let mut report = std::mem::take(&mut ctx.spare_report);
+    ctx.vision.evaluate_into(&world, &value, &gazes, &mut report);
+    let worth = report.prior_expected_value.clamp(0.0, 1.0);
+    let mut head = ScoreVector::default();
+    head.push(GoalScore::new(watch, worth));
+    for ((candidate, what), e) in gazes.iter().zip(&looks).zip(&report.candidates) {
+        head.push(GoalScore {
+            goal: head_goal_for(&candidate.label),
+            deliberative: e.score * (1.0 - worth),
+            objects: what.objects(&candidate.label),
+        });
+    }
+    ctx.out.head = head;
+    ctx.vision_report = Some(report);
+    ctx.gazes = gazes;
+    ctx.gaze_looks = looks;
+    ctx.world = Some(world);
+    Status::Running
+}
+
 /// Localizing: look for landmarks, stand still.
 fn localizing(ctx: &mut Ctx) -> Status {
     let mut head = ScoreVector::default();
@@ -901,6 +972,7 @@ fn build_machine(goalie: bool) -> Result<StateMachine<S, Ctx>, BuildError<S>> {
 fn game_states(mut builder: Builder<S, Ctx>, goalie: bool) -> Builder<S, Ctx> {
     let top_names = [
         (S::Initial, "Initial"),
+        (S::Standby, "Standby"),
         (S::Ready, "Ready"),
         (S::Set, "Set"),
         (S::Playing, "Playing"),
@@ -930,6 +1002,7 @@ fn game_states(mut builder: Builder<S, Ctx>, goalie: bool) -> Builder<S, Ctx> {
                 gaze(ctx, None);
                 Status::Running
             }),
+            S::Standby => s.behavior(|ctx: &mut Ctx, _| watching_referee(ctx)),
             S::Ready => s.behavior(|ctx: &mut Ctx, _| {
                 let kicking = ctx.directive().kicking == Kicking::Us;
                 let rule = ctx.config.no_second_touch;
@@ -1534,6 +1607,68 @@ mod tests {
         // No rule (the built-in simulator's referee): play on.
         let mut b = behavior(3);
         assert_eq!(set_play(&mut b, Kicking::Them, 0.0), Some(S::Striker));
+    }
+
+    /// In Standby the robot stands and trades the referee against landmarks by how sure its
+    /// pose is: the referee's value function (E[V]) against what localizing would add.
+    #[test]
+    fn in_standby_a_localized_robot_watches_the_referee_and_an_unsure_one_localizes_first() {
+        use strata_robot::control::deliberative::{DeliberativeInput, DeliberativePolicy};
+        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let referee = field.referee(BehaviorConfig::default().referee_behind_line);
+        let head_in_standby = |sigma: [f64; 3]| {
+            let mut b = behavior(3);
+            let mut model =
+                WorldModel::new(crate::world_config::world_config(&field)).expect("valid");
+            // On the side line of the own half, facing the field.
+            let prior =
+                PosePrior { pose: Pose::new(-3.0, -3.0, std::f64::consts::FRAC_PI_2), sigma };
+            model.command(WorldCommand::SetPose { prior }).expect("pose");
+            let world = model.state();
+            let decision = Decision {
+                assignment: strata_robot::control::planning::Assignment {
+                    mission: Mission::Defend,
+                    role: Role::Striker,
+                    alone: false,
+                },
+                directive: GameDirective { state: GameState::Standby, ..GameDirective::default() },
+                teammates: Vec::new(),
+                stats: Default::default(),
+            };
+            let input = |at: f64| DeliberativeInput {
+                now: Time::from_secs_f64(at),
+                world: Some(&world),
+                assignment: Some(&decision),
+                stability: Stability::default(),
+            };
+            // The machine starts in Initial and follows the game state from the first tick.
+            b.tick(&input(1.0));
+            let out = b.tick(&input(1.1));
+            assert!(out.behavior_path.starts_with("Standby"), "{}", out.behavior_path);
+            assert_eq!(out.body.goals.first().map(|g| g.goal.clone()), Some(BodyGoal::Stand));
+            let best = out
+                .head
+                .goals
+                .iter()
+                .max_by(|a, b| a.deliberative.total_cmp(&b.deliberative))
+                .expect("head goals")
+                .clone();
+            let watch = out
+                .head
+                .goals
+                .iter()
+                .find(|g| g.goal == HeadGoal::ObserveReferee { position: referee })
+                .expect("the referee is always a goal")
+                .deliberative;
+            (best.goal, watch)
+        };
+        let (best, sure) = head_in_standby([0.05, 0.05, 0.03]);
+        assert_eq!(best, HeadGoal::ObserveReferee { position: referee }, "watch: {sure}");
+        assert!(sure > 0.9, "{sure}");
+        let (best, unsure) = head_in_standby([0.5, 0.5, 0.6]);
+        assert!(matches!(best, HeadGoal::ObserveLandmark { .. }), "{best:?} (watch: {unsure})");
+        assert!(unsure < sure, "{unsure} {sure}");
     }
 
     #[test]

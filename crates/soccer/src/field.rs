@@ -83,6 +83,13 @@ impl TeamField {
             && p.y.abs() <= self.penalty_area_half_width + margin
     }
 
+    /// Where the head referee stands, in the team frame: on the halfway line, `behind_line` m
+    /// outside the side line at the field's negative y (the field's own frame, as the
+    /// simulator places it).
+    pub fn referee(&self, behind_line: f64) -> Point<FieldFrame> {
+        self.to_team(0.0, -(self.half_width + behind_line))
+    }
+
     /// Every landmark with its position in the team frame.
     pub fn landmarks(&self) -> impl Iterator<Item = (&Landmark, Point<FieldFrame>)> + '_ {
         self.field.landmarks().iter().map(|l| {

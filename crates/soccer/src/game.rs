@@ -4,17 +4,105 @@
 //! The same bytes arrive from a real GameController over UDP and from the simulator's referee.
 
 use serde::{Deserialize, Serialize};
-use strata_robot::control::planning::{MessageBudget, OwnState, StandingStatus};
+use strata_robot::control::planning::{MessageBudget, OwnState, SharedSignal, StandingStatus};
 use strata_robot::control::planning_module::Referee;
 use strata_robot::geometry::{Field, Point, Pose};
+use strata_robot::percept::{Signal, SignalKind};
+use strata_robot::platform::ObjectClass;
 use strata_robot::world::{PosePrior, SymmetryHint, WorldCommand, WorldState};
 use strata_runtime::Time;
 use strata_spl::gamecontroller::{
     GameControlData, GamePhase, GameState, Penalty, ReturnData, SetPlay,
 };
+use strata_spl::{Gesture, ObjectKind};
 
 use crate::field::TeamField;
 use crate::world_config::BALL;
+
+/// The team-message code of the referee's Ready gesture (seen in Standby).
+pub const SIGNAL_READY: u8 = 1;
+/// The team-message code of the kick-off whistle (heard in Set).
+pub const SIGNAL_WHISTLE: u8 = 2;
+
+/// How a robot follows the referee's own signals. Under the SPL rules robots must see the
+/// Ready gesture and hear the kick-off whistle themselves: GameController3 keeps sending
+/// Standby for 45 s after the gesture and Set for 15 s after the whistle
+/// (docs/spl-protocols.md).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SignalConfig {
+    /// Act on the signals. Off: the packets alone decide the game state.
+    pub enabled: bool,
+    /// Whistles the detector is less sure of than this are ignored, in [0, 1].
+    pub whistle_confidence: f64,
+    /// How long a whistle the packets have not confirmed is believed, s. GameController3 shows
+    /// Set for 15 s after a true one; a whistle still unconfirmed after this was false, and the
+    /// robot goes back to Set (the rules penalize its motion in Set meanwhile).
+    pub whistle_trust: f64,
+    /// The same for the Ready gesture, s: GameController3 shows Standby for 45 s after it.
+    pub gesture_trust: f64,
+    /// A signal a teammate reports is followed only if perceived less than this long ago, s
+    /// (older, it belongs to an earlier phase).
+    pub teammate_max_age: f64,
+    /// The kick-off's free-ball time after the whistle, s: what the GameController's secondary
+    /// time will say once its packets catch up.
+    pub kick_off_time: f64,
+}
+
+impl Default for SignalConfig {
+    fn default() -> Self {
+        SignalConfig {
+            enabled: true,
+            whistle_confidence: 0.5,
+            whistle_trust: 20.0,
+            gesture_trust: 50.0,
+            teammate_max_age: 3.0,
+            kick_off_time: 10.0,
+        }
+    }
+}
+
+impl SignalConfig {
+    /// The first field that is out of range, and why.
+    pub fn invalid(&self) -> Option<(&'static str, String)> {
+        let c = self.whistle_confidence;
+        if !(c.is_finite() && (0.0..=1.0).contains(&c)) {
+            return Some(("signals.whistle_confidence", format!("must be in [0, 1], got {c}")));
+        }
+        for (field, v) in [
+            ("signals.whistle_trust", self.whistle_trust),
+            ("signals.gesture_trust", self.gesture_trust),
+            ("signals.teammate_max_age", self.teammate_max_age),
+            ("signals.kick_off_time", self.kick_off_time),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Some((field, format!("must be >= 0 s, got {v}")));
+            }
+        }
+        None
+    }
+}
+
+/// A referee signal the robot acts on before the packets show it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Followed {
+    code: u8,
+    /// When the first robot perceived it.
+    since: Time,
+}
+
+/// What the robot made of the referee's signals, for experiments and diagnostics.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SignalStats {
+    /// Signals this robot perceived and followed.
+    pub perceived: u64,
+    /// Signals followed on a teammate's word.
+    pub from_teammates: u64,
+    /// Whistles the packets never confirmed (the robot went back to Set).
+    pub false_whistles: u64,
+    /// Gestures the packets never confirmed.
+    pub false_gestures: u64,
+}
 
 /// Who takes the next kick-off or set play.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -79,6 +167,12 @@ pub struct GameControllerReferee {
     /// last seen, whatever the world model still holds.
     ball_seen: Option<(Time, Point<Field>)>,
     status_interval: f64,
+    signals: SignalConfig,
+    followed: Option<Followed>,
+    /// A signal perceived since the planning module last asked: teammates hear of it at once.
+    signal_news: bool,
+    now: Time,
+    pub signal_stats: SignalStats,
     pub packets: u64,
     pub rejected: u64,
 }
@@ -93,6 +187,7 @@ impl GameControllerReferee {
         player: u8,
         field: TeamField,
         half_duration: f64,
+        signals: SignalConfig,
     ) -> GameControllerReferee {
         GameControllerReferee {
             team_number,
@@ -106,9 +201,35 @@ impl GameControllerReferee {
             last_status: None,
             ball_seen: None,
             status_interval: 1.0,
+            signals,
+            followed: None,
+            signal_news: false,
+            now: Time::ZERO,
+            signal_stats: SignalStats::default(),
             packets: 0,
             rejected: 0,
         }
+    }
+
+    /// The state the packets show while a signal with this code runs ahead of them.
+    fn awaited_by(code: u8) -> GameState {
+        if code == SIGNAL_READY { GameState::Standby } else { GameState::Set }
+    }
+
+    /// Follows a signal perceived at `since` (by this robot, or a teammate), if the packets
+    /// show the state it ends and nothing is followed yet.
+    fn follow(&mut self, code: u8, since: Time) -> bool {
+        let d = &self.directive;
+        if !self.signals.enabled
+            || !d.connected
+            || d.penalized
+            || d.state != Self::awaited_by(code)
+            || self.followed.is_some()
+        {
+            return false;
+        }
+        self.followed = Some(Followed { code, since });
+        true
     }
 
     fn side_line_priors(&self, x: f64) -> Vec<PosePrior> {
@@ -206,7 +327,79 @@ impl Referee for GameControllerReferee {
     }
 
     fn directive(&self) -> GameDirective {
-        self.directive.clone()
+        let mut directive = self.directive.clone();
+        match self.followed {
+            Some(Followed { code: SIGNAL_READY, .. }) => directive.state = GameState::Ready,
+            Some(Followed { since, .. }) => {
+                directive.state = GameState::Playing;
+                directive.set_play = SetPlay::None;
+                let left = self.signals.kick_off_time - (self.now - since).as_secs_f64();
+                directive.secondary_time = left.max(0.0).ceil() as i16;
+            }
+            None => {}
+        }
+        directive
+    }
+
+    fn perceive(&mut self, _now: Time, signal: &Signal) {
+        let code = match signal.kind {
+            SignalKind::Whistle if signal.confidence >= self.signals.whistle_confidence => {
+                SIGNAL_WHISTLE
+            }
+            SignalKind::Sight { class, variant, .. }
+                if class == ObjectClass(ObjectKind::Referee.code())
+                    && variant == Some(Gesture::Ready.code()) =>
+            {
+                SIGNAL_READY
+            }
+            _ => return,
+        };
+        if self.follow(code, signal.stamp) {
+            self.signal_stats.perceived += 1;
+            self.signal_news = true;
+        }
+    }
+
+    fn teammate_signal(&mut self, now: Time, _sender: u8, signal: &SharedSignal) {
+        if !(signal.code == SIGNAL_READY || signal.code == SIGNAL_WHISTLE)
+            || !(signal.age.is_finite() && signal.age <= self.signals.teammate_max_age)
+        {
+            return;
+        }
+        let since = Time::from_secs_f64((now.as_secs_f64() - signal.age).max(0.0));
+        // Not news: the teammate told everybody already.
+        if self.follow(signal.code, since) {
+            self.signal_stats.from_teammates += 1;
+        }
+    }
+
+    fn shared_signal(&self, now: Time) -> Option<SharedSignal> {
+        self.followed.map(|f| SharedSignal { code: f.code, age: (now - f.since).as_secs_f64() })
+    }
+
+    fn take_signal_news(&mut self) -> bool {
+        std::mem::take(&mut self.signal_news)
+    }
+
+    fn update(&mut self, now: Time) {
+        self.now = now;
+        let Some(followed) = self.followed else { return };
+        let d = &self.directive;
+        if d.state != Self::awaited_by(followed.code) || d.penalized {
+            // The packets caught up (or moved on): they decide again.
+            self.followed = None;
+            return;
+        }
+        let (trust, count) = if followed.code == SIGNAL_READY {
+            (self.signals.gesture_trust, &mut self.signal_stats.false_gestures)
+        } else {
+            (self.signals.whistle_trust, &mut self.signal_stats.false_whistles)
+        };
+        if (now - followed.since).as_secs_f64() > trust {
+            // Never confirmed: a false whistle (or gesture); back to what the packets say.
+            *count += 1;
+            self.followed = None;
+        }
     }
 
     fn penalized(&self) -> bool {
@@ -271,7 +464,7 @@ mod tests {
 
     fn referee() -> GameControllerReferee {
         let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
-        GameControllerReferee::new(5, 2, field, 600.0)
+        GameControllerReferee::new(5, 2, field, 600.0, SignalConfig::default())
     }
 
     fn packet(state: GameState, penalized: bool) -> Vec<u8> {
@@ -357,6 +550,146 @@ mod tests {
         let (age, ball) =
             ball_of(r.status_packet(Time::from_secs_f64(6.0), &own, Some(&world(6.0, None))));
         assert_eq!((age, ball), (4.5, [2000.0, 1000.0]));
+    }
+
+    fn secs(s: f64) -> Time {
+        Time::from_secs_f64(s)
+    }
+
+    fn whistle(at: f64, confidence: f64) -> Signal {
+        Signal { stamp: secs(at), kind: SignalKind::Whistle, confidence }
+    }
+
+    fn gesture(at: f64, gesture: Gesture) -> Signal {
+        let kind = SignalKind::Sight {
+            class: ObjectClass(ObjectKind::Referee.code()),
+            variant: Some(gesture.code()),
+            range: 5.0,
+            bearing: 0.3,
+        };
+        Signal { stamp: secs(at), kind, confidence: 1.0 }
+    }
+
+    /// One planning cycle at `at`: packets first, then the signals' clock.
+    fn cycle(r: &mut GameControllerReferee, at: f64, state: GameState) -> GameDirective {
+        r.receive(secs(at), &packet(state, false)).expect("valid");
+        r.update(secs(at));
+        r.directive()
+    }
+
+    #[test]
+    fn the_ready_gesture_runs_ahead_of_standby_until_the_packets_catch_up() {
+        let mut r = referee();
+        assert_eq!(cycle(&mut r, 1.0, GameState::Standby).state, GameState::Standby);
+        // No gesture, or seen outside Standby: nothing.
+        r.perceive(secs(1.1), &gesture(1.1, Gesture::None));
+        assert_eq!(cycle(&mut r, 1.2, GameState::Standby).state, GameState::Standby);
+        assert!(!r.take_signal_news());
+
+        r.perceive(secs(2.0), &gesture(2.0, Gesture::Ready));
+        assert!(r.take_signal_news(), "teammates hear of it at once");
+        assert!(!r.take_signal_news(), "once");
+        // GameController3 keeps sending Standby for 45 s: the robot is in Ready meanwhile, and
+        // says so in its messages.
+        for at in [2.1, 20.0, 46.0] {
+            assert_eq!(cycle(&mut r, at, GameState::Standby).state, GameState::Ready);
+        }
+        let shared = r.shared_signal(secs(46.0)).expect("shared");
+        assert_eq!(shared.code, SIGNAL_READY);
+        assert!((shared.age - 44.0).abs() < 1e-9, "{shared:?}");
+        // The packets moved on: they decide again.
+        assert_eq!(cycle(&mut r, 47.0, GameState::Set).state, GameState::Set);
+        assert_eq!(r.shared_signal(secs(47.0)), None);
+        assert_eq!(r.signal_stats.perceived, 1);
+        assert_eq!(r.signal_stats.false_gestures, 0);
+    }
+
+    #[test]
+    fn the_whistle_starts_the_kick_off_and_a_false_one_ends_when_the_packets_still_say_set() {
+        let mut r = referee();
+        assert_eq!(cycle(&mut r, 1.0, GameState::Set).state, GameState::Set);
+        // Too unsure to act on.
+        r.perceive(secs(1.5), &whistle(1.5, 0.3));
+        assert_eq!(cycle(&mut r, 1.6, GameState::Set).state, GameState::Set);
+
+        r.perceive(secs(2.0), &whistle(2.0, 0.9));
+        let d = cycle(&mut r, 2.0, GameState::Set);
+        assert_eq!(
+            (d.state, d.set_play, d.secondary_time),
+            (GameState::Playing, SetPlay::None, 10)
+        );
+        // The kick-off's free-ball time counts down from the whistle.
+        assert_eq!(cycle(&mut r, 5.5, GameState::Set).secondary_time, 7);
+        assert_eq!(cycle(&mut r, 14.0, GameState::Set).secondary_time, 0);
+        assert_eq!(cycle(&mut r, 21.9, GameState::Set).state, GameState::Playing);
+        // 20 s and the packets still say Set: the whistle was false.
+        let d = cycle(&mut r, 22.1, GameState::Set);
+        assert_eq!(d.state, GameState::Set);
+        assert_eq!(r.signal_stats.false_whistles, 1);
+
+        // A true whistle: the packets confirm it within the trust.
+        r.perceive(secs(30.0), &whistle(30.0, 0.7));
+        assert_eq!(cycle(&mut r, 44.0, GameState::Set).state, GameState::Playing);
+        assert_eq!(cycle(&mut r, 45.0, GameState::Playing).state, GameState::Playing);
+        assert_eq!(r.shared_signal(secs(45.0)), None, "the packets decide again");
+        // Whistles in Playing (a goal, a false one) change nothing.
+        r.perceive(secs(50.0), &whistle(50.0, 1.0));
+        assert_eq!(cycle(&mut r, 50.0, GameState::Playing).state, GameState::Playing);
+        assert_eq!((r.signal_stats.perceived, r.signal_stats.false_whistles), (2, 1));
+    }
+
+    #[test]
+    fn teammates_follow_a_fresh_signal_and_ignore_stale_or_unknown_ones() {
+        let mut r = referee();
+        cycle(&mut r, 1.0, GameState::Set);
+        let stale = SharedSignal { code: SIGNAL_WHISTLE, age: 3.5 };
+        r.teammate_signal(secs(2.0), 3, &stale);
+        let unknown = SharedSignal { code: 3, age: 0.1 };
+        r.teammate_signal(secs(2.0), 3, &unknown);
+        let gesture_in_set = SharedSignal { code: SIGNAL_READY, age: 0.1 };
+        r.teammate_signal(secs(2.0), 3, &gesture_in_set);
+        assert_eq!(cycle(&mut r, 2.0, GameState::Set).state, GameState::Set);
+
+        r.teammate_signal(secs(3.0), 3, &SharedSignal { code: SIGNAL_WHISTLE, age: 1.0 });
+        assert!(!r.take_signal_news(), "the teammate told everybody already");
+        let d = cycle(&mut r, 3.0, GameState::Set);
+        // The kick-off started when the teammate heard it.
+        assert_eq!((d.state, d.secondary_time), (GameState::Playing, 9));
+        let relayed = r.shared_signal(secs(4.0)).expect("relayed");
+        assert!((relayed.age - 2.0).abs() < 1e-9, "{relayed:?}");
+        assert_eq!(r.signal_stats.from_teammates, 1);
+    }
+
+    #[test]
+    fn without_signals_or_a_game_controller_the_packets_alone_decide() {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let off = SignalConfig { enabled: false, ..SignalConfig::default() };
+        let mut r = GameControllerReferee::new(5, 2, field, 600.0, off);
+        cycle(&mut r, 1.0, GameState::Set);
+        r.perceive(secs(2.0), &whistle(2.0, 1.0));
+        assert_eq!(cycle(&mut r, 2.0, GameState::Set).state, GameState::Set);
+
+        // No packet yet: nothing to run ahead of.
+        let mut r = referee();
+        r.perceive(secs(2.0), &whistle(2.0, 1.0));
+        r.update(secs(2.0));
+        assert_eq!(r.directive(), GameDirective::default());
+
+        // A penalized robot is off the field: it does not start on a whistle.
+        let mut r = referee();
+        r.receive(secs(1.0), &packet(GameState::Set, true)).expect("valid");
+        r.perceive(secs(2.0), &whistle(2.0, 1.0));
+        r.update(secs(2.0));
+        assert_eq!(r.directive().state, GameState::Set);
+    }
+
+    #[test]
+    fn bad_signal_settings_name_the_field() {
+        let bad = SignalConfig { whistle_confidence: 1.5, ..SignalConfig::default() };
+        assert_eq!(bad.invalid().map(|(f, _)| f), Some("signals.whistle_confidence"));
+        let bad = SignalConfig { whistle_trust: f64::NAN, ..SignalConfig::default() };
+        assert_eq!(bad.invalid().map(|(f, _)| f), Some("signals.whistle_trust"));
+        assert_eq!(SignalConfig::default().invalid(), None);
     }
 
     #[test]

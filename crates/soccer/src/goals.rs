@@ -39,6 +39,11 @@ pub enum HeadGoal {
     },
     /// A fixed head scan, whatever the situation (the baseline many SPL teams use).
     Scan,
+    /// The head referee, where the rules put it (team frame): in Standby robots watch it for
+    /// the Ready gesture.
+    ObserveReferee {
+        position: Point<Field>,
+    },
     /// Several objects in one gaze; split by the multiplexer when they do not fit (stage 1).
     ObserveTogether {
         objects: Vec<String>,
@@ -57,6 +62,7 @@ impl Goal for HeadGoal {
             HeadGoal::ObserveLandmark { name } => format!("observe {name}"),
             HeadGoal::ObserveTogether { objects } => format!("observe {}", objects.join("+")),
             HeadGoal::Scan => "scan".into(),
+            HeadGoal::ObserveReferee { .. } => "observe referee".into(),
         }
     }
 }

@@ -4,12 +4,14 @@
 //! ```text
 //! offset size  field
 //!  0     2     magic "ST" (rejects other teams' messages on a shared network)
-//!  2     1     version (1)
+//!  2     1     version (2)
 //!  3     1     sender player number (1-20)
 //!  4     1     mission code
 //!  5     1     role code
 //!  6     1     flags: bits 0-1 standing status (0 stable, 1 unstable, 2 fallen),
-//!              bit 2 penalized, bit 3 localized, bit 4 data received, bit 5 role conflict
+//!              bit 2 penalized, bit 3 localized, bit 4 data received, bit 5 role conflict,
+//!              bits 6-7 referee signal (0 none, 1 Ready gesture seen, 2 kick-off whistle
+//!              heard; [`crate::game::SIGNAL_READY`], [`crate::game::SIGNAL_WHISTLE`])
 //!  7     2     time since the sender last received, 0.1 s (0xFFFF: never)
 //!  9     2     role utility, hundredths, i16 (saturating)
 //! 11     2     pose x, mm, i16
@@ -17,22 +19,25 @@
 //! 15     2     pose theta, 1e-4 rad, i16
 //! 17     1     pose confidence, /255
 //! 18     1     number of shared objects n (at most 12)
-//! 19     9n    objects: code u8, x i16 mm, y i16 mm, sigma u16 mm, confidence u8 (/255),
+//! 19     1     referee signal's age, 0.1 s (255 = 25.5 s or more; 0 without a signal)
+//! 20     9n    objects: code u8, x i16 mm, y i16 mm, sigma u16 mm, confidence u8 (/255),
 //!              age u8 (0.1 s, 255 = 25.5 s or more)
 //! ```
 //!
-//! 19 + 12 x 9 = 127 bytes. Integers instead of floats: no NaN can arrive, and 1 mm / 1e-4 rad
+//! 20 + 12 x 9 = 128 bytes. Integers instead of floats: no NaN can arrive, and 1 mm / 1e-4 rad
 //! is finer than any estimate worth sharing.
 
-use strata_robot::control::planning::{SharedObject, StandingStatus, TeamMessage};
+use strata_robot::control::planning::{SharedObject, SharedSignal, StandingStatus, TeamMessage};
 use strata_robot::geometry::{Point, Pose};
 
 use crate::catalog::{Mission, Role};
 
 pub const MAGIC: [u8; 2] = *b"ST";
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 pub const MAX_SIZE: usize = 128;
-const HEADER: usize = 19;
+const HEADER: usize = 20;
+/// The largest referee signal code the flags carry.
+const MAX_SIGNAL: u8 = 3;
 const OBJECT: usize = 9;
 pub const MAX_OBJECTS: usize = (MAX_SIZE - HEADER) / OBJECT;
 /// The wire heading nearest to pi: round(pi x 1e4).
@@ -71,6 +76,11 @@ fn unit(v: f64) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
+/// Seconds in 0.1 s, saturating at 25.5 s (and there for what is not a number).
+fn tenths(age: f64) -> u8 {
+    if age.is_finite() { (age * 10.0).round().clamp(0.0, 255.0) as u8 } else { 255 }
+}
+
 /// Encodes a message; objects beyond what fits are dropped (the first ones are kept: the
 /// caller orders them by importance).
 pub fn encode(message: &SoccerMessage) -> Result<Vec<u8>, MessageError> {
@@ -83,6 +93,15 @@ pub fn encode(message: &SoccerMessage) -> Result<Vec<u8>, MessageError> {
     if !message.pose.is_finite() {
         return Err(MessageError::Encode("pose is not finite".into()));
     }
+    let (signal, signal_age) = match message.signal {
+        None => (0, 0),
+        Some(SharedSignal { code, age }) if (1..=MAX_SIGNAL).contains(&code) => (code, tenths(age)),
+        Some(SharedSignal { code, .. }) => {
+            return Err(MessageError::Encode(format!(
+                "referee signal {code} is not a code 1-{MAX_SIGNAL}"
+            )));
+        }
+    };
     let mut out = Vec::with_capacity(MAX_SIZE);
     out.extend_from_slice(&MAGIC);
     out.push(VERSION);
@@ -98,7 +117,8 @@ pub fn encode(message: &SoccerMessage) -> Result<Vec<u8>, MessageError> {
         | (u8::from(message.penalized) << 2)
         | (u8::from(message.localized) << 3)
         | (u8::from(message.data_received) << 4)
-        | (u8::from(message.conflict) << 5);
+        | (u8::from(message.conflict) << 5)
+        | (signal << 6);
     out.push(flags);
     let since = if message.since_last_received.is_finite() {
         (message.since_last_received * 10.0).round().clamp(0.0, 65534.0) as u16
@@ -124,6 +144,7 @@ pub fn encode(message: &SoccerMessage) -> Result<Vec<u8>, MessageError> {
         .take(MAX_OBJECTS)
         .collect();
     out.push(objects.len() as u8);
+    out.push(signal_age);
     for (code, o) in objects {
         out.push(code);
         out.extend_from_slice(&mm(o.position.x).to_le_bytes());
@@ -135,9 +156,7 @@ pub fn encode(message: &SoccerMessage) -> Result<Vec<u8>, MessageError> {
         };
         out.extend_from_slice(&sigma.to_le_bytes());
         out.push(unit(o.confidence));
-        let age =
-            if o.age.is_finite() { (o.age * 10.0).round().clamp(0.0, 255.0) as u8 } else { 255 };
-        out.push(age);
+        out.push(tenths(o.age));
     }
     debug_assert!(out.len() <= MAX_SIZE);
     Ok(out)
@@ -181,9 +200,6 @@ pub fn decode(bytes: &[u8]) -> Result<SoccerMessage, MessageError> {
     let role = Role::from_code(bytes[5])
         .ok_or(MessageError::InvalidValue { field: "role", value: u32::from(bytes[5]) })?;
     let flags = bytes[6];
-    if flags & 0b1100_0000 != 0 {
-        return Err(MessageError::InvalidValue { field: "flags", value: u32::from(flags) });
-    }
     let status = match flags & 0b11 {
         0 => StandingStatus::Stable,
         1 => StandingStatus::Unstable,
@@ -257,6 +273,10 @@ pub fn decode(bytes: &[u8]) -> Result<SoccerMessage, MessageError> {
         ),
         pose_confidence: f64::from(bytes[17]) / 255.0,
         objects,
+        signal: match flags >> 6 {
+            0 => None,
+            code => Some(SharedSignal { code, age: f64::from(bytes[19]) / 10.0 }),
+        },
     })
 }
 
@@ -286,21 +306,23 @@ mod tests {
                 confidence: 0.6,
                 age: 0.4,
             }],
+            signal: Some(SharedSignal { code: 2, age: 0.7 }),
         }
     }
 
     #[test]
     fn the_layout_is_as_documented() {
         let bytes = encode(&sample()).expect("encodes");
-        assert_eq!(bytes.len(), 19 + 9);
-        assert_eq!(&bytes[..7], &[b'S', b'T', 1, 3, 1, 2, 0b11_1010]);
+        assert_eq!(bytes.len(), 20 + 9);
+        assert_eq!(&bytes[..7], &[b'S', b'T', 2, 3, 1, 2, 0b1011_1010]);
         assert_eq!(u16_at(&bytes, 7), 13);
         assert_eq!(i16_at(&bytes, 9), -225);
         assert_eq!(i16_at(&bytes, 11), -1234);
         assert_eq!(i16_at(&bytes, 13), 2500);
         assert_eq!(i16_at(&bytes, 15), 15000);
         assert_eq!(bytes[18], 1);
-        assert_eq!(&bytes[19..], &[0, 244, 1, 6, 255, 120, 0, 153, 4]);
+        assert_eq!(bytes[19], 7);
+        assert_eq!(&bytes[20..], &[0, 244, 1, 6, 255, 120, 0, 153, 4]);
     }
 
     #[test]
@@ -313,6 +335,13 @@ mod tests {
         assert!(decoded.conflict && decoded.localized && !decoded.penalized);
         assert!((decoded.pose.x + 1.234).abs() < 1e-9);
         assert!((decoded.objects[0].position.y + 0.25).abs() < 1e-9);
+        assert_eq!(decoded.signal, Some(SharedSignal { code: 2, age: 0.7 }));
+        let silent = SoccerMessage { signal: None, ..message };
+        let bytes = encode(&silent).expect("encodes");
+        assert_eq!((bytes[6] >> 6, bytes[19]), (0, 0));
+        assert_eq!(decode(&bytes).expect("decodes").signal, None);
+        let unknown = SoccerMessage { signal: Some(SharedSignal { code: 4, age: 0.0 }), ..silent };
+        assert!(encode(&unknown).is_err(), "a code the flags cannot carry");
     }
 
     #[test]
@@ -374,7 +403,7 @@ mod tests {
             (
                 {
                     let mut b = good.clone();
-                    b[19] = 7;
+                    b[20] = 7;
                     b
                 },
                 "object code",

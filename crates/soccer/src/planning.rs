@@ -260,6 +260,7 @@ mod tests {
             pose: Pose::new(-1.0, 0.0, 0.0),
             pose_confidence: 0.9,
             objects: ball(),
+            signal: None,
         }
     }
 

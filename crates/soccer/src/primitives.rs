@@ -357,7 +357,9 @@ pub fn look_target(
             let candidate = GazeCandidate::covering(world, &ids, fov * 0.8, "together")?;
             Some(Point::from_polar(TOGETHER_RANGE, candidate.direction))
         }
-        HeadGoal::ObservePartner { position, .. } => Some(pose.to_robot(*position)),
+        HeadGoal::ObservePartner { position, .. } | HeadGoal::ObserveReferee { position } => {
+            Some(pose.to_robot(*position))
+        }
         HeadGoal::ObserveFieldLine { line } => {
             let segment = field.field.lines().get(usize::from(*line))?;
             let a = field.to_team(segment.start.x, segment.start.y);

@@ -163,9 +163,10 @@ pub fn head_goal_objects<'a>(world: &'a WorldState, goal: &'a HeadGoal) -> GoalO
             );
         }
         HeadGoal::ObserveRival { player } => obstacles(world).nth(usize::from(*player)),
-        HeadGoal::ObservePartner { .. } | HeadGoal::ObserveFieldLine { .. } | HeadGoal::Scan => {
-            None
-        }
+        HeadGoal::ObservePartner { .. }
+        | HeadGoal::ObserveFieldLine { .. }
+        | HeadGoal::ObserveReferee { .. }
+        | HeadGoal::Scan => None,
     };
     GoalObjects::One(one)
 }

@@ -17,14 +17,17 @@ use strata_robot::control::reactive::{
 };
 use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::perception::PerceptionConfig;
-use strata_robot::platform::{ExternalLink, PlatformInfo, SharedPlatform, TeamLink, lock_platform};
+use strata_robot::platform::{
+    ExternalLink, ObjectClass, PlatformInfo, SharedPlatform, TeamLink, lock_platform,
+};
 use strata_robot::world::{PosePrior, SymmetryHint, WorldModelConfig, WorldState};
 use strata_runtime::GraphBuilder;
+use strata_spl::ObjectKind;
 
 use crate::activation::{BodyActivation, HeadActivation, WholeBodyActivation};
 use crate::behaviors::{BehaviorConfig, SoccerBehavior};
 use crate::field::TeamField;
-use crate::game::GameControllerReferee;
+use crate::game::{GameControllerReferee, SignalConfig};
 use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
 use crate::planning::{SoccerCodec, SoccerPlanning, SoccerPlanningConfig};
 use crate::primitives::{
@@ -50,6 +53,8 @@ pub struct TeamConfig {
     pub motion: MotionModel,
     pub planning: PlanningConfig,
     pub soccer_planning: SoccerPlanningConfig,
+    /// Following the referee's whistle and Ready gesture ahead of the GameController.
+    pub signals: SignalConfig,
     pub timing: RobotTiming,
     /// Extra computation per deliberative tick, s (the rates experiment's load).
     pub deliberative_load: f64,
@@ -68,6 +73,7 @@ impl Default for TeamConfig {
             motion: MotionModel::default(),
             planning: PlanningConfig::default(),
             soccer_planning: SoccerPlanningConfig::default(),
+            signals: SignalConfig::default(),
             timing: RobotTiming::default(),
             deliberative_load: 0.0,
         }
@@ -240,6 +246,9 @@ impl TeamConfig {
                 format!("must be >= 0, got {}", self.deliberative_load),
             ));
         }
+        if let Some((field, problem)) = self.signals.invalid() {
+            return Err(invalid(field, problem));
+        }
         Ok(())
     }
 }
@@ -390,12 +399,19 @@ pub fn add_soccer_robot(
         spec.player,
         (*field).clone(),
         spec.half_duration,
+        config.signals.clone(),
     );
+    // The referee is a signal (its gesture), not an object world modeling tracks.
+    let mut perception = config.perception.clone();
+    let referee_class = ObjectClass(ObjectKind::Referee.code());
+    if !perception.signal_classes.contains(&referee_class) {
+        perception.signal_classes.push(referee_class);
+    }
     let parts = RobotParts {
         name: spec.name,
         player: spec.player,
         platform: spec.platform,
-        perception: config.perception.clone(),
+        perception,
         world: robot_world_config(&field, spec.initial_pose, &spec.relocations),
         reactive,
         deliberative,

@@ -119,6 +119,46 @@ impl ValueFunction for PositionValue {
     }
 }
 
+/// V of waiting for the referee's Ready gesture (Standby): how centred the referee would be
+/// in the image with the head turned to `gaze`, where the robot believes the referee stands.
+/// A gesture detector is surest near the image's centre and blind beyond its edge; a heading
+/// or position error moves the referee toward the edge, so V falls with the pose's
+/// uncertainty: E[V] is what looking at the referee is worth now, and what localizing first
+/// would add.
+#[derive(Debug, Clone)]
+pub struct RefereeVisibilityValue {
+    /// Where the referee stands (team frame).
+    pub referee: Point<FieldFrame>,
+    /// The gaze direction in the body frame, rad: toward the referee from the believed pose,
+    /// within the head's reach.
+    pub gaze: f64,
+    /// The camera's horizontal field of view, rad.
+    pub fov: f64,
+    /// How far the gesture can be seen, m.
+    pub range: f64,
+}
+
+impl ValueFunction for RefereeVisibilityValue {
+    fn name(&self) -> &str {
+        "watching the referee"
+    }
+
+    fn objects(&self) -> Vec<ObjectId> {
+        Vec::new()
+    }
+
+    fn value(&self, state: &ValueState<'_>) -> f64 {
+        let seen = state.pose.to_robot(self.referee);
+        let off = normalize_angle(seen.bearing() - self.gaze);
+        // Gaussian, not a step: its curvature at the centre is what makes E[V] fall with the
+        // heading's variance (a flat top would hide the risk from a second-order estimate).
+        let half = (self.fov / 2.0).max(1e-3);
+        let centred = (-0.5 * (off / half).powi(2)).exp();
+        let near = 1.0 / (1.0 + ((seen.range() - self.range) / 0.3).exp());
+        centred * near
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -141,5 +181,32 @@ mod tests {
         // Hand check: from 1.7 m the keeper's 0.3 m half-width hides asin(0.3/1.7) ~ 0.177 rad
         // each side; the goal spans 2 atan(0.75/2.0) ~ 0.72 rad: about 49%.
         assert!((centred - 0.49).abs() < 0.05, "{centred}");
+    }
+
+    #[test]
+    fn the_referee_is_worth_most_centred_and_within_range() {
+        use strata_robot::geometry::Pose;
+        use strata_robot::world::{WorldModel, WorldState};
+        let f = field();
+        let referee = f.referee(0.6);
+        let state_at = |pose: Pose| -> WorldState {
+            let mut world =
+                WorldModel::new(crate::world_config::world_config(&f)).expect("valid").state();
+            world.pose.pose = pose;
+            world
+        };
+        // On the side line at x = -3, facing the field (+y), the referee behind-left.
+        let pose = Pose::new(-3.0, 3.0, std::f64::consts::FRAC_PI_2);
+        let gaze = pose.to_robot(referee).bearing();
+        let v = |pose: Pose, range: f64| {
+            let vf = RefereeVisibilityValue { referee, gaze, fov: 1.06, range };
+            vf.value(&ValueState::of(&state_at(pose)))
+        };
+        let here = v(pose, 10.0);
+        assert!(here > 0.9, "{here}");
+        let turned = v(Pose::new(-3.0, 3.0, std::f64::consts::FRAC_PI_2 + 0.4), 10.0);
+        assert!(turned < here * 0.8, "a heading error moves it off centre: {turned}");
+        // 7.3 m away: beyond a 5 m gesture range it is not seen at all.
+        assert!(v(pose, 5.0) < 0.01);
     }
 }

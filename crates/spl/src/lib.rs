@@ -14,4 +14,4 @@ pub mod objects;
 pub use field::{Field, FieldDimensions, FieldError, Landmark, Point, Side};
 pub use gamecontroller::{DecodeError, GameControlData, GameState, PacketKind, ReturnData};
 pub use net::{GameControllerSocket, MAX_TEAM_MESSAGE_SIZE, NetError, TeamSocket};
-pub use objects::{LandmarkKind, ObjectKind};
+pub use objects::{Gesture, LandmarkKind, ObjectKind};

@@ -67,6 +67,9 @@ pub enum ObjectKind {
     Robot = 2,
     /// A straight piece of painted line (not a landmark: it fixes only a distance and a direction).
     FieldLine = 3,
+    /// The head referee, beside the field; the variant is the gesture it shows
+    /// ([`Gesture`]).
+    Referee = 4,
     GoalPost = 10,
     LCrossing = 11,
     TCrossing = 12,
@@ -78,10 +81,11 @@ pub enum ObjectKind {
 
 impl ObjectKind {
     /// Every object kind, in code order.
-    pub const ALL: [ObjectKind; 10] = [
+    pub const ALL: [ObjectKind; 11] = [
         ObjectKind::Ball,
         ObjectKind::Robot,
         ObjectKind::FieldLine,
+        ObjectKind::Referee,
         ObjectKind::GoalPost,
         ObjectKind::LCrossing,
         ObjectKind::TCrossing,
@@ -107,6 +111,7 @@ impl ObjectKind {
             ObjectKind::Ball => "ball",
             ObjectKind::Robot => "robot",
             ObjectKind::FieldLine => "field_line",
+            ObjectKind::Referee => "referee",
             ObjectKind::GoalPost => "goal_post",
             ObjectKind::LCrossing => "l_crossing",
             ObjectKind::TCrossing => "t_crossing",
@@ -125,7 +130,9 @@ impl ObjectKind {
     /// The landmark kind, for fixed objects.
     pub const fn landmark_kind(self) -> Option<LandmarkKind> {
         match self {
-            ObjectKind::Ball | ObjectKind::Robot | ObjectKind::FieldLine => None,
+            ObjectKind::Ball | ObjectKind::Robot | ObjectKind::FieldLine | ObjectKind::Referee => {
+                None
+            }
             ObjectKind::GoalPost => Some(LandmarkKind::GoalPost),
             ObjectKind::LCrossing => Some(LandmarkKind::LCrossing),
             ObjectKind::TCrossing => Some(LandmarkKind::TCrossing),
@@ -134,6 +141,31 @@ impl ObjectKind {
             ObjectKind::PenaltyMark => Some(LandmarkKind::PenaltyMark),
             ObjectKind::Beacon => Some(LandmarkKind::Beacon),
         }
+    }
+}
+
+/// The referee's gestures a camera reports, as the variant of an [`ObjectKind::Referee`]
+/// detection. Under the SPL rules robots must see the Ready gesture themselves: GameController3
+/// keeps sending Standby for a while after it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+#[repr(u16)]
+pub enum Gesture {
+    /// Standing, arms down.
+    None = 0,
+    /// Both arms raised: the game goes from Standby to Ready.
+    Ready = 1,
+}
+
+impl Gesture {
+    /// The stable numeric code (the detection's variant).
+    pub const fn code(self) -> u16 {
+        self as u16
+    }
+
+    /// The gesture with this code, if any.
+    pub fn from_code(code: u16) -> Option<Gesture> {
+        [Gesture::None, Gesture::Ready].into_iter().find(|g| g.code() == code)
     }
 }
 
@@ -160,6 +192,7 @@ mod tests {
             (ObjectKind::Ball, 1, "ball"),
             (ObjectKind::Robot, 2, "robot"),
             (ObjectKind::FieldLine, 3, "field_line"),
+            (ObjectKind::Referee, 4, "referee"),
             (ObjectKind::GoalPost, 10, "goal_post"),
             (ObjectKind::LCrossing, 11, "l_crossing"),
             (ObjectKind::TCrossing, 12, "t_crossing"),
@@ -176,7 +209,10 @@ mod tests {
             assert_eq!(ObjectKind::from_name(name), Some(kind));
         }
         assert_eq!(ObjectKind::from_code(0), None);
-        assert_eq!(ObjectKind::from_code(4), None);
+        assert_eq!(ObjectKind::from_code(5), None);
+        assert_eq!(Gesture::from_code(1), Some(Gesture::Ready));
+        assert_eq!(Gesture::from_code(0), Some(Gesture::None));
+        assert_eq!(Gesture::from_code(2), None);
         assert_eq!(ObjectKind::from_name("goal"), None);
     }
 

@@ -53,6 +53,11 @@ pub struct MatchArgs {
     /// Team-message loss in [0, 1].
     #[arg(long, default_value_t = 0.0)]
     pub packet_loss: f64,
+    /// The referee sends every state at once, without Standby and without the referee's
+    /// whistle and gesture (GameController3's `--no-delay`). By default it keeps
+    /// GameController3's delays and the robots act on the signals (docs/spl-protocols.md).
+    #[arg(long)]
+    pub no_delay: bool,
     /// Play on the threaded host, paced to real time.
     #[arg(long)]
     pub realtime: bool,
@@ -126,6 +131,7 @@ pub fn config(args: &MatchArgs) -> Result<MatchConfig> {
         packet_loss: args.packet_loss,
         realtime: args.realtime,
         sim: None,
+        no_delay: args.no_delay,
     })
 }
 
@@ -211,14 +217,16 @@ fn run_physics(args: &MatchArgs) -> Result<()> {
         ("--field", args.field != defaults.field),
         ("--packet-loss", args.packet_loss != defaults.packet_loss),
         ("--realtime", args.realtime),
+        ("--no-delay", args.no_delay),
         ("--view", args.view),
         ("--log-robots", args.log_robots.is_some()),
         ("--log-world-hz", args.log_world_hz != defaults.log_world_hz),
     ];
     if let Some((option, _)) = not_here.iter().find(|(_, given)| *given) {
         bail!(
-            "{option} is for the built-in simulator: rcssservermj has its own field and physics, \
-             runs in real time, and each robot logs all of its own packages"
+            "{option} is for the built-in simulator: rcssservermj has its own field, physics and \
+             referee (without delays), runs in real time, and each robot logs all of its own \
+             packages"
         );
     }
     let config = GameConfig {

@@ -35,8 +35,12 @@ pub struct MatchConfig {
     pub packet_loss: f64,
     /// Run on the threaded host, paced to real time (otherwise: lockstep, as fast as possible).
     pub realtime: bool,
-    /// A simulator configuration to start from (defaults otherwise).
+    /// A simulator configuration to start from (otherwise the defaults with GameController3's
+    /// timing and the referee's signals, `RefereeConfig::game_controller3`).
     pub sim: Option<SimConfig>,
+    /// The referee sends every state at once, without Standby or signals (GameController3's
+    /// `--no-delay`), whatever `sim` says.
+    pub no_delay: bool,
 }
 
 impl Default for MatchConfig {
@@ -53,6 +57,7 @@ impl Default for MatchConfig {
             packet_loss: 0.0,
             realtime: false,
             sim: None,
+            no_delay: false,
         }
     }
 }
@@ -204,7 +209,14 @@ impl Match {
         if !(0.0..=1.0).contains(&config.packet_loss) {
             bail!("packet loss must be in [0, 1], got {}", config.packet_loss);
         }
-        let mut sim_config = config.sim.clone().unwrap_or_default();
+        let mut sim_config = config.sim.clone().unwrap_or_else(|| {
+            let mut sim = SimConfig::default();
+            sim.referee = sim.referee.game_controller3();
+            sim
+        });
+        if config.no_delay {
+            sim_config.referee = sim_config.referee.no_delay();
+        }
         sim_config.seed = config.seed;
         sim_config.field = config.field.clone();
         sim_config.noise.preset = config.noise;
@@ -378,9 +390,11 @@ impl Match {
         let mut falls = [0usize; 2];
         let mut penalties = [0usize; 2];
         let mut robot_falls: BTreeMap<RobotId, usize> = BTreeMap::new();
+        let mut state = GameState::Initial;
         for event in sim.events() {
             let time = event.time.as_secs_f64();
             match &event.kind {
+                EventKind::GameState { state: now, .. } => state = *now,
                 EventKind::Goal { team, score, scorer } => events.push(MatchEvent {
                     time,
                     kind: "goal".into(),
@@ -411,6 +425,13 @@ impl Match {
                         detail: format!("{} {penalty:?}", robot_name(*robot)),
                     });
                 }
+                // A robot's whistle detector firing with no whistle: in Set it starts the
+                // robot, and its teammates, too early.
+                EventKind::FalseWhistle { robot } => events.push(MatchEvent {
+                    time,
+                    kind: "false whistle".into(),
+                    detail: format!("{} in {state:?}", robot_name(*robot)),
+                }),
                 _ => {}
             }
         }

@@ -24,9 +24,15 @@ pub struct ServerArgs {
     /// Address to listen on.
     #[arg(long, default_value = DEFAULT_ADDR)]
     pub addr: String,
-    /// Simulator configuration (TOML, any subset of crates/sim/config/default.toml).
+    /// Simulator configuration (TOML, any subset of crates/sim/config/default.toml; keys left
+    /// out take the code's defaults). Without it: the defaults with GameController3's timing
+    /// and the referee's signals, as that file ships them.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// The referee sends every state at once, without Standby or the referee's signals
+    /// (GameController3's `--no-delay`).
+    #[arg(long)]
+    pub no_delay: bool,
     /// Overrides the configuration's seed.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -90,8 +96,15 @@ fn parse_seconds(text: &str) -> Result<f64, String> {
 pub fn run_server(args: ServerArgs) -> Result<()> {
     let mut config = match &args.config {
         Some(path) => SimConfig::load(path)?,
-        None => SimConfig::default(),
+        None => {
+            let mut config = SimConfig::default();
+            config.referee = config.referee.game_controller3();
+            config
+        }
     };
+    if args.no_delay {
+        config.referee = config.referee.no_delay();
+    }
     if let Some(seed) = args.seed {
         config.seed = seed;
     }

@@ -10,8 +10,11 @@ fn exit_codes_tell_errors_from_differing_replays() {
     let dir = temp_dir("replay");
     let log = dir.join("match.mcap");
     let log_arg = log.to_string_lossy().into_owned();
+    // Without GameController3's delays the robots walk to Ready after 2 s: a world model that
+    // integrates odometry (standing through Standby it would have none to integrate).
     let output = run(&mut strata(&[
         "match",
+        "--no-delay",
         "--players",
         "2",
         "--duration",

@@ -327,3 +327,86 @@ fn ready_ends_in_legal_positions() {
         assert!(!in_circle || kicking, "{id:?} of the defending team is in the centre circle");
     }
 }
+
+/// Each robot's believed game state (its planning decision's directive), by module prefix,
+/// with the time it last changed.
+#[derive(Default)]
+struct Beliefs {
+    states: Mutex<BTreeMap<String, (GameState, f64)>>,
+}
+
+impl Beliefs {
+    fn all_in(&self, state: GameState) -> bool {
+        let states = self.states.lock().unwrap_or_else(PoisonError::into_inner);
+        states.len() == 14 && states.values().all(|(s, _)| *s == state)
+    }
+
+    fn latest_change(&self) -> f64 {
+        let states = self.states.lock().unwrap_or_else(PoisonError::into_inner);
+        states.values().map(|(_, t)| *t).fold(0.0, f64::max)
+    }
+}
+
+impl Tap for Beliefs {
+    fn package(&self, record: &TapRecord<'_>) {
+        if record.sent_on.output != "decision" {
+            return;
+        }
+        if let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() {
+            let robot = record.sent_on.module_name.trim_end_matches("/planning").to_owned();
+            let state = package.value.directive.state;
+            let mut states = self.states.lock().unwrap_or_else(PoisonError::into_inner);
+            if states.get(&robot).is_none_or(|(s, _)| *s != state) {
+                states.insert(robot, (state, package.stamp.as_secs_f64()));
+            }
+        }
+    }
+
+    fn wants(&self, output: &strata_runtime::TapOutput<'_>) -> bool {
+        output.output == "decision"
+    }
+}
+
+/// Under GameController3's timing the packets say Standby through Ready and Set for 15 s of
+/// Playing: the robots see the referee's gesture and hear the whistle themselves (or from a
+/// teammate) and act on them, and the packets confirm them later.
+#[test]
+fn robots_follow_the_referees_gesture_and_whistle_ahead_of_the_packets() {
+    let config = MatchConfig { players: 7, seed: SEED, ..MatchConfig::default() };
+    let mut game = Match::new(config).expect("match");
+    let beliefs = Arc::new(Beliefs::default());
+    game.add_tap(beliefs.clone());
+    let mut host = game.lockstep().expect("host");
+    let sim = game.sim.clone();
+    let packets = || sim.lock().control_data().state;
+    let truth = || sim.lock().game().state;
+    let run_until =
+        |host: &mut strata_runtime::LockstepHost, what: &str, done: &dyn Fn() -> bool| {
+            for _ in 0..1200 {
+                if done() {
+                    return;
+                }
+                host.run_for(STEP).expect("the robots run");
+            }
+            panic!("{what}: not within 120 s");
+        };
+
+    run_until(&mut host, "Ready", &|| truth() == GameState::Ready);
+    let ready_at = sim.lock().time().as_secs_f64();
+    run_until(&mut host, "every robot in Ready", &|| beliefs.all_in(GameState::Ready));
+    assert_eq!(packets(), GameState::Standby, "the packets still lag");
+    let followed = beliefs.latest_change() - ready_at;
+    assert!(followed < 3.0, "the last robot went Ready {followed:.1} s after the gesture");
+
+    run_until(&mut host, "Playing", &|| truth() == GameState::Playing);
+    let whistle = sim.lock().events().iter().rev().find_map(|e| match &e.kind {
+        EventKind::Whistle { robots } => Some((e.time.as_secs_f64(), robots.len())),
+        _ => None,
+    });
+    let Some((whistle_at, heard)) = whistle else { panic!("no kick-off whistle") };
+    assert!(heard > 0, "nobody heard the whistle");
+    run_until(&mut host, "every robot in Playing", &|| beliefs.all_in(GameState::Playing));
+    assert_eq!(packets(), GameState::Set, "the packets still lag");
+    let started = beliefs.latest_change() - whistle_at;
+    assert!(started <= 1.0, "the last robot started {started:.2} s after the whistle");
+}

@@ -279,6 +279,8 @@ fn decode(bytes: &[u8]) -> Result<TeamMessage<Mission, Role>, CodecError> {
         pose,
         pose_confidence,
         objects,
+        // Patrols follow no referee.
+        signal: None,
     })
 }
 
@@ -307,6 +309,7 @@ mod tests {
                 confidence: 0.0,
                 age: 0.5,
             }],
+            signal: None,
         }
     }
 

@@ -42,7 +42,12 @@ pub fn landmark_groups(plan: &FloorPlan) -> Vec<String> {
 /// The noise perception attributes to the camera (a little above the platform's own: a filter
 /// told the truth about its noise and nothing about its model errors is overconfident).
 pub fn perception_config() -> PerceptionConfig {
-    PerceptionConfig { range_sigma: 0.04, range_sigma_per_metre: 0.05, bearing_sigma: 0.025 }
+    PerceptionConfig {
+        range_sigma: 0.04,
+        range_sigma_per_metre: 0.05,
+        bearing_sigma: 0.025,
+        signal_classes: Vec::new(),
+    }
 }
 
 /// The world model of a patrol robot that starts at `start`.

@@ -116,6 +116,16 @@ pub struct SharedObject {
     pub age: f64,
 }
 
+/// A signal the sender perceived (the referee's whistle, a gesture) or followed from a
+/// teammate, for teammates that missed it: the application's code for it, and how long ago the
+/// first robot perceived it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SharedSignal {
+    pub code: u8,
+    /// s.
+    pub age: f64,
+}
+
 /// The team message of Fig. 2: internal state, basic communication information, world model.
 /// The application turns it into bytes (and may add its own fields in `extra`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -138,6 +148,9 @@ pub struct TeamMessage<M, R> {
     pub pose: Pose,
     pub pose_confidence: f64,
     pub objects: Vec<SharedObject>,
+    /// A signal the sender perceived and its teammates should act on.
+    #[serde(default)]
+    pub signal: Option<SharedSignal>,
 }
 
 /// This robot as the planning layer sees it.
@@ -799,6 +812,13 @@ impl<P: PlanningPolicy> Planner<P> {
     /// Every message, instant ones included, takes a token from a bucket refilled at the rate
     /// that makes this robot's share of the budget last the game: a burst of instant messages
     /// (a fall, a role change) is allowed from what was saved, never beyond.
+    /// Asks for a message at once (within the budget and the spacing): something the robot
+    /// perceived that teammates should act on now. `urgent` lets it use the team's reserve.
+    pub fn request_instant(&mut self, urgent: bool) {
+        self.instant_pending = true;
+        self.urgent_pending |= urgent;
+    }
+
     pub fn message_due(&mut self, now: Time) -> Option<MessageKind> {
         let burst = self.config.message_burst.max(1.0);
         let rate = self.budget.sustainable_rate();
@@ -857,6 +877,7 @@ impl<P: PlanningPolicy> Planner<P> {
             pose: own.pose,
             pose_confidence: own.pose_confidence,
             objects: own.objects.clone(),
+            signal: None,
         };
         self.last_sent = Some(now);
         // A claim made while unable to play is no claim.
@@ -966,6 +987,7 @@ mod tests {
             pose: Pose::new(x, 0.0, 0.0),
             pose_confidence: 0.9,
             objects: Vec::new(),
+            signal: None,
         }
     }
 

@@ -6,10 +6,11 @@ use strata_runtime::{Context, Input, Message, Module, ModuleError, Output, Time}
 
 use crate::control::planning::{
     Assignment, Label, MessageBudget, OwnState, Planner, PlanningPolicy, PlanningStats,
-    SharedObject, StandingStatus, TeamMessage,
+    SharedObject, SharedSignal, StandingStatus, TeamMessage,
 };
 use crate::control::reactive::Stability;
 use crate::geometry::Pose;
+use crate::percept::Signal;
 use crate::platform::{ExternalLink, TeamLink};
 use crate::world::{
     ObjectCategory, SharedObject as WorldSharedObject, TeammateEstimate, WorldCommand, WorldState,
@@ -46,6 +47,29 @@ pub trait Referee: Send {
     fn world_commands(&mut self) -> Vec<WorldCommand> {
         Vec::new()
     }
+
+    /// A signal this robot perceived (the referee's whistle or gesture): what a device whose
+    /// packets lag the game (GameController3's delays) lets the robot act on before they
+    /// catch up.
+    fn perceive(&mut self, _now: Time, _signal: &Signal) {}
+
+    /// A signal a teammate's message reports.
+    fn teammate_signal(&mut self, _now: Time, _sender: u8, _signal: &SharedSignal) {}
+
+    /// The signal this robot's messages report, while teammates should act on it.
+    fn shared_signal(&self, _now: Time) -> Option<SharedSignal> {
+        None
+    }
+
+    /// Whether a signal was perceived since the last call that teammates should hear of at
+    /// once.
+    fn take_signal_news(&mut self) -> bool {
+        false
+    }
+
+    /// Called every planning cycle before [`Referee::directive`]: beliefs that expire with
+    /// time (a whistle the packets never confirmed).
+    fn update(&mut self, _now: Time) {}
 }
 
 /// A teammate as the deliberative layer sees it.
@@ -79,6 +103,8 @@ pub struct PlanningDecision<M, R, D> {
 pub struct PlanningPorts<M, R, D> {
     pub world: Input<WorldState>,
     pub stability: Input<Stability>,
+    /// Perception's signals, every one (a Queue): a whistle is one frame long.
+    pub signals: Input<Signal>,
     pub decision: Output<PlanningDecision<M, R, D>>,
     pub team_estimates: Output<TeammateEstimate>,
     pub world_commands: Output<WorldCommand>,
@@ -268,6 +294,9 @@ where
         if let Some(stability) = ctx.latest(self.ports.stability) {
             self.stability = stability.value;
         }
+        for signal in ctx.drain(self.ports.signals) {
+            self.referee.perceive(signal.stamp, &signal.value);
+        }
         // External device (GameController).
         if let Some(external) = self.external.as_mut() {
             match external.receive(now) {
@@ -303,6 +332,13 @@ where
                                 {
                                     ctx.send(self.ports.team_estimates, estimate);
                                 }
+                                if let Some(signal) = &message.signal {
+                                    self.referee.teammate_signal(
+                                        packet.received,
+                                        message.sender,
+                                        signal,
+                                    );
+                                }
                                 self.planner.receive(packet.received, message);
                             }
                             Err(error) => {
@@ -318,6 +354,12 @@ where
                     tracing::warn!(module = ctx.module_name(), %error, "team link");
                 }
             }
+        }
+        self.referee.update(now);
+        if self.referee.take_signal_news() {
+            // Teammates that missed the signal follow this robot: the sooner the better, so
+            // it may use the team's reserve.
+            self.planner.request_instant(true);
         }
         let own = self.own_state();
         self.planner.evaluate(now, own.clone());
@@ -356,9 +398,10 @@ where
             ctx.send(self.ports.decision, decision);
         }
         if let Some(kind) = self.planner.message_due(now)
-            && let Some(message) = self.planner.compose(now, kind)
+            && let Some(mut message) = self.planner.compose(now, kind)
             && let Some(team) = self.team.as_mut()
         {
+            message.signal = self.referee.shared_signal(now);
             match self.codec.encode(&message) {
                 Ok(bytes) => {
                     if let Err(error) = team.send(now, &bytes) {

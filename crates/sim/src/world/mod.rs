@@ -8,6 +8,7 @@
 mod controls;
 mod io;
 mod placement;
+mod signals;
 
 use std::time::Duration;
 
@@ -59,6 +60,8 @@ struct Outbox {
     spare_detections: Vec<strata_robot::platform::Detection>,
     team: Vec<ReceivedPacket>,
     control: Vec<ReceivedPacket>,
+    /// The confidence of a whistle heard since the last sensor frame.
+    whistle: Option<f64>,
 }
 
 #[derive(Clone, Debug)]
@@ -71,6 +74,10 @@ struct RobotSlot {
     /// Inertial unit, encoders, feet.
     imu_rng: Stream,
     camera_rng: Stream,
+    /// The referee's signals, seen and heard: streams of their own, so that the signals, on
+    /// or off, leave every other draw as it was.
+    gesture_rng: Stream,
+    whistle_rng: Stream,
     outbox: Outbox,
     encoders: HeadAngles,
     penalty: Penalty,
@@ -115,6 +122,7 @@ pub struct Simulation {
     next_camera: Time,
     next_packet: Time,
     comms_rng: Stream,
+    signals: signals::Signals,
     previous_contacts: Vec<(usize, usize)>,
     /// Taken out while a step uses it (a pointer's move, not the buffers').
     scratch: Option<Box<Buffers>>,
@@ -185,6 +193,8 @@ impl Simulation {
                     motion_rng: Stream::new(seed, &name("motion")),
                     imu_rng: Stream::new(seed, &name("imu")),
                     camera_rng: Stream::new(seed, &name("camera")),
+                    gesture_rng: Stream::new(seed, &name("gesture")),
+                    whistle_rng: Stream::new(seed, &name("whistle")),
                     outbox: Outbox::default(),
                     encoders: HeadAngles::default(),
                     penalty: Penalty::None,
@@ -200,6 +210,12 @@ impl Simulation {
         let camera_period = period(config.timing.camera_period);
         let packet_period = period(1.0 / config.referee.packet_rate);
         let broadcast_loss = config.broadcast.loss;
+        let signals = signals::Signals::new(
+            &config.referee.signals,
+            field.half_width(),
+            sensor_period,
+            referee.state,
+        );
         let mut sim = Simulation {
             noise,
             obstacles,
@@ -226,6 +242,7 @@ impl Simulation {
             next_camera: Time::ZERO + sensor_period,
             next_packet: Time::ZERO,
             comms_rng: Stream::new(seed, "comms"),
+            signals,
             previous_contacts: Vec::new(),
             scratch: Some(Box::default()),
             field,
@@ -563,11 +580,13 @@ impl Simulation {
             Decision::State(state) => {
                 let first_half = self.referee.first_half;
                 self.event(EventKind::GameState { state: *state, first_half });
+                self.signal_state(*state);
             }
             Decision::Goal { team } => {
                 let scorer = self.last_toucher.map(|s| self.robots[s].id);
                 let score = self.referee.score;
                 self.event(EventKind::Goal { team: *team, score, scorer });
+                self.whistle();
             }
             Decision::Out { status, set_play, team, place } => {
                 let at = self.ball.position;
@@ -633,6 +652,7 @@ impl Simulation {
                 &mut robot.imu_rng,
             );
             robot.encoders = head;
+            let whistle = signals::whistle_report(&self.signals, robot, now, &mut self.events);
             robot.outbox.sensors = Some(SensorFrame {
                 stamp: now,
                 inertial,
@@ -643,6 +663,7 @@ impl Simulation {
                 camera: None,
                 // A robot the referee carries off is lifted: its feet tell.
                 placed: false,
+                whistle,
             });
         }
     }
@@ -664,6 +685,7 @@ impl Simulation {
             self.config.robot.radius,
             &self.scene,
         );
+        let gesture = self.signals.gesture(now);
         for (index, robot) in self.robots.iter_mut().enumerate() {
             if !robot.present {
                 continue;
@@ -702,6 +724,10 @@ impl Simulation {
                 &mut scratch.camera,
                 &mut detections,
             );
+            if let Some(referee) = &gesture {
+                let rng = &mut robot.gesture_rng;
+                camera.capture_gesture(&viewer, &scratch.marks, referee, rng, &mut detections);
+            }
             robot.outbox.camera =
                 Some(CameraFrame { stamp: now, head: robot.encoders, detections, footprint: None });
         }

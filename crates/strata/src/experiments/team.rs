@@ -38,6 +38,10 @@ pub struct Scenario {
     pub reference: String,
     pub baselines: Vec<String>,
     pub loss: Loss,
+    /// The referee sends every state at once (GameController3's `--no-delay`); otherwise
+    /// GameController3's delays, and the robots act on the referee's whistle and gesture.
+    #[serde(default)]
+    pub no_delay: bool,
     #[serde(skip)]
     resolved_reference: Option<TeamConfig>,
     #[serde(skip)]
@@ -197,6 +201,7 @@ fn play(
         packet_loss: loss,
         realtime: false,
         sim: None,
+        no_delay: scenario.no_delay,
     };
     let mut game = Match::new(config)?;
     // A match log, as `strata match --log` writes it: replay and the viewer read it.

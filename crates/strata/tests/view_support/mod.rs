@@ -47,6 +47,10 @@ pub fn record_match(
         seed,
         limit: Some(seconds),
         noise: NoiseLevel::Default,
+        // Seconds-long recordings need robots that move from the start: without
+        // GameController3's delays Ready begins after 2 s, not after 12 s of Initial and
+        // Standby.
+        no_delay: true,
         ..MatchConfig::default()
     };
     let mut game = Match::new(config).expect("match");

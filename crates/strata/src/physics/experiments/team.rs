@@ -229,6 +229,8 @@ fn match_2d(
         away,
         half_duration: scenario.half,
         field: scenario.field_2d.clone(),
+        // rcssservermj's referee has no delays and no signals: the comparison has none either.
+        no_delay: true,
         ..MatchConfig::default()
     };
     Match::new(config)?.play(&mut |_, _| {})
