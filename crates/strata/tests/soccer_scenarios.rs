@@ -296,20 +296,51 @@ fn two_equally_close_robots_resolve_a_double_striker() {
     assert_eq!(doubles, 0, "the conflict came back");
 }
 
+/// Under GameController3's timing the robots must see the referee's gesture to start Ready;
+/// with `--no-delay` the packets say Ready at once. Either way the robots walk to their
+/// kick-off positions, and Ready ends in legal positions.
 #[test]
 fn ready_ends_in_legal_positions() {
-    let config = MatchConfig { players: 7, seed: SEED, ..MatchConfig::default() };
+    for no_delay in [false, true] {
+        ready_ends_in_legal_positions_with(no_delay);
+    }
+}
+
+fn ready_ends_in_legal_positions_with(no_delay: bool) {
+    let config = MatchConfig { players: 7, seed: SEED, no_delay, ..MatchConfig::default() };
     let mut game = Match::new(config).expect("match");
     let mut host = game.lockstep().expect("host");
     let sim = game.sim.clone();
     let state = || sim.lock().game().state;
     let mut waited = 0.0;
+    // Where each robot stood at the end of Ready, before the referee's placement at Set.
+    let mut end_of_ready = BTreeMap::new();
     while state() != GameState::Set {
         assert!(waited < 120.0, "no Set after {waited} s (state {:?})", state());
+        if state() == GameState::Ready {
+            let world = sim.lock();
+            for id in world.robot_ids() {
+                end_of_ready.insert(id, world.robot(id).expect("robot").team_pose);
+            }
+        }
         host.run_for(STEP).expect("the robots run");
         waited += STEP.as_secs_f64();
     }
     let world = sim.lock();
+    let field = world.field().clone();
+    let kicking_team = world.game().kicking_team;
+    let far: Vec<_> = end_of_ready
+        .iter()
+        .map(|(id, pose)| {
+            let team_field = TeamField::new(field.clone(), world.game().attack_sign[id.team]);
+            let kicking = kicking_team == Some(id.team);
+            let target =
+                strata_soccer::behaviors::kickoff_pose(&team_field, id.player, kicking, false);
+            (*id, pose.position().distance(target.position()))
+        })
+        .filter(|(_, d)| *d > 0.5)
+        .collect();
+    assert!(far.is_empty(), "no delay {no_delay}: robots away from their kick-off spots: {far:?}");
     let game_truth = world.game();
     for id in world.robot_ids() {
         let truth = world.robot(id).expect("robot");
