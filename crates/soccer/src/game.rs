@@ -3,6 +3,8 @@
 //! world modeling (where the robot was placed), and the return packet the robot sends back.
 //! The same bytes arrive from a real GameController over UDP and from the simulator's referee.
 
+use std::time::Duration;
+
 use serde::{Deserialize, Serialize};
 use strata_robot::control::planning::{MessageBudget, OwnState, SharedSignal, StandingStatus};
 use strata_robot::control::planning_module::Referee;
@@ -21,13 +23,13 @@ use crate::world_config::BALL;
 
 /// The team-message code of the referee's Ready gesture (seen in Standby).
 pub const SIGNAL_READY: u8 = 1;
-/// The team-message code of the kick-off whistle (heard in Set).
+/// The team-message code of the whistle (heard in Set: the kick-off; in Playing: a goal).
 pub const SIGNAL_WHISTLE: u8 = 2;
 
 /// How a robot follows the referee's own signals. Under the SPL rules robots must see the
-/// Ready gesture and hear the kick-off whistle themselves: GameController3 keeps sending
-/// Standby for 45 s after the gesture and Set for 15 s after the whistle
-/// (docs/spl-protocols.md).
+/// Ready gesture and hear the whistle themselves: GameController3 keeps sending Standby for
+/// 45 s after the gesture, Set for 15 s after the kick-off whistle and Playing for 15 s after
+/// a goal's (docs/spl-protocols.md).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SignalConfig {
@@ -35,6 +37,14 @@ pub struct SignalConfig {
     pub enabled: bool,
     /// Whistles the detector is less sure of than this are ignored, in [0, 1].
     pub whistle_confidence: f64,
+    /// How many robots of the team (this one included) must report a whistle within
+    /// `whistle_window` before they act on it. A detector fires now and then with no whistle;
+    /// two at once hardly ever do, while a true whistle is heard by nearly all. 1: every
+    /// robot acts on its own detections. A robot that hears nothing from its teammates waits
+    /// for the packets.
+    pub whistle_quorum: u8,
+    /// The time within which the quorum's reports must fall, s.
+    pub whistle_window: f64,
     /// How long a whistle the packets have not confirmed is believed, s. GameController3 shows
     /// Set for 15 s after a true one; a whistle still unconfirmed after this was false, and the
     /// robot goes back to Set (the rules penalize its motion in Set meanwhile).
@@ -54,6 +64,8 @@ impl Default for SignalConfig {
         SignalConfig {
             enabled: true,
             whistle_confidence: 0.5,
+            whistle_quorum: 2,
+            whistle_window: 1.0,
             whistle_trust: 20.0,
             gesture_trust: 50.0,
             teammate_max_age: 3.0,
@@ -69,7 +81,11 @@ impl SignalConfig {
         if !(c.is_finite() && (0.0..=1.0).contains(&c)) {
             return Some(("signals.whistle_confidence", format!("must be in [0, 1], got {c}")));
         }
+        if self.whistle_quorum == 0 {
+            return Some(("signals.whistle_quorum", "must be at least 1 robot, got 0".into()));
+        }
         for (field, v) in [
+            ("signals.whistle_window", self.whistle_window),
             ("signals.whistle_trust", self.whistle_trust),
             ("signals.gesture_trust", self.gesture_trust),
             ("signals.teammate_max_age", self.teammate_max_age),
@@ -83,10 +99,40 @@ impl SignalConfig {
     }
 }
 
+/// What a referee signal the robot acts on ended, ahead of the packets.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Ahead {
+    /// Standby, by the Ready gesture.
+    Standby,
+    /// Set, by the kick-off whistle.
+    Set,
+    /// Playing, by a goal's whistle: Ready for the kick-off of `kicking`.
+    Goal { kicking: Kicking },
+}
+
+impl Ahead {
+    /// The state the packets show until they catch up.
+    fn awaited(self) -> GameState {
+        match self {
+            Ahead::Standby => GameState::Standby,
+            Ahead::Set => GameState::Set,
+            Ahead::Goal { .. } => GameState::Playing,
+        }
+    }
+
+    fn code(self) -> u8 {
+        if self == Ahead::Standby { SIGNAL_READY } else { SIGNAL_WHISTLE }
+    }
+}
+
+/// How long after the packets turn to Playing a whistle is still the kick-off's, s: the
+/// whistle, its reports and the packet's change come within a second of each other.
+const KICK_OFF_WHISTLE_MARGIN: f64 = 3.0;
+
 /// A referee signal the robot acts on before the packets show it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Followed {
-    code: u8,
+    ahead: Ahead,
     /// When the first robot perceived it.
     since: Time,
 }
@@ -94,7 +140,8 @@ struct Followed {
 /// What the robot made of the referee's signals, for experiments and diagnostics.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct SignalStats {
-    /// Signals this robot perceived and followed.
+    /// Signals this robot perceived and followed (whistles: when its own report made the
+    /// quorum).
     pub perceived: u64,
     /// Signals followed on a teammate's word.
     pub from_teammates: u64,
@@ -169,6 +216,13 @@ pub struct GameControllerReferee {
     status_interval: f64,
     signals: SignalConfig,
     followed: Option<Followed>,
+    /// Whistles reported within the window, by player (this robot's included), with when they
+    /// were heard.
+    whistles: Vec<(u8, Time)>,
+    /// When this robot last heard a whistle itself: its messages report it while it counts.
+    heard: Option<Time>,
+    /// When the packets' state last changed (as received).
+    state_since: Time,
     /// A signal perceived since the planning module last asked: teammates hear of it at once.
     signal_news: bool,
     now: Time,
@@ -203,6 +257,9 @@ impl GameControllerReferee {
             status_interval: 1.0,
             signals,
             followed: None,
+            whistles: Vec::new(),
+            heard: None,
+            state_since: Time::ZERO,
             signal_news: false,
             now: Time::ZERO,
             signal_stats: SignalStats::default(),
@@ -211,25 +268,69 @@ impl GameControllerReferee {
         }
     }
 
-    /// The state the packets show while a signal with this code runs ahead of them.
-    fn awaited_by(code: u8) -> GameState {
-        if code == SIGNAL_READY { GameState::Standby } else { GameState::Set }
+    /// Whether the packets show a state a signal could end, and nothing is followed yet.
+    fn may_follow(&self) -> bool {
+        let d = &self.directive;
+        self.signals.enabled && d.connected && !d.penalized && self.followed.is_none()
     }
 
     /// Follows a signal perceived at `since` (by this robot, or a teammate), if the packets
     /// show the state it ends and nothing is followed yet.
-    fn follow(&mut self, code: u8, since: Time) -> bool {
-        let d = &self.directive;
-        if !self.signals.enabled
-            || !d.connected
-            || d.penalized
-            || d.state != Self::awaited_by(code)
-            || self.followed.is_some()
-        {
+    fn follow(&mut self, ahead: Ahead, since: Time) -> bool {
+        if !self.may_follow() || self.directive.state != ahead.awaited() {
             return false;
         }
-        self.followed = Some(Followed { code, since });
+        self.followed = Some(Followed { ahead, since });
         true
+    }
+
+    /// Counts a whistle `player` heard at `at`; once `whistle_quorum` robots heard one within
+    /// `whistle_window`, follows it from the first of them: in Set the kick-off, in Playing a
+    /// goal. Returns whether it now follows.
+    fn count_whistle(&mut self, player: u8, at: Time) -> bool {
+        let state = self.directive.state;
+        if !self.may_follow() || !matches!(state, GameState::Set | GameState::Playing) {
+            return false;
+        }
+        // A whistle heard as the packets turned to Playing is the kick-off's they show (without
+        // GameController3's delay), not a goal's.
+        let settled = self.state_since + Duration::from_secs_f64(KICK_OFF_WHISTLE_MARGIN);
+        if state == GameState::Playing && at < settled {
+            return false;
+        }
+        let window = self.signals.whistle_window;
+        // Reports from either side of `at` (a teammate's arrives after this robot heard its own).
+        let apart = |a: Time, b: Time| (a.max(b) - a.min(b)).as_secs_f64();
+        self.whistles.retain(|(p, t)| *p != player && apart(at, *t) <= window);
+        self.whistles.push((player, at));
+        if self.whistles.len() < usize::from(self.signals.whistle_quorum) {
+            return false;
+        }
+        let since = self.whistles.iter().map(|(_, t)| *t).min().unwrap_or(at);
+        let ahead = if state == GameState::Set {
+            Ahead::Set
+        } else {
+            // The team whose goal the ball went into kicks off: ours if the ball was last
+            // seen in our half (team frame: own goal at -x).
+            let kicking = match self.ball_seen {
+                Some((_, ball)) if ball.x > 0.0 => Kicking::Them,
+                Some(_) => Kicking::Us,
+                None => Kicking::Nobody,
+            };
+            Ahead::Goal { kicking }
+        };
+        self.whistles.clear();
+        self.follow(ahead, since)
+    }
+
+    /// Keeps when and where the ball was last seen: the world model forgets it.
+    fn remember_ball(&mut self, world: Option<&WorldState>) {
+        if let Some(b) = world.and_then(|w| w.object(BALL))
+            && let Some(seen) = b.last_seen
+            && self.ball_seen.is_none_or(|(t, _)| seen >= t)
+        {
+            self.ball_seen = Some((seen, b.field_position));
+        }
     }
 
     fn side_line_priors(&self, x: f64) -> Vec<PosePrior> {
@@ -312,11 +413,15 @@ impl GameControllerReferee {
 impl Referee for GameControllerReferee {
     type Directive = GameDirective;
 
-    fn receive(&mut self, _now: Time, packet: &[u8]) -> Result<(), String> {
+    fn receive(&mut self, now: Time, packet: &[u8]) -> Result<(), String> {
         match GameControlData::decode(packet) {
             Ok(data) => {
                 self.packets += 1;
+                let before = self.directive.state;
                 self.apply(data);
+                if self.directive.state != before {
+                    self.state_since = now;
+                }
                 Ok(())
             }
             Err(error) => {
@@ -328,69 +433,95 @@ impl Referee for GameControllerReferee {
 
     fn directive(&self) -> GameDirective {
         let mut directive = self.directive.clone();
-        match self.followed {
-            Some(Followed { code: SIGNAL_READY, .. }) => directive.state = GameState::Ready,
-            Some(Followed { since, .. }) => {
+        let Some(followed) = self.followed else { return directive };
+        match followed.ahead {
+            Ahead::Standby => directive.state = GameState::Ready,
+            Ahead::Set => {
                 directive.state = GameState::Playing;
                 directive.set_play = SetPlay::None;
-                let left = self.signals.kick_off_time - (self.now - since).as_secs_f64();
+                let left = self.signals.kick_off_time - (self.now - followed.since).as_secs_f64();
                 directive.secondary_time = left.max(0.0).ceil() as i16;
             }
-            None => {}
+            Ahead::Goal { kicking } => {
+                directive.state = GameState::Ready;
+                directive.set_play = SetPlay::None;
+                directive.kicking = kicking;
+                directive.secondary_time = 0;
+            }
         }
         directive
     }
 
     fn perceive(&mut self, _now: Time, signal: &Signal) {
-        let code = match signal.kind {
+        match signal.kind {
             SignalKind::Whistle if signal.confidence >= self.signals.whistle_confidence => {
-                SIGNAL_WHISTLE
+                if !self.may_follow()
+                    || !matches!(self.directive.state, GameState::Set | GameState::Playing)
+                {
+                    return;
+                }
+                // Teammates count it toward their quorum: tell them at once, followed or not.
+                self.heard = Some(signal.stamp);
+                self.signal_news = true;
+                if self.count_whistle(self.player, signal.stamp) {
+                    self.signal_stats.perceived += 1;
+                }
             }
             SignalKind::Sight { class, variant, .. }
                 if class == ObjectClass(ObjectKind::Referee.code())
-                    && variant == Some(Gesture::Ready.code()) =>
+                    && variant == Some(Gesture::Ready.code())
+                    && self.follow(Ahead::Standby, signal.stamp) =>
             {
-                SIGNAL_READY
+                self.signal_stats.perceived += 1;
+                self.signal_news = true;
             }
-            _ => return,
-        };
-        if self.follow(code, signal.stamp) {
-            self.signal_stats.perceived += 1;
-            self.signal_news = true;
+            _ => {}
         }
     }
 
-    fn teammate_signal(&mut self, now: Time, _sender: u8, signal: &SharedSignal) {
-        if !(signal.code == SIGNAL_READY || signal.code == SIGNAL_WHISTLE)
-            || !(signal.age.is_finite() && signal.age <= self.signals.teammate_max_age)
-        {
+    fn teammate_signal(&mut self, now: Time, sender: u8, signal: &SharedSignal) {
+        if !(signal.age.is_finite() && signal.age <= self.signals.teammate_max_age) {
             return;
         }
         let since = Time::from_secs_f64((now.as_secs_f64() - signal.age).max(0.0));
         // Not news: the teammate told everybody already.
-        if self.follow(signal.code, since) {
+        let followed = match signal.code {
+            SIGNAL_READY => self.follow(Ahead::Standby, since),
+            SIGNAL_WHISTLE => self.count_whistle(sender, since),
+            _ => false,
+        };
+        if followed {
             self.signal_stats.from_teammates += 1;
         }
     }
 
     fn shared_signal(&self, now: Time) -> Option<SharedSignal> {
-        self.followed.map(|f| SharedSignal { code: f.code, age: (now - f.since).as_secs_f64() })
+        let age = |since: Time| (now - since).as_secs_f64();
+        match (self.followed, self.heard) {
+            (Some(f), _) => Some(SharedSignal { code: f.ahead.code(), age: age(f.since) }),
+            // Heard but no quorum yet: a report for the teammates' count.
+            (None, Some(heard)) if age(heard) <= self.signals.whistle_window => {
+                Some(SharedSignal { code: SIGNAL_WHISTLE, age: age(heard) })
+            }
+            (None, _) => None,
+        }
     }
 
     fn take_signal_news(&mut self) -> bool {
         std::mem::take(&mut self.signal_news)
     }
 
-    fn update(&mut self, now: Time) {
+    fn update(&mut self, now: Time, world: Option<&WorldState>) {
         self.now = now;
+        self.remember_ball(world);
         let Some(followed) = self.followed else { return };
         let d = &self.directive;
-        if d.state != Self::awaited_by(followed.code) || d.penalized {
+        if d.state != followed.ahead.awaited() || d.penalized {
             // The packets caught up (or moved on): they decide again.
             self.followed = None;
             return;
         }
-        let (trust, count) = if followed.code == SIGNAL_READY {
+        let (trust, count) = if followed.ahead == Ahead::Standby {
             (self.signals.gesture_trust, &mut self.signal_stats.false_gestures)
         } else {
             (self.signals.whistle_trust, &mut self.signal_stats.false_whistles)
@@ -422,12 +553,7 @@ impl Referee for GameControllerReferee {
             return None;
         }
         self.last_status = Some(now);
-        if let Some(b) = world.and_then(|w| w.object(BALL))
-            && let Some(seen) = b.last_seen
-            && self.ball_seen.is_none_or(|(t, _)| seen >= t)
-        {
-            self.ball_seen = Some((seen, b.field_position));
-        }
+        self.remember_ball(world);
         let (ball_age, ball_position) = match (world, self.ball_seen) {
             (Some(w), Some((seen, position))) => {
                 let relative = own.pose.to_robot(position);
@@ -573,7 +699,7 @@ mod tests {
     /// One planning cycle at `at`: packets first, then the signals' clock.
     fn cycle(r: &mut GameControllerReferee, at: f64, state: GameState) -> GameDirective {
         r.receive(secs(at), &packet(state, false)).expect("valid");
-        r.update(secs(at));
+        r.update(secs(at), None);
         r.directive()
     }
 
@@ -604,21 +730,32 @@ mod tests {
         assert_eq!(r.signal_stats.false_gestures, 0);
     }
 
+    /// A teammate's report of a whistle heard `age` s before `at`.
+    fn report(r: &mut GameControllerReferee, at: f64, sender: u8, age: f64) {
+        r.teammate_signal(secs(at), sender, &SharedSignal { code: SIGNAL_WHISTLE, age });
+    }
+
     #[test]
-    fn the_whistle_starts_the_kick_off_and_a_false_one_ends_when_the_packets_still_say_set() {
+    fn a_whistle_two_robots_heard_starts_the_kick_off_and_a_false_one_ends_in_set() {
         let mut r = referee();
         assert_eq!(cycle(&mut r, 1.0, GameState::Set).state, GameState::Set);
-        // Too unsure to act on.
+        // Too unsure to act on, or to tell anybody.
         r.perceive(secs(1.5), &whistle(1.5, 0.3));
         assert_eq!(cycle(&mut r, 1.6, GameState::Set).state, GameState::Set);
+        assert!(!r.take_signal_news());
 
+        // Heard alone: told at once, but not acted on before a teammate heard it too.
         r.perceive(secs(2.0), &whistle(2.0, 0.9));
-        let d = cycle(&mut r, 2.0, GameState::Set);
+        assert!(r.take_signal_news());
+        assert_eq!(r.shared_signal(secs(2.05)).map(|s| s.code), Some(SIGNAL_WHISTLE));
+        assert_eq!(cycle(&mut r, 2.05, GameState::Set).state, GameState::Set);
+        report(&mut r, 2.1, 3, 0.1);
+        let d = cycle(&mut r, 2.1, GameState::Set);
         assert_eq!(
             (d.state, d.set_play, d.secondary_time),
             (GameState::Playing, SetPlay::None, 10)
         );
-        // The kick-off's free-ball time counts down from the whistle.
+        // The kick-off's free-ball time counts down from the first to hear it.
         assert_eq!(cycle(&mut r, 5.5, GameState::Set).secondary_time, 7);
         assert_eq!(cycle(&mut r, 14.0, GameState::Set).secondary_time, 0);
         assert_eq!(cycle(&mut r, 21.9, GameState::Set).state, GameState::Playing);
@@ -627,36 +764,82 @@ mod tests {
         assert_eq!(d.state, GameState::Set);
         assert_eq!(r.signal_stats.false_whistles, 1);
 
+        // One robot's false detection: nobody else heard anything, nobody moves.
+        r.perceive(secs(25.0), &whistle(25.0, 0.8));
+        report(&mut r, 27.0, 4, 0.5);
+        assert_eq!(cycle(&mut r, 27.0, GameState::Set).state, GameState::Set, "1.5 s apart");
+
         // A true whistle: the packets confirm it within the trust.
         r.perceive(secs(30.0), &whistle(30.0, 0.7));
+        report(&mut r, 30.1, 5, 0.0);
         assert_eq!(cycle(&mut r, 44.0, GameState::Set).state, GameState::Playing);
         assert_eq!(cycle(&mut r, 45.0, GameState::Playing).state, GameState::Playing);
         assert_eq!(r.shared_signal(secs(45.0)), None, "the packets decide again");
-        // Whistles in Playing (a goal, a false one) change nothing.
-        r.perceive(secs(50.0), &whistle(50.0, 1.0));
-        assert_eq!(cycle(&mut r, 50.0, GameState::Playing).state, GameState::Playing);
-        assert_eq!((r.signal_stats.perceived, r.signal_stats.false_whistles), (2, 1));
+        // Each quorum was made by a teammate's report.
+        let stats = r.signal_stats;
+        assert_eq!((stats.perceived, stats.from_teammates, stats.false_whistles), (0, 2, 1));
+    }
+
+    #[test]
+    fn a_goals_whistle_sends_the_team_to_ready_for_the_conceding_teams_kick_off() {
+        let mut r = referee();
+        cycle(&mut r, 1.0, GameState::Playing);
+        // The ball was last seen at (3, 1) of our frame: near their goal.
+        r.update(secs(20.0), Some(&world(20.0, Some(19.5))));
+        // Just after the packets turned to Playing, a whistle is the kick-off's: no goal.
+        r.perceive(secs(2.0), &whistle(2.0, 0.9));
+        report(&mut r, 2.1, 3, 0.0);
+        assert_eq!(cycle(&mut r, 2.1, GameState::Playing).state, GameState::Playing);
+
+        r.perceive(secs(30.0), &whistle(30.0, 0.9));
+        report(&mut r, 30.2, 4, 0.1);
+        r.update(secs(30.2), None);
+        let d = r.directive();
+        assert_eq!((d.state, d.kicking), (GameState::Ready, Kicking::Them), "we scored");
+        // GameController3 shows Playing for 15 s after a goal, then Ready.
+        assert_eq!(cycle(&mut r, 44.0, GameState::Playing).state, GameState::Ready);
+        let d = cycle(&mut r, 45.2, GameState::Ready);
+        assert_eq!((d.state, d.kicking), (GameState::Ready, Kicking::Them));
+        assert_eq!(r.shared_signal(secs(45.2)), None);
+    }
+
+    #[test]
+    fn with_a_quorum_of_one_a_robot_acts_on_its_own_detection() {
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let alone = SignalConfig { whistle_quorum: 1, ..SignalConfig::default() };
+        let mut r = GameControllerReferee::new(5, 2, field, 600.0, alone);
+        cycle(&mut r, 1.0, GameState::Set);
+        r.perceive(secs(2.0), &whistle(2.0, 0.6));
+        assert_eq!(cycle(&mut r, 2.0, GameState::Set).state, GameState::Playing);
+        assert_eq!(r.signal_stats.perceived, 1);
     }
 
     #[test]
     fn teammates_follow_a_fresh_signal_and_ignore_stale_or_unknown_ones() {
         let mut r = referee();
-        cycle(&mut r, 1.0, GameState::Set);
-        let stale = SharedSignal { code: SIGNAL_WHISTLE, age: 3.5 };
-        r.teammate_signal(secs(2.0), 3, &stale);
-        let unknown = SharedSignal { code: 3, age: 0.1 };
-        r.teammate_signal(secs(2.0), 3, &unknown);
-        let gesture_in_set = SharedSignal { code: SIGNAL_READY, age: 0.1 };
-        r.teammate_signal(secs(2.0), 3, &gesture_in_set);
-        assert_eq!(cycle(&mut r, 2.0, GameState::Set).state, GameState::Set);
-
-        r.teammate_signal(secs(3.0), 3, &SharedSignal { code: SIGNAL_WHISTLE, age: 1.0 });
+        cycle(&mut r, 1.0, GameState::Standby);
+        r.teammate_signal(secs(2.0), 3, &SharedSignal { code: SIGNAL_READY, age: 3.5 });
+        r.teammate_signal(secs(2.0), 3, &SharedSignal { code: 3, age: 0.1 });
+        assert_eq!(cycle(&mut r, 2.0, GameState::Standby).state, GameState::Standby);
+        r.teammate_signal(secs(3.0), 3, &SharedSignal { code: SIGNAL_READY, age: 0.5 });
         assert!(!r.take_signal_news(), "the teammate told everybody already");
+        assert_eq!(cycle(&mut r, 3.0, GameState::Standby).state, GameState::Ready);
+        assert_eq!(r.signal_stats.from_teammates, 1);
+
+        let mut r = referee();
+        cycle(&mut r, 1.0, GameState::Set);
+        // A gesture in Set, a stale whistle, two reports of one robot: none counts.
+        r.teammate_signal(secs(2.0), 3, &SharedSignal { code: SIGNAL_READY, age: 0.1 });
+        report(&mut r, 2.0, 3, 3.5);
+        report(&mut r, 2.0, 4, 0.2);
+        report(&mut r, 2.1, 4, 0.1);
+        assert_eq!(cycle(&mut r, 2.1, GameState::Set).state, GameState::Set);
+        // A second robot's report makes the quorum (a robot's newest report counts).
+        report(&mut r, 3.0, 6, 0.9);
         let d = cycle(&mut r, 3.0, GameState::Set);
-        // The kick-off started when the teammate heard it.
         assert_eq!((d.state, d.secondary_time), (GameState::Playing, 9));
         let relayed = r.shared_signal(secs(4.0)).expect("relayed");
-        assert!((relayed.age - 2.0).abs() < 1e-9, "{relayed:?}");
+        assert!((relayed.age - 2.0).abs() < 1e-9, "from the first of the quorum: {relayed:?}");
         assert_eq!(r.signal_stats.from_teammates, 1);
     }
 
@@ -667,19 +850,22 @@ mod tests {
         let mut r = GameControllerReferee::new(5, 2, field, 600.0, off);
         cycle(&mut r, 1.0, GameState::Set);
         r.perceive(secs(2.0), &whistle(2.0, 1.0));
+        report(&mut r, 2.0, 3, 0.0);
         assert_eq!(cycle(&mut r, 2.0, GameState::Set).state, GameState::Set);
 
         // No packet yet: nothing to run ahead of.
         let mut r = referee();
         r.perceive(secs(2.0), &whistle(2.0, 1.0));
-        r.update(secs(2.0));
+        report(&mut r, 2.0, 3, 0.0);
+        r.update(secs(2.0), None);
         assert_eq!(r.directive(), GameDirective::default());
 
         // A penalized robot is off the field: it does not start on a whistle.
         let mut r = referee();
         r.receive(secs(1.0), &packet(GameState::Set, true)).expect("valid");
         r.perceive(secs(2.0), &whistle(2.0, 1.0));
-        r.update(secs(2.0));
+        report(&mut r, 2.0, 3, 0.0);
+        r.update(secs(2.0), None);
         assert_eq!(r.directive().state, GameState::Set);
     }
 
@@ -689,6 +875,8 @@ mod tests {
         assert_eq!(bad.invalid().map(|(f, _)| f), Some("signals.whistle_confidence"));
         let bad = SignalConfig { whistle_trust: f64::NAN, ..SignalConfig::default() };
         assert_eq!(bad.invalid().map(|(f, _)| f), Some("signals.whistle_trust"));
+        let bad = SignalConfig { whistle_quorum: 0, ..SignalConfig::default() };
+        assert_eq!(bad.invalid().map(|(f, _)| f), Some("signals.whistle_quorum"));
         assert_eq!(SignalConfig::default().invalid(), None);
     }
 

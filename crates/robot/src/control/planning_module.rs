@@ -67,9 +67,10 @@ pub trait Referee: Send {
         false
     }
 
-    /// Called every planning cycle before [`Referee::directive`]: beliefs that expire with
-    /// time (a whistle the packets never confirmed).
-    fn update(&mut self, _now: Time) {}
+    /// Called every planning cycle before [`Referee::directive`], with the newest world state:
+    /// beliefs that expire with time (a whistle the packets never confirmed) or read the
+    /// world (where the ball went before a goal's whistle).
+    fn update(&mut self, _now: Time, _world: Option<&WorldState>) {}
 }
 
 /// A teammate as the deliberative layer sees it.
@@ -355,7 +356,7 @@ where
                 }
             }
         }
-        self.referee.update(now);
+        self.referee.update(now, self.world.as_ref());
         if self.referee.take_signal_news() {
             // Teammates that missed the signal follow this robot: the sooner the better, so
             // it may use the team's reserve.
