@@ -231,6 +231,9 @@ pub struct GameControllerReferee {
     pub rejected: u64,
 }
 
+/// Messages of each robot's share kept for instant messages.
+const MESSAGE_RESERVE: u32 = 10;
+
 /// The time left the message budget is paced over once the GameController's clock has run out
 /// outside the first half, s.
 const CLOCK_OUT_PACING_SECS: f64 = 60.0;
@@ -289,7 +292,12 @@ impl GameControllerReferee {
     /// goal. Returns whether it now follows.
     fn count_whistle(&mut self, player: u8, at: Time) -> bool {
         let state = self.directive.state;
-        if !self.may_follow() || !matches!(state, GameState::Set | GameState::Playing) {
+        // Reports of the whistle it follows are still counted: they tell whether its own
+        // report is needed (`take_signal_news`).
+        let following = self.followed.is_some_and(|f| f.ahead != Ahead::Standby);
+        if !(self.may_follow() || following)
+            || !matches!(state, GameState::Set | GameState::Playing)
+        {
             return false;
         }
         // A whistle heard as the packets turned to Playing is the kick-off's they show (without
@@ -303,7 +311,7 @@ impl GameControllerReferee {
         let apart = |a: Time, b: Time| (a.max(b) - a.min(b)).as_secs_f64();
         self.whistles.retain(|(p, t)| *p != player && apart(at, *t) <= window);
         self.whistles.push((player, at));
-        if self.whistles.len() < usize::from(self.signals.whistle_quorum) {
+        if following || self.whistles.len() < usize::from(self.signals.whistle_quorum) {
             return false;
         }
         let since = self.whistles.iter().map(|(_, t)| *t).min().unwrap_or(at);
@@ -319,7 +327,6 @@ impl GameControllerReferee {
             };
             Ahead::Goal { kicking }
         };
-        self.whistles.clear();
         self.follow(ahead, since)
     }
 
@@ -404,7 +411,10 @@ impl GameControllerReferee {
             team_remaining: u32::from(team.message_budget),
             robots: u32::from(players),
             time_left,
-            reserve: 3,
+            // Kept for instant messages, per robot: a whistle's reports and a fall must get
+            // through when pacing over the clock (which stops through Ready and Set) has
+            // spent the rest.
+            reserve: MESSAGE_RESERVE,
         });
         self.last = Some(data);
     }
@@ -508,7 +518,13 @@ impl Referee for GameControllerReferee {
     }
 
     fn take_signal_news(&mut self) -> bool {
-        std::mem::take(&mut self.signal_news)
+        let news = std::mem::take(&mut self.signal_news);
+        // When teammates' reports alone make a quorum, every robot that heard the whistle has
+        // its own: this robot's report would only spend the team's message budget.
+        let others = self.whistles.iter().filter(|(p, _)| *p != self.player).count();
+        let redundant = self.followed.is_some_and(|f| f.ahead != Ahead::Standby)
+            && others >= usize::from(self.signals.whistle_quorum);
+        news && !redundant
     }
 
     fn update(&mut self, now: Time, world: Option<&WorldState>) {
@@ -519,6 +535,7 @@ impl Referee for GameControllerReferee {
         if d.state != followed.ahead.awaited() || d.penalized {
             // The packets caught up (or moved on): they decide again.
             self.followed = None;
+            self.whistles.clear();
             return;
         }
         let (trust, count) = if followed.ahead == Ahead::Standby {
@@ -801,6 +818,27 @@ mod tests {
         let d = cycle(&mut r, 45.2, GameState::Ready);
         assert_eq!((d.state, d.kicking), (GameState::Ready, Kicking::Them));
         assert_eq!(r.shared_signal(secs(45.2)), None);
+    }
+
+    /// Every robot that heard the whistle needs one teammate's report: once two have come,
+    /// a third report would only spend the budget.
+    #[test]
+    fn a_robot_whose_teammates_already_made_the_quorum_does_not_report_too() {
+        let mut r = referee();
+        cycle(&mut r, 1.0, GameState::Set);
+        r.perceive(secs(2.0), &whistle(2.0, 0.9));
+        report(&mut r, 2.03, 3, 0.02);
+        report(&mut r, 2.04, 4, 0.03);
+        assert_eq!(cycle(&mut r, 2.05, GameState::Set).state, GameState::Playing);
+        assert!(!r.take_signal_news(), "two teammates reported it already");
+        // It still says so in its next message, for a teammate that missed the whistle.
+        assert_eq!(r.shared_signal(secs(2.5)).map(|s| s.code), Some(SIGNAL_WHISTLE));
+
+        let mut r = referee();
+        cycle(&mut r, 1.0, GameState::Set);
+        r.perceive(secs(2.0), &whistle(2.0, 0.9));
+        report(&mut r, 2.03, 3, 0.02);
+        assert!(r.take_signal_news(), "the one teammate that reported needs this report");
     }
 
     #[test]
