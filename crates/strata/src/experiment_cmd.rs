@@ -11,8 +11,11 @@ use strata::physics::Engine;
 #[derive(Debug, Args)]
 pub struct ExperimentArgs {
     /// goal-covering (4.2, Table 5, Fig. 5), rates (4.3, Table 6), fall (4.3, Fig. 6),
-    /// team (4.4), or all.
-    #[arg(value_parser = clap::builder::PossibleValuesParser::new(["goal-covering", "rates", "fall", "team", "all"]))]
+    /// team (4.4), referee (games by the referee's whistle and gesture under GameController3's
+    /// delays), or all.
+    #[arg(value_parser = clap::builder::PossibleValuesParser::new(
+        EXPERIMENTS.iter().copied().chain(["all"])
+    ))]
     pub name: String,
     /// Runs per condition (default: the scenario's).
     #[arg(long)]

@@ -375,6 +375,92 @@ team = "full"
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// One game of 60-second halves with GameController3's timing and the referee's signals, and
+/// its `--no-delay` baseline.
+#[test]
+fn referee_smoke() {
+    let dir = temp_dir("referee");
+    let scenario = write(
+        &dir,
+        "referee.toml",
+        r#"
+half_duration = 60.0
+runs = 1
+players = 7
+baseline_runs = 1
+"#,
+    );
+    let outcome = experiments::run("referee", &options(&dir.join("out"), &scenario)).expect("runs");
+    let s = &outcome.summary;
+    // A game has a Ready phase and a kick-off in each half, at least.
+    assert!(s["ready"]["phases"].as_u64().unwrap_or(0) >= 2, "{s}");
+    assert!(s["kick_offs"]["kick_offs"].as_u64().unwrap_or(0) >= 2, "{s}");
+    assert_eq!(s["runs"].as_u64(), Some(1));
+    assert_contains_all(
+        "the JSON summary",
+        &s.to_string(),
+        &[
+            "\"phase_rate\"",
+            "\"robot_rate\"",
+            "\"not_before_packets\"",
+            "\"median\"",
+            "\"p95\"",
+            "\"false_whistles_in_set\"",
+            "\"episodes\"",
+            "\"real_time\"",
+            "\"ratio\"",
+            "\"targets\"",
+        ],
+    );
+    let report = std::fs::read_to_string(dir.join("out/report.md")).expect("report.md");
+    assert_contains_all(
+        "report.md",
+        &report,
+        &[
+            "## Targets",
+            "## Ready phases",
+            "## Kick-off starts",
+            "## False starts",
+            "## Real-time factor",
+            "## Games",
+            "Machine load",
+            "Command: `strata experiment referee",
+            "kick_off_delays.png",
+            "--no-delay",
+        ],
+    );
+    let csv = std::fs::read_to_string(dir.join("out/phases.csv")).expect("phases.csv");
+    let header = csv.lines().next().unwrap_or_default();
+    for column in [
+        "mode",
+        "seed",
+        "kind",
+        "half",
+        "robots",
+        "robots_ok",
+        "all_ok",
+        "worst",
+        "median_delay_s",
+        "not_before_packets",
+    ] {
+        assert!(header.split(',').any(|c| c == column), "phases.csv lacks `{column}`: {header}");
+    }
+    assert!(csv.lines().any(|l| l.starts_with("signals,0,1,ready,")), "{csv}");
+    assert!(csv.lines().any(|l| l.starts_with("signals,0,1,kick_off,")), "{csv}");
+    assert!(csv.lines().any(|l| l.starts_with("no-delay,0,1,")), "{csv}");
+    assert_files(
+        &dir.join("out"),
+        &[
+            "robots.csv",
+            "summary.json",
+            "kick_off_delays.png",
+            "kick_off_delays.svg",
+            "ready_distances.png",
+        ],
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_bad_scenario_names_the_file_and_the_field() {
     let dir = temp_dir("bad");
@@ -410,6 +496,7 @@ fn every_built_in_scenario_loads() {
         ("rates", experiments::rates::DEFAULT_SCENARIO),
         ("fall", experiments::fall::DEFAULT_SCENARIO),
         ("team", experiments::team::DEFAULT_SCENARIO),
+        ("referee", experiments::referee::DEFAULT_SCENARIO),
     ] {
         let on_disk = std::fs::read_to_string(
             Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios").join(format!("{name}.toml")),

@@ -7,6 +7,7 @@
 //! | `rates` | 4.3, Table 6 | layer frequencies of a goalkeeper and a striker in real time, with and without an artificial deliberative load |
 //! | `fall` | 4.3, Fig. 6 | fall-detection latency, stand-up time, false positives while walking, in real time |
 //! | `team` | 4.4 | matches of the full architecture against no coordination and no active vision; role statistics under team-message loss |
+//! | `referee` | - | the referee's signals in full games with GameController3's timing: Ready positions, kick-off starts after the whistle, false starts, speed against `--no-delay` |
 //!
 //! Every experiment reads a scenario (TOML; the shipped ones are in `crates/strata/scenarios/`
 //! and embedded in the binary), runs its runs in parallel, and writes `report.md`, PNG and SVG
@@ -19,6 +20,7 @@ pub mod fall;
 pub mod goal_covering;
 pub mod plot;
 pub mod rates;
+pub mod referee;
 pub mod report;
 pub mod stats;
 pub mod team;
@@ -49,7 +51,8 @@ use crate::physics::Engine;
 use strata_log::{ConfigFormat, McapTap, McapTapOptions, RunInfo, WhenFull};
 
 /// Every experiment, in the order `strata experiment all` runs them.
-pub const EXPERIMENTS: [&str; 4] = [goal_covering::NAME, rates::NAME, fall::NAME, team::NAME];
+pub const EXPERIMENTS: [&str; 5] =
+    [goal_covering::NAME, rates::NAME, fall::NAME, team::NAME, referee::NAME];
 
 /// How to run an experiment (the command line).
 #[derive(Clone, Debug)]
@@ -105,6 +108,9 @@ pub fn run(name: &str, options: &Options) -> Result<Outcome> {
     if !EXPERIMENTS.contains(&name) {
         bail!("no experiment `{name}` (try: {}, all)", EXPERIMENTS.join(", "));
     }
+    if options.engine == Engine::Rcssservermj && name == referee::NAME {
+        bail!("`{name}` runs on the built-in simulator only (its referee emulates the signals)");
+    }
     let out_dir = options.out.clone().unwrap_or_else(|| match options.engine {
         Engine::Sim => Path::new("results").join(name),
         Engine::Rcssservermj => Path::new("results").join(format!("{name}-rcssservermj")),
@@ -142,6 +148,10 @@ fn run_2d(name: &str, ctx: &mut Ctx<'_>) -> Result<serde_json::Value> {
             let scenario = ctx.scenario::<team::Scenario>(team::DEFAULT_SCENARIO)?;
             to_json(&team::run(&scenario, ctx)?)?
         }
+        referee::NAME => {
+            let scenario = ctx.scenario::<referee::Scenario>(referee::DEFAULT_SCENARIO)?;
+            to_json(&referee::run(&scenario, ctx)?)?
+        }
         other => bail!("no experiment `{other}` (try: {}, all)", EXPERIMENTS.join(", ")),
     })
 }
@@ -154,6 +164,8 @@ pub fn run_all(options: &Options) -> Result<Vec<Outcome>> {
     }
     EXPERIMENTS
         .iter()
+        // The referee's signals are the built-in simulator's.
+        .filter(|name| options.engine == Engine::Sim || **name != referee::NAME)
         .map(|name| {
             let options =
                 Options { out: options.out.as_ref().map(|out| out.join(name)), ..options.clone() };
