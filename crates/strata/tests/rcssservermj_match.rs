@@ -63,11 +63,14 @@ fn a_short_game_plays_both_halves_and_reports_like_a_2d_match() {
     }
     for robot in physics["robots"].as_array().expect("physics robots") {
         assert!(robot["cpu_s"].as_f64().is_some_and(|s| s > 0.0), "{robot}");
-        // Each half's process knew where it stood, whichever end its team defended.
+        // Each half's process knew where it stood, whichever end its team defended: believing
+        // itself at the other end would be about 9 m off. The bound leaves room for what the
+        // real-time server does not repeat: a keeper that fell in a 12-second half averaged
+        // 1.2-1.3 m in 2 of 3 runs on a loaded 2-core machine (2026-11-28).
         let errors = robot["localization_mean_m"].as_array().expect("localization");
         assert_eq!(errors.len(), 2, "{robot}");
         for error in errors {
-            assert!(error.as_f64().is_some_and(|m| m < 1.0), "{robot}");
+            assert!(error.as_f64().is_some_and(|m| m < 2.0), "{robot}");
         }
         assert!(robot["ended"].as_array().is_some_and(|e| e.len() == 2), "{robot}");
     }
