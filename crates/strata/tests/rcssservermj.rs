@@ -12,7 +12,7 @@
 mod common;
 
 use std::cell::Cell;
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use common::{Process, strata};
@@ -28,9 +28,16 @@ static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 const TEAM: u8 = 1;
 const TEAM_NAME: &str = "Strata1";
 
-fn server() -> Option<ServerProcess> {
+/// This file's tests take turns: each drives the real-time server and robot processes, and
+/// all six at once on a 2-core machine starved them (a keeper ended on the wrong side of its
+/// goal, 2026-11-28).
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// The server, and this test's turn (held until the test ends).
+fn server() -> Option<(MutexGuard<'static, ()>, ServerProcess)> {
+    let turn = SERIAL.lock().unwrap_or_else(PoisonError::into_inner);
     match ServerProcess::start(&ServerOptions::default()) {
-        Ok(server) => Some(server),
+        Ok(server) => Some((turn, server)),
         Err(ServerError::NotInstalled)
             if std::env::var_os("STRATA_REQUIRE_RCSSSERVERMJ").is_none() =>
         {
@@ -146,7 +153,7 @@ fn figure(value: &serde_json::Value, pointer: &str) -> f64 {
 #[test]
 fn self_localization_holds_while_the_t1_walks() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
-    let Some(server) = server() else { return };
+    let Some((_turn, server)) = server() else { return };
     // Player 3 beamed 5 m from its kick-off position (-1.2, 1.5): in BeforeKickOff (the
     // game's Ready) it walks there. Then the game starts and it chases a ball the trainer
     // moves around a loop.
@@ -204,7 +211,7 @@ fn self_localization_holds_while_the_t1_walks() {
 #[test]
 fn the_goalkeeper_covers_its_goal_from_where_the_ball_is() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
-    let Some(server) = server() else { return };
+    let Some((_turn, server)) = server() else { return };
     let player = 1;
     // Beamed facing its own goal 5 m away, it localizes on the goal's posts and walks back to
     // its kick-off position in the game's Ready.
@@ -270,7 +277,7 @@ fn the_goalkeeper_covers_its_goal_from_where_the_ball_is() {
 #[test]
 fn a_killed_server_ends_the_robot_with_a_clear_error() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
-    let Some(mut server) = server() else { return };
+    let Some((_turn, mut server)) = server() else { return };
     let player = 2;
     let dir = std::env::temp_dir().join(format!("strata-rcss-lost-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -345,7 +352,7 @@ fn heading_of([w, x, y, z]: [f64; 4]) -> f64 {
 #[test]
 fn a_t1_tipped_over_is_caught_falling_by_the_reactive_layer() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
-    let Some(server) = server() else { return };
+    let Some((_turn, server)) = server() else { return };
     let player = 4;
     let tip = 25f64.to_radians();
     let mut robot = robot(&server, player, [-3.0, 1.0, 0.0], 20.0, 13);
@@ -404,7 +411,7 @@ fn a_t1_tipped_over_is_caught_falling_by_the_reactive_layer() {
 #[test]
 fn the_compute_per_server_cycle_is_reported() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
-    let Some(server) = server() else { return };
+    let Some((_turn, server)) = server() else { return };
     let seconds: f64 = std::env::var("STRATA_COMPUTE_SECONDS")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -604,7 +611,7 @@ fn penalize(
 #[test]
 fn a_t1_moved_to_the_side_line_by_the_referee_finds_itself_there() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
-    let Some(server) = server() else { return };
+    let Some((_turn, server)) = server() else { return };
     let player = 2;
     let field = strata_spl::Field::preset("rcssservermj").expect("the field preset");
     let dimensions = field.dimensions();
