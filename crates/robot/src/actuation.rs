@@ -14,16 +14,17 @@
 use std::collections::VecDeque;
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::{Context, Input, Module, ModuleError, Output, Time};
+use strata_runtime::{Context, Input, Module, ModuleError, Output, Policy, Ports, Time, Trigger};
 
 use crate::command::{
     ActuationMessage, BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, Resource,
     WholeBodyCommand,
 };
+use crate::edge::OrderRefused;
 use crate::geometry::{Odometry, Velocity};
 use crate::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, HeadOrder, MotionFeedback,
-    SharedPlatform, SpecialMotion, lock_platform,
+    SpecialMotion,
 };
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -361,14 +362,62 @@ impl ActuationState {
     }
 }
 
-/// The actuation module: runs on every command package from the reactive layer.
+/// The ports of the actuation module, declared once for the assembly and for replay.
+#[derive(Clone, Copy, Debug)]
+pub struct ActuationPorts {
+    pub commands: Input<MotionCommands>,
+    /// The platform's motion state and odometry, merged: the newest state, the odometry since
+    /// the last cycle composed.
+    pub motion: Input<MotionFeedback>,
+    /// Orders the platform refused, handled with the next commands (the reactive layer sends
+    /// commands every cycle; a refusal waking actuation would close a loop of same-instant
+    /// triggers through the actuator sink).
+    pub refusals: Input<OrderRefused>,
+    pub orders: Output<ActuatorOrders>,
+    pub odometry: Output<Odometry>,
+    pub messages: Output<ActuationMessage>,
+    pub feedback: Output<MotionFeedback>,
+}
+
+impl ActuationPorts {
+    pub const COMMANDS: &'static str = "commands";
+    pub const MOTION: &'static str = "motion";
+    pub const REFUSALS: &'static str = "refusals";
+    pub const ORDERS: &'static str = "orders";
+    pub const ODOMETRY: &'static str = "odometry";
+    pub const MESSAGES: &'static str = "messages";
+    pub const FEEDBACK: &'static str = "feedback";
+
+    /// Declares the ports; actuation runs on every command.
+    pub fn declare(p: &mut Ports<'_>) -> ActuationPorts {
+        let ports = ActuationPorts {
+            commands: p.input(Self::COMMANDS, Policy::queue(16)),
+            motion: p.input(Self::MOTION, Policy::merge(merge_feedback)),
+            refusals: p.input(Self::REFUSALS, Policy::queue(16)),
+            orders: p.output(Self::ORDERS),
+            odometry: p.output(Self::ODOMETRY),
+            messages: p.output(Self::MESSAGES),
+            feedback: p.output(Self::FEEDBACK),
+        };
+        p.trigger(Trigger::on_any([ports.commands.into()]));
+        ports
+    }
+}
+
+/// Folds a newer motion feedback into a pending one: the newer state, both odometries.
+fn merge_feedback(pending: &mut MotionFeedback, newer: MotionFeedback) {
+    let odometry = pending.odometry.then(newer.odometry);
+    *pending = MotionFeedback { odometry, ..newer };
+}
+
+/// The actuation module: runs on every command package from the reactive layer, with the
+/// platform's newest motion feedback.
 pub struct ActuationModule {
-    platform: SharedPlatform,
     state: ActuationState,
-    commands: Input<MotionCommands>,
-    odometry: Output<Odometry>,
-    messages: Output<ActuationMessage>,
-    feedback: Output<MotionFeedback>,
+    ports: ActuationPorts,
+    /// The newest feedback, for commands that arrive before the next one (its odometry is
+    /// spent).
+    last_feedback: Option<MotionFeedback>,
 }
 
 impl std::fmt::Debug for ActuationModule {
@@ -378,64 +427,49 @@ impl std::fmt::Debug for ActuationModule {
 }
 
 impl ActuationModule {
-    pub fn new(
-        platform: SharedPlatform,
-        config: ActuationConfig,
-        commands: Input<MotionCommands>,
-        odometry: Output<Odometry>,
-        messages: Output<ActuationMessage>,
-        feedback: Output<MotionFeedback>,
-    ) -> ActuationModule {
-        ActuationModule {
-            platform,
-            state: ActuationState::new(config),
-            commands,
-            odometry,
-            messages,
-            feedback,
-        }
+    pub fn new(config: ActuationConfig, ports: ActuationPorts) -> ActuationModule {
+        ActuationModule { state: ActuationState::new(config), ports, last_feedback: None }
     }
 }
 
 impl Module for ActuationModule {
     fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
-        let now = ctx.now();
-        for package in ctx.drain(self.commands) {
-            self.state.command(&package.value);
-        }
-        let feedback = lock_platform(&self.platform).read_motion(now)?;
-        let (orders, messages) = self.state.update(&feedback);
-        if let Some(orders) = orders
-            && let Err(error) = lock_platform(&self.platform).write(now, &orders)
-        {
-            // An unsupported order (a NAO without a gait engine asked to walk) is reported to
-            // the reactive layer instead of stopping the robot.
-            match error {
-                crate::platform::PlatformError::Unsupported(what) => {
-                    let resource =
-                        if orders.body.is_some() { Resource::Body } else { Resource::Head };
-                    ctx.send(
-                        self.messages,
-                        ActuationMessage::CommandRejected { resource, reason: what },
-                    );
-                    // A refused special sequence never starts: its resources must not stay
-                    // held waiting for it to end.
-                    if orders.body.is_some() {
-                        for released in self.state.body_order_refused() {
-                            ctx.send(self.messages, released);
-                        }
-                    }
+        // An unsupported order (a NAO without a gait engine asked to walk) is reported to the
+        // reactive layer instead of stopping the robot.
+        for refused in ctx.drain(self.ports.refusals) {
+            let OrderRefused { resource, reason } = refused.value;
+            ctx.send(self.ports.messages, ActuationMessage::CommandRejected { resource, reason });
+            // A refused special sequence never starts: its resources must not stay held
+            // waiting for it to end.
+            if resource == Resource::Body {
+                for released in self.state.body_order_refused() {
+                    ctx.send(self.ports.messages, released);
                 }
-                other => return Err(Box::new(other)),
             }
         }
+        for package in ctx.drain(self.ports.commands) {
+            self.state.command(&package.value);
+        }
+        let feedback = match ctx.take(self.ports.motion) {
+            Some(package) => package.value,
+            None => match self.last_feedback {
+                Some(last) => MotionFeedback { odometry: Odometry::ZERO, ..last },
+                // Nothing measured yet: the commands wait in their queues.
+                None => return Ok(()),
+            },
+        };
+        self.last_feedback = Some(feedback);
+        let (orders, messages) = self.state.update(&feedback);
+        if let Some(orders) = orders {
+            ctx.send(self.ports.orders, orders);
+        }
         if feedback.odometry != Odometry::ZERO {
-            ctx.send_stamped(self.odometry, feedback.odometry, feedback.stamp);
+            ctx.send_stamped(self.ports.odometry, feedback.odometry, feedback.stamp);
         }
         for message in messages {
-            ctx.send_stamped(self.messages, message, feedback.stamp);
+            ctx.send_stamped(self.ports.messages, message, feedback.stamp);
         }
-        ctx.send_stamped(self.feedback, feedback, feedback.stamp);
+        ctx.send_stamped(self.ports.feedback, feedback, feedback.stamp);
         Ok(())
     }
 }
@@ -756,27 +790,25 @@ mod tests {
 
     #[test]
     fn the_module_releases_the_resources_of_a_sequence_the_platform_refused() {
-        use strata_runtime::{GraphBuilder, HostConfig, LockstepHost, Policy, Trigger};
+        use strata_runtime::{GraphBuilder, HostConfig, LockstepHost, Policy};
 
         let platform: crate::platform::SharedPlatform =
             std::sync::Arc::new(std::sync::Mutex::new(RefusesKicks { wrote: 0 }));
         let mut graph = GraphBuilder::new();
-        let (commands, messages) = graph.add("actuation", |p| {
-            let commands = p.input::<MotionCommands>("commands", Policy::queue(16));
-            let odometry = p.output::<Odometry>("odometry");
-            let messages = p.output::<ActuationMessage>("messages");
-            let feedback = p.output::<MotionFeedback>("feedback");
-            p.trigger(Trigger::on_any([commands.into()]));
-            let module = ActuationModule::new(
-                std::sync::Arc::clone(&platform),
-                ActuationConfig::default(),
-                commands,
-                odometry,
-                messages,
-                feedback,
-            );
-            (module, (commands, messages))
+        let ports = graph.add("actuation", |p| {
+            let ports = ActuationPorts::declare(p);
+            (ActuationModule::new(ActuationConfig::default(), ports), ports)
         });
+        let (sensors, actuators) = crate::edge::add_platform_edge(
+            &mut graph,
+            "robot",
+            platform,
+            std::time::Duration::from_millis(12),
+        );
+        graph.connect(sensors.motion, ports.motion);
+        graph.connect(ports.orders, actuators.orders);
+        graph.connect(actuators.refusals, ports.refusals);
+        let (commands, messages) = (ports.commands, ports.messages);
         let received = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
         let sink = graph.add("sink", |p| {
             let input = p.input::<ActuationMessage>("messages", Policy::queue(64));
@@ -792,6 +824,10 @@ mod tests {
             body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
         };
         host.inject(commands, kick, at, at).expect("external input");
+        // The refusal is handled with the next commands, as the reactive layer sends every cycle.
+        let next = Time::from_secs_f64(0.2);
+        let none = MotionCommands::PerResource { head: None, body: None };
+        host.inject(commands, none, next, next).expect("external input");
         host.run_for(std::time::Duration::from_millis(500)).expect("runs");
 
         let received = received.lock().unwrap_or_else(std::sync::PoisonError::into_inner);

@@ -2,29 +2,32 @@
 //! control, connected with the paper's policies (docs/architecture.md, One robot as data):
 //!
 //! ```text
-//! Platform ─sensor frame─▶ Perception ─percepts (Latest)─▶ Reactive ─commands (Queue)─▶ Actuation ─▶ Platform
-//!                              ├─percepts (Queue)─▶ World ◀─odometry (Merge)──────────────┘   │
-//!                              └─signals (Queue)─▶ Planning (the referee's whistle, gestures)
-//!                                                    │       Reactive ◀─messages (Queue)───────┘
-//!                                world state (Latest)├──────▶ Reactive, Deliberative, Planning
-//!   team ◀─▶ Planning ─decision (Latest)─▶ Deliberative ─score vectors (Latest)─▶ Reactive
+//! Platform ─▶ sensors ─frames (Queue)─▶ Perception ─percepts (Latest)─▶ Reactive ─commands (Queue)─▶ Actuation ─orders─▶ actuators ─▶ Platform
+//!               │                        ├─percepts (Queue)─▶ World ◀─odometry (Merge)─────────────────┤    ▲                │
+//!               │                        └─signals (Queue)─▶ Planning (the referee's whistle, gestures)  │    └──refusals──────┘
+//!               └─motion feedback (Merge)───────────────────────────────────────────────────────────────▶┤
+//!                                world state (Latest)├──────▶ Reactive, Deliberative, Planning          │
+//!   team ◀─▶ Planning ─decision (Latest)─▶ Deliberative ─score vectors (Latest)─▶ Reactive ◀─messages (Queue)
 //!            Planning ─teammates' estimates, commands (Queue)─▶ World
 //! ```
 //!
-//! Each module runs on its own trigger: perception at the sensor rate, world modeling and the
-//! reactive layer on every percept, actuation on every command, the deliberative and planning
-//! layers at their own rates. The same graph runs on either host.
+//! Only `sensors` and `actuators` touch the platform ([`crate::edge`]); every module between
+//! them computes on packages and replays from a log. Each module runs on its own trigger:
+//! `sensors` at the sensor rate, perception on every frame, world modeling and the reactive
+//! layer on every percept, actuation on every command, the deliberative and planning layers at
+//! their own rates. The same graph runs on either host. Each module's ports are declared once
+//! (`PerceptionPorts::declare`, ...) and each module is added by one function here
+//! ([`add_perception`], ...), which `strata replay` calls too.
 
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::{GraphBuilder, Policy, ProcessingTime, Trigger};
+use strata_runtime::{GraphBuilder, Message, ProcessingTime, Trigger};
 
-use crate::actuation::{ActuationConfig, ActuationModule};
-use crate::command::{ActuationMessage, MotionCommands};
+use crate::actuation::{ActuationConfig, ActuationModule, ActuationPorts};
 use crate::control::deliberative::DeliberativePolicy;
 use crate::control::modules::{
-    DeliberativeModule, DeliberativePorts, ReactiveModule, ReactivePorts,
+    DeliberativeModule, DeliberativePorts, PolicyPorts, ReactiveModule, ReactivePorts,
 };
 use crate::control::planning::{Planner, PlanningPolicy};
 use crate::control::planning_module::{
@@ -32,10 +35,9 @@ use crate::control::planning_module::{
 };
 use crate::control::reactive::ReactiveLayer;
 use crate::control::scores::Goal;
-use crate::geometry::Odometry;
-use crate::percept::{Percepts, Signal};
-use crate::perception::{PerceptionConfig, PerceptionModule};
-use crate::platform::{ExternalLink, MotionFeedback, SharedPlatform, TeamLink};
+use crate::edge::{EdgeModules, Links, add_link_edge, add_platform_edge};
+use crate::perception::{PerceptionConfig, PerceptionModule, PerceptionPorts};
+use crate::platform::{ExternalLink, PlatformInfo, SharedPlatform, TeamLink, lock_platform};
 use crate::world::{ConfigError, WorldModelConfig, WorldState, add_world_module};
 
 /// How often a layer runs (for periodic layers) and how long its cycles take on the lockstep
@@ -58,7 +60,8 @@ impl LayerTiming {
         LayerTiming { rate_hz: Some(rate_hz), processing_time: Some(processing_time) }
     }
 
-    fn period(&self, default_hz: f64) -> Duration {
+    /// The period of a periodic layer, `default_hz` where no valid rate is set.
+    pub fn period(&self, default_hz: f64) -> Duration {
         let hz = self.rate_hz.filter(|hz| hz.is_finite() && *hz > 0.0).unwrap_or(default_hz);
         Duration::from_secs_f64(1.0 / hz)
     }
@@ -73,7 +76,8 @@ impl LayerTiming {
         }
     }
 
-    fn processing(&self) -> ProcessingTime {
+    /// The processing-time model, zero where none is set.
+    pub fn processing(&self) -> ProcessingTime {
         self.processing_time.clone().unwrap_or_default()
     }
 }
@@ -168,6 +172,11 @@ impl<H, B, X, D, P: PlanningPolicy, C, F: Referee> std::fmt::Debug
 /// The names of a robot's modules, for statistics and logs.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RobotModules {
+    /// The platform's edge: the sensor source and the actuator sink.
+    #[serde(default)]
+    pub sensors: String,
+    #[serde(default)]
+    pub actuators: String,
     pub perception: String,
     pub world: String,
     pub reactive: String,
@@ -178,7 +187,10 @@ pub struct RobotModules {
 
 impl RobotModules {
     pub fn new(prefix: &str) -> RobotModules {
+        let edge = EdgeModules::new(prefix);
         RobotModules {
+            sensors: edge.sensors,
+            actuators: edge.actuators,
             perception: format!("{prefix}/perception"),
             world: format!("{prefix}/world"),
             reactive: format!("{prefix}/reactive"),
@@ -198,7 +210,104 @@ impl RobotModules {
     }
 }
 
-/// Adds one robot's modules to `graph`.
+/// Adds perception (`name`), run on every sensor frame.
+pub fn add_perception(
+    graph: &mut GraphBuilder,
+    name: &str,
+    info: PlatformInfo,
+    config: PerceptionConfig,
+    timing: &LayerTiming,
+) -> PerceptionPorts {
+    graph.add(name, |p| {
+        let ports = PerceptionPorts::declare(p);
+        p.real_time();
+        p.processing_time(timing.processing());
+        (PerceptionModule::new(info, config, ports), ports)
+    })
+}
+
+/// Adds actuation (`name`), run on every command.
+pub fn add_actuation(
+    graph: &mut GraphBuilder,
+    name: &str,
+    config: ActuationConfig,
+    timing: &LayerTiming,
+) -> ActuationPorts {
+    graph.add(name, |p| {
+        let ports = ActuationPorts::declare(p);
+        p.real_time();
+        p.processing_time(timing.processing());
+        (ActuationModule::new(config, ports), ports)
+    })
+}
+
+/// Adds the reactive layer (`name`), run on every percept.
+pub fn add_reactive<H, B, X, W>(
+    graph: &mut GraphBuilder,
+    name: &str,
+    layer: ReactiveLayer<H, B, X, W>,
+    timing: &LayerTiming,
+) -> ReactivePorts<H, B, X, W>
+where
+    H: Goal,
+    B: Goal,
+    X: Goal,
+    W: Message,
+{
+    graph.add(name, |p| {
+        let ports = ReactivePorts::declare(p);
+        p.real_time();
+        p.processing_time(timing.processing());
+        (ReactiveModule::new(layer, ports), ports)
+    })
+}
+
+/// Adds the deliberative layer (`name`), ticked at its configured rate (1.6 Hz by default),
+/// with `load` of extra computation per tick.
+pub fn add_deliberative<D>(
+    graph: &mut GraphBuilder,
+    name: &str,
+    policy: D,
+    timing: &LayerTiming,
+    load: Duration,
+) -> PolicyPorts<D>
+where
+    D: DeliberativePolicy + 'static,
+    D::World: Message,
+    D::Assignment: Message,
+{
+    graph.add(name, |p| {
+        let ports = DeliberativePorts::declare(p);
+        p.trigger(Trigger::every(timing.period(1.6)));
+        p.processing_time(timing.processing());
+        let mut module = DeliberativeModule::new(policy, ports);
+        module.artificial_load = load;
+        (module, ports)
+    })
+}
+
+/// Adds the planning layer (`name`), run on every inbox of its links (at the layer's rate),
+/// built by `module` around its ports.
+pub fn add_planning<P, C, F>(
+    graph: &mut GraphBuilder,
+    name: &str,
+    timing: &LayerTiming,
+    module: impl FnOnce(PlanningPorts<P::Mission, P::Role, F::Directive>) -> PlanningModule<P, C, F>,
+) -> PlanningPorts<P::Mission, P::Role, F::Directive>
+where
+    P: PlanningPolicy + 'static,
+    C: TeamCodec<P::Mission, P::Role> + 'static,
+    F: Referee + 'static,
+{
+    graph.add(name, |p| {
+        let ports = PlanningPorts::declare(p);
+        p.processing_time(timing.processing());
+        (module(ports), ports)
+    })
+}
+
+/// Adds one robot's modules to `graph`, with its platform and its links at the edge
+/// ([`crate::edge::add_platform_edge`], [`crate::edge::add_link_edge`]).
 pub fn add_robot<H, B, X, D, P, C, F>(
     graph: &mut GraphBuilder,
     parts: RobotParts<H, B, X, D, P, C, F>,
@@ -225,113 +334,50 @@ where
     // The world module's processing time and trigger are set by its constructor; its timing
     // model is applied through the builder below.
     graph.set_processing_time(&names.world, timing.world.processing());
-    // The sensor path (perception, world modeling, reactive layer, actuation) runs at the sensor
-    // rate whatever the deliberative and planning layers do (paper 3.7, Table 6).
+    // The sensor path (sensors, perception, world modeling, reactive layer, actuation) runs at
+    // the sensor rate whatever the deliberative and planning layers do (paper 3.7, Table 6).
     graph.set_real_time(&names.world);
 
-    let platform = parts.platform.clone();
-    let perception_config = parts.perception;
-    let (percepts_out, signals_out) = graph.add(&names.perception, |p| {
-        p.trigger(Trigger::every(timing.perception.period(83.3)));
-        p.real_time();
-        p.processing_time(timing.perception.processing());
-        let out = p.output::<Percepts>("percepts");
-        let signals = p.output::<Signal>("signals");
-        (PerceptionModule::new(platform, perception_config, out, signals), (out, signals))
+    let info = lock_platform(&parts.platform).info();
+    let (sensors, actuators) =
+        add_platform_edge(graph, &parts.name, parts.platform, timing.perception.period(83.3));
+    let perception =
+        add_perception(graph, &names.perception, info, parts.perception, &timing.perception);
+    let actuation = add_actuation(graph, &names.actuation, parts.actuation, &timing.actuation);
+    let reactive = add_reactive(graph, &names.reactive, parts.reactive, &timing.reactive);
+    let deliberative = add_deliberative(
+        graph,
+        &names.deliberative,
+        parts.deliberative,
+        &timing.deliberative,
+        parts.deliberative_load,
+    );
+
+    let links = Links { team: parts.team_link, external: parts.external_link };
+    let (links_in, links_out) =
+        add_link_edge(graph, &parts.name, links, timing.planning.period(10.0));
+    let (player, planner, codec, referee, shared) =
+        (parts.player, parts.planner, parts.codec, parts.referee, parts.shared_objects);
+    let planning = add_planning(graph, &names.planning, &timing.planning, |ports| {
+        PlanningModule::new(player, planner, codec, referee, ports, shared)
     });
 
-    let actuation_config = parts.actuation;
-    let platform = parts.platform;
-    let (commands_in, odometry_out, messages_out) = graph.add(&names.actuation, |p| {
-        let commands = p.input::<MotionCommands>("commands", Policy::queue(16));
-        let odometry = p.output::<Odometry>("odometry");
-        let messages = p.output::<ActuationMessage>("messages");
-        let feedback = p.output::<MotionFeedback>("feedback");
-        p.trigger(Trigger::on_any([commands.into()]));
-        p.real_time();
-        p.processing_time(timing.actuation.processing());
-        let module = ActuationModule::new(
-            platform,
-            actuation_config,
-            commands,
-            odometry,
-            messages,
-            feedback,
-        );
-        (module, (commands, odometry, messages))
-    });
-
-    let layer = parts.reactive;
-    let reactive = graph.add(&names.reactive, |p| {
-        let ports = ReactivePorts {
-            percepts: p.input("percepts", Policy::Latest),
-            world: p.input("world", Policy::Latest),
-            deliberative: p.input("deliberative", Policy::Latest),
-            actuation: p.input("actuation", Policy::queue(64)),
-            commands: p.output("commands"),
-            report: p.output("report"),
-            stability: p.output("stability"),
-        };
-        p.trigger(Trigger::on_any([ports.percepts.into()]));
-        p.real_time();
-        p.processing_time(timing.reactive.processing());
-        (ReactiveModule::new(layer, ports), ports)
-    });
-
-    let policy = parts.deliberative;
-    let load = parts.deliberative_load;
-    let deliberative = graph.add(&names.deliberative, |p| {
-        let ports = DeliberativePorts {
-            world: p.input("world", Policy::Latest),
-            assignment: p.input("assignment", Policy::Latest),
-            stability: p.input("stability", Policy::Latest),
-            output: p.output("scores"),
-        };
-        p.trigger(Trigger::every(timing.deliberative.period(1.6)));
-        p.processing_time(timing.deliberative.processing());
-        let mut module = DeliberativeModule::new(policy, ports);
-        module.artificial_load = load;
-        (module, ports)
-    });
-
-    let (player, planner, codec, referee) =
-        (parts.player, parts.planner, parts.codec, parts.referee);
-    let (team_link, external_link, shared) =
-        (parts.team_link, parts.external_link, parts.shared_objects);
-    let planning = graph.add(&names.planning, |p| {
-        let ports = PlanningPorts {
-            world: p.input("world", Policy::Latest),
-            stability: p.input("stability", Policy::Latest),
-            signals: p.input("signals", Policy::queue(32)),
-            decision: p.output("decision"),
-            team_estimates: p.output("team_estimates"),
-            world_commands: p.output("world_commands"),
-        };
-        p.trigger(Trigger::every(timing.planning.period(10.0)));
-        p.processing_time(timing.planning.processing());
-        let module = PlanningModule::new(
-            player,
-            planner,
-            codec,
-            referee,
-            team_link,
-            external_link,
-            ports,
-            shared,
-        );
-        (module, ports)
-    });
-
-    graph.fan_out(percepts_out, [reactive.percepts, world.percepts]);
+    graph.connect(links_in.inbox, planning.inbox);
+    graph.connect(planning.outbox, links_out.outbox);
+    graph.connect(sensors.frames, perception.frames);
+    graph.connect(sensors.motion, actuation.motion);
+    graph.connect(actuation.orders, actuators.orders);
+    graph.connect(actuators.refusals, actuation.refusals);
+    graph.fan_out(perception.percepts, [reactive.percepts, world.percepts]);
     graph.fan_out(world.world_state, [reactive.world, deliberative.world, planning.world]);
-    graph.connect(reactive.commands, commands_in);
-    graph.connect(odometry_out, world.odometry);
-    graph.connect(messages_out, reactive.actuation);
+    graph.connect(reactive.commands, actuation.commands);
+    graph.connect(actuation.odometry, world.odometry);
+    graph.connect(actuation.messages, reactive.actuation);
     graph.fan_out(reactive.stability, [deliberative.stability, planning.stability]);
     graph.connect(deliberative.output, reactive.deliberative);
     graph.connect(planning.decision, deliberative.assignment);
     graph.connect(planning.team_estimates, world.team);
     graph.connect(planning.world_commands, world.commands);
-    graph.connect(signals_out, planning.signals);
+    graph.connect(perception.signals, planning.signals);
     Ok(names)
 }

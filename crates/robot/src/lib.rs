@@ -9,6 +9,7 @@ pub mod actuation;
 pub mod assembly;
 pub mod command;
 pub mod control;
+pub mod edge;
 pub mod geometry;
 pub mod percept;
 pub mod perception;

@@ -3,13 +3,11 @@
 //! [`SensorFrame`] works.
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::{Context, Module, ModuleError, Output};
+use strata_runtime::{Context, Input, Module, ModuleError, Output, Policy};
 
 use crate::geometry::normalize_angle;
 use crate::percept::{CameraPercepts, Observation, Percepts, Signal, SignalKind, ViewCone};
-use crate::platform::{
-    ObjectClass, PlatformError, PlatformInfo, SensorFrame, SharedPlatform, lock_platform,
-};
+use crate::platform::{ObjectClass, PlatformInfo, SensorFrame};
 
 /// The measurement noise perception attributes to each observation (what world modeling
 /// uses as R). Range noise grows with distance.
@@ -120,78 +118,87 @@ pub fn percepts_from_frame(
     (percepts, rejected)
 }
 
-/// Reads the platform every cycle and publishes percepts stamped with the measurement time.
+/// The ports of the perception module, declared once for the assembly and for replay.
+#[derive(Clone, Copy, Debug)]
+pub struct PerceptionPorts {
+    /// The platform's sensor frames, every one: a frame may carry a camera image.
+    pub frames: Input<SensorFrame>,
+    pub percepts: Output<Percepts>,
+    pub signals: Output<Signal>,
+}
+
+impl PerceptionPorts {
+    pub const FRAMES: &'static str = "frames";
+    pub const PERCEPTS: &'static str = "percepts";
+    pub const SIGNALS: &'static str = "signals";
+    /// Frames waiting for a perception cycle; more means perception falls behind the sensors.
+    pub const FRAME_QUEUE: usize = 4;
+
+    /// Declares the ports; perception runs on every sensor frame.
+    pub fn declare(p: &mut strata_runtime::Ports<'_>) -> PerceptionPorts {
+        let ports = PerceptionPorts {
+            frames: p.input(Self::FRAMES, Policy::queue(Self::FRAME_QUEUE)),
+            percepts: p.output(Self::PERCEPTS),
+            signals: p.output(Self::SIGNALS),
+        };
+        p.trigger(strata_runtime::Trigger::on_any([ports.frames.into()]));
+        ports
+    }
+}
+
+/// Turns every sensor frame into percepts stamped with the measurement time, and the
+/// referee's signals among them into signals.
 pub struct PerceptionModule {
-    platform: SharedPlatform,
     info: PlatformInfo,
     config: PerceptionConfig,
-    percepts: Output<Percepts>,
-    signals: Output<Signal>,
+    ports: PerceptionPorts,
     /// Reused for every frame's signals (nearly always none).
     frame_signals: Vec<Signal>,
     rejected_detections: u64,
-    malformed_frames: u64,
 }
 
 impl std::fmt::Debug for PerceptionModule {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PerceptionModule")
             .field("platform", &self.info.name)
-            .field("malformed_frames", &self.malformed_frames)
+            .field("rejected_detections", &self.rejected_detections)
             .finish_non_exhaustive()
     }
 }
 
 impl PerceptionModule {
     pub fn new(
-        platform: SharedPlatform,
+        info: PlatformInfo,
         config: PerceptionConfig,
-        percepts: Output<Percepts>,
-        signals: Output<Signal>,
+        ports: PerceptionPorts,
     ) -> PerceptionModule {
-        let info = lock_platform(&platform).info();
-        PerceptionModule {
-            platform,
-            info,
-            config,
-            percepts,
-            signals,
-            frame_signals: Vec::new(),
-            rejected_detections: 0,
-            malformed_frames: 0,
-        }
+        PerceptionModule { info, config, ports, frame_signals: Vec::new(), rejected_detections: 0 }
     }
 }
 
 impl Module for PerceptionModule {
     fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
-        let now = ctx.now();
-        let frame = match lock_platform(&self.platform).read_sensors(now) {
-            Ok(Some(frame)) => frame,
-            Ok(None) => return Ok(()),
-            // One garbled frame costs one cycle, not the robot.
-            Err(PlatformError::Malformed(reason)) => {
-                self.malformed_frames += 1;
-                tracing::warn!(module = ctx.module_name(), %reason, total = self.malformed_frames, "malformed sensor frame skipped");
-                return Ok(());
-            }
-            Err(error) => return Err(Box::new(error)),
-        };
-        let (percepts, rejected) =
-            percepts_from_frame(&frame, &self.info, &self.config, &mut self.frame_signals);
-        if rejected > 0 {
-            self.rejected_detections += rejected as u64;
-            tracing::warn!(
-                module = ctx.module_name(),
-                rejected,
-                total = self.rejected_detections,
-                "detections with non-finite values dropped"
+        for package in ctx.drain(self.ports.frames) {
+            let (percepts, rejected) = percepts_from_frame(
+                &package.value,
+                &self.info,
+                &self.config,
+                &mut self.frame_signals,
             );
-        }
-        let stamp = percepts.stamp;
-        ctx.send_stamped(self.percepts, percepts, stamp);
-        for signal in self.frame_signals.drain(..) {
-            ctx.send_stamped(self.signals, signal, signal.stamp);
+            if rejected > 0 {
+                self.rejected_detections += rejected as u64;
+                tracing::warn!(
+                    module = ctx.module_name(),
+                    rejected,
+                    total = self.rejected_detections,
+                    "detections with non-finite values dropped"
+                );
+            }
+            let stamp = percepts.stamp;
+            ctx.send_stamped(self.ports.percepts, percepts, stamp);
+            for signal in self.frame_signals.drain(..) {
+                ctx.send_stamped(self.ports.signals, signal, signal.stamp);
+            }
         }
         Ok(())
     }

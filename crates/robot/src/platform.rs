@@ -223,13 +223,17 @@ pub struct HeadOrder {
     pub max_speed: f64,
 }
 
-/// A body order, held until replaced.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "order", rename_all = "snake_case")]
-pub enum BodyOrder {
-    Stand,
-    Walk { velocity: Velocity },
-    Special { motion: SpecialMotion },
+strata_runtime::text_and_binary_enum! {
+    /// A body order, held until replaced. Tagged by `order` in text (the simulator's protocol),
+    /// externally in binary encodings (logs, whose positional encoding has no internal tags).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub enum BodyOrder {
+        Stand,
+        Walk { velocity: Velocity },
+        Special { motion: SpecialMotion },
+    }
+    text: #[serde(tag = "order", rename_all = "snake_case")]
+    binary: #[serde(rename_all = "snake_case")]
 }
 
 /// What actuation sends to the platform. `None` keeps the previous order.

@@ -368,6 +368,67 @@ pub fn reactive_layer(
 /// The reactive layer type of a soccer robot.
 pub type SoccerReactiveLayer = ReactiveLayer<HeadGoal, BodyGoal, WholeBodyGoal, WorldState>;
 
+/// The perception of a soccer robot: the team's, with the referee as a signal (its gesture),
+/// not an object world modeling tracks.
+pub fn perception_config(config: &TeamConfig) -> PerceptionConfig {
+    let mut perception = config.perception.clone();
+    let referee_class = ObjectClass(ObjectKind::Referee.code());
+    if !perception.signal_classes.contains(&referee_class) {
+        perception.signal_classes.push(referee_class);
+    }
+    perception
+}
+
+/// The deliberative behaviors of player `player`, with active vision fitted to the platform's
+/// camera.
+pub fn deliberative_behavior(
+    config: &TeamConfig,
+    info: &PlatformInfo,
+    field: &Arc<TeamField>,
+    player: u8,
+) -> Result<SoccerBehavior, String> {
+    let vision = ActiveVisionConfig {
+        fov: info.camera_fov,
+        range: info.camera_range,
+        yaw_limits: info.head_yaw_limits,
+        ..ActiveVisionConfig::default()
+    };
+    SoccerBehavior::new(
+        player,
+        Arc::clone(field),
+        config.behavior.clone(),
+        vision,
+        Arc::new(config.motion.clone()),
+    )
+}
+
+/// The planner and the GameController's side of player `player` of team `team_number`.
+pub fn planning_parts(
+    config: &TeamConfig,
+    field: &TeamField,
+    player: u8,
+    team_number: u8,
+    half_duration: f64,
+) -> (Planner<SoccerPlanning>, GameControllerReferee) {
+    let planner = Planner::new(
+        SoccerPlanning::new(field.clone(), config.soccer_planning.clone()),
+        config.planning.clone(),
+    );
+    let referee = GameControllerReferee::new(
+        team_number,
+        player,
+        field.clone(),
+        half_duration,
+        config.signals.clone(),
+    );
+    (planner, referee)
+}
+
+/// The world-model objects a soccer robot shares with its teammates, most important first.
+pub fn shared_objects() -> Vec<String> {
+    vec![BALL.to_owned(), OBSTACLE.to_owned()]
+}
+
 /// Adds one soccer robot (all four modules, all three layers) to `graph`.
 pub fn add_soccer_robot(
     graph: &mut GraphBuilder,
@@ -377,41 +438,14 @@ pub fn add_soccer_robot(
     let info = lock_platform(&spec.platform).info();
     let field = Arc::clone(&spec.field);
     let reactive = reactive_layer(config, &info, &field);
-    let vision = ActiveVisionConfig {
-        fov: info.camera_fov,
-        range: info.camera_range,
-        yaw_limits: info.head_yaw_limits,
-        ..ActiveVisionConfig::default()
-    };
-    let deliberative = SoccerBehavior::new(
-        spec.player,
-        Arc::clone(&field),
-        config.behavior.clone(),
-        vision,
-        Arc::new(config.motion.clone()),
-    )?;
-    let planner = Planner::new(
-        SoccerPlanning::new((*field).clone(), config.soccer_planning.clone()),
-        config.planning.clone(),
-    );
-    let referee = GameControllerReferee::new(
-        spec.team_number,
-        spec.player,
-        (*field).clone(),
-        spec.half_duration,
-        config.signals.clone(),
-    );
-    // The referee is a signal (its gesture), not an object world modeling tracks.
-    let mut perception = config.perception.clone();
-    let referee_class = ObjectClass(ObjectKind::Referee.code());
-    if !perception.signal_classes.contains(&referee_class) {
-        perception.signal_classes.push(referee_class);
-    }
+    let deliberative = deliberative_behavior(config, &info, &field, spec.player)?;
+    let (planner, referee) =
+        planning_parts(config, &field, spec.player, spec.team_number, spec.half_duration);
     let parts = RobotParts {
         name: spec.name,
         player: spec.player,
         platform: spec.platform,
-        perception,
+        perception: perception_config(config),
         world: robot_world_config(&field, spec.initial_pose, &spec.relocations),
         reactive,
         deliberative,
@@ -420,7 +454,7 @@ pub fn add_soccer_robot(
         referee,
         team_link: if config.coordination { spec.team_link } else { None },
         external_link: spec.game_controller,
-        shared_objects: vec![BALL.to_owned(), OBSTACLE.to_owned()],
+        shared_objects: shared_objects(),
         actuation: config.actuation.clone(),
         timing: config.timing.clone(),
         deliberative_load: Duration::from_secs_f64(config.deliberative_load),

@@ -5,16 +5,19 @@
 //!
 //! | module | replayable | why |
 //! |---|---|---|
+//! | `perception` | yes | reads only packages (the platform's sensor frames); deterministic |
 //! | `world` | yes | reads only packages (percepts, odometry, teammates' estimates, commands); deterministic |
 //! | `reactive` | yes | reads only packages (percepts, world state, score vectors, actuation messages) |
 //! | `deliberative` | yes | reads only packages (world state, planning decision, stability) |
-//! | `planning` | no | reads its team link and the GameController directly (not packages, not logged) |
-//! | `perception` | no | reads the platform's sensor frames (not packages) |
-//! | `actuation` | no | writes the platform and reads its motion feedback |
+//! | `actuation` | yes | reads only packages (commands, the platform's motion feedback, refused orders) |
+//! | `planning` | yes, from a match's log | reads only packages (what the links received, world state, stability, signals); a robot's or an experiment's log lacks its team number and half duration |
+//! | `sensors`, `actuators`, `links_in`, `links_out` | no | the platform and the links themselves (the edge of the graph) |
 //!
-//! The modules that read the world state replay exactly only from a log with every world-state
-//! package (`--log-world-hz 0`, the default); the world model itself needs the world-state
-//! packages only for the comparison.
+//! Each module is added by the same function the robot's assembly uses
+//! (`strata_robot::assembly::add_perception`, ...), so its ports, policies and trigger are
+//! declared once. The modules that read the world state replay exactly only from a log with
+//! every world-state package (`--log-world-hz 0`, the default); the world model itself needs
+//! the world-state packages only for the comparison.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -22,47 +25,61 @@ use std::time::Duration;
 use serde::de::DeserializeOwned;
 use serde_json::Value;
 use strata_log::replay::{BuildError, ModuleRegistry, ModuleSpec};
-use strata_robot::assembly::{LayerTiming, RobotTiming};
-use strata_robot::control::active_vision::ActiveVisionConfig;
-use strata_robot::control::modules::{
-    DeliberativeModule, DeliberativePorts, ReactiveModule, ReactivePorts,
+use strata_robot::actuation::ActuationConfig;
+use strata_robot::assembly::{
+    RobotTiming, add_actuation, add_deliberative, add_perception, add_planning, add_reactive,
 };
+use strata_robot::control::planning_module::PlanningModule;
 use strata_robot::platform::PlatformInfo;
 use strata_robot::world::{WorldModelConfig, add_world_module};
-use strata_runtime::{GraphBuilder, Policy, ProcessingTime, Trigger};
-use strata_soccer::behaviors::SoccerBehavior;
 use strata_soccer::field::TeamField;
-use strata_soccer::team::{TeamConfig, reactive_layer};
+use strata_soccer::planning::SoccerCodec;
+use strata_soccer::team::{
+    TeamConfig, deliberative_behavior, perception_config, planning_parts, reactive_layer,
+    shared_objects,
+};
 use strata_spl::field::{Field, FieldDimensions};
 
 use crate::logging::RunConfig;
 
 /// Module kinds of a soccer robot that cannot be replayed, and why.
-const NOT_REPLAYABLE: [(&str, &str); 3] = [
+const NOT_REPLAYABLE: [(&str, &str); 4] = [
     (
-        "planning",
-        "the planning layer reads its team link and the GameController directly; what they said is not a package and is not in the log",
+        "sensors",
+        "`sensors` is the platform itself (the edge of the graph): replay perception or actuation, which read what it published",
     ),
     (
-        "perception",
-        "perception reads the platform's sensor frames, which are not packages and not in the log",
+        "actuators",
+        "`actuators` is the platform itself (the edge of the graph): replay actuation, whose orders it wrote",
     ),
     (
-        "actuation",
-        "actuation writes to the platform and reads its motion feedback, which is not in the log",
+        "links_in",
+        "`links_in` is the robot's links themselves (the edge of the graph): replay planning, which read what it published",
+    ),
+    (
+        "links_out",
+        "`links_out` is the robot's links themselves (the edge of the graph): replay planning, whose messages it sent",
     ),
 ];
 
-/// The registry of the soccer robot of `strata match`: `world`, `reactive` and
-/// `deliberative` of any robot (`--robot home/3`).
+/// The registry of the soccer robot of `strata match`: `perception`, `world`, `reactive`,
+/// `deliberative` and `actuation` of any robot (`--robot home/3`).
 pub fn soccer() -> ModuleRegistry {
     let mut registry = ModuleRegistry::new();
+    registry.register("perception", |graph, spec| {
+        let robot = Robot::of(spec)?;
+        let team = robot.team_config()?;
+        let info: PlatformInfo = robot.get(&["platform"])?;
+        let timing = team.timing.resolved();
+        add_perception(graph, spec.name, info, perception_config(&team), &timing.perception);
+        Ok(())
+    });
     registry.register("world", |graph, spec| {
         let robot = Robot::of(spec)?;
         let world = robot.world_config()?;
         let timing = robot.timing()?;
         add_world_module(graph, spec.name, world)?;
-        graph.set_processing_time(spec.name, processing(&timing.world));
+        graph.set_processing_time(spec.name, timing.world.processing());
         Ok(())
     });
     registry.register("reactive", |graph, spec| {
@@ -72,7 +89,7 @@ pub fn soccer() -> ModuleRegistry {
         let field = robot.team_field()?;
         let layer = reactive_layer(&team, &info, &field);
         let timing = team.timing.resolved();
-        add_reactive(graph, spec.name, layer, processing(&timing.reactive));
+        add_reactive(graph, spec.name, layer, &timing.reactive);
         Ok(())
     });
     registry.register("deliberative", |graph, spec| {
@@ -80,31 +97,38 @@ pub fn soccer() -> ModuleRegistry {
         let team = robot.team_config()?;
         let info: PlatformInfo = robot.get(&["platform"])?;
         let field = robot.team_field()?;
-        // As `add_soccer_robot` builds it.
-        let vision = ActiveVisionConfig {
-            fov: info.camera_fov,
-            range: info.camera_range,
-            yaw_limits: info.head_yaw_limits,
-            ..ActiveVisionConfig::default()
-        };
-        let motion = Arc::new(team.motion.clone());
-        let policy =
-            SoccerBehavior::new(robot.player, field, team.behavior.clone(), vision, motion)?;
+        let policy = deliberative_behavior(&team, &info, &field, robot.player)?;
         let timing = team.timing.resolved();
         let load = Duration::try_from_secs_f64(team.deliberative_load).unwrap_or_default();
-        graph.add(spec.name, |p| {
-            let ports = DeliberativePorts {
-                world: p.input("world", Policy::Latest),
-                assignment: p.input("assignment", Policy::Latest),
-                stability: p.input("stability", Policy::Latest),
-                output: p.output("scores"),
-            };
-            p.trigger(Trigger::every(period(&timing.deliberative, 1.6)));
-            p.processing_time(processing(&timing.deliberative));
-            let mut module = DeliberativeModule::new(policy, ports);
-            module.artificial_load = load;
-            (module, ())
+        add_deliberative(graph, spec.name, policy, &timing.deliberative, load);
+        Ok(())
+    });
+    registry.register("planning", |graph, spec| {
+        let robot = Robot::of(spec)?;
+        let team = robot.team_config()?;
+        let field = robot.team_field()?;
+        let (team_number, half_duration) = robot.game()?;
+        let (planner, referee) =
+            planning_parts(&team, &field, robot.player, team_number, half_duration);
+        let timing = team.timing.resolved();
+        add_planning(graph, spec.name, &timing.planning, |ports| {
+            PlanningModule::new(
+                robot.player,
+                planner,
+                SoccerCodec,
+                referee,
+                ports,
+                shared_objects(),
+            )
         });
+        Ok(())
+    });
+    registry.register("actuation", |graph, spec| {
+        let robot = Robot::of(spec)?;
+        let team = robot.team_config()?;
+        let config: ActuationConfig = team.actuation.clone();
+        let timing = team.timing.resolved();
+        add_actuation(graph, spec.name, config, &timing.actuation);
         Ok(())
     });
     for (kind, why) in NOT_REPLAYABLE {
@@ -112,40 +136,6 @@ pub fn soccer() -> ModuleRegistry {
             .register(kind, move |_, _| Err(format!("`{kind}` cannot be replayed: {why}").into()));
     }
     registry
-}
-
-/// The reactive layer's module, wired as `strata_robot::assembly::add_robot` wires it.
-fn add_reactive(
-    graph: &mut GraphBuilder,
-    name: &str,
-    layer: strata_soccer::team::SoccerReactiveLayer,
-    processing_time: ProcessingTime,
-) {
-    graph.add(name, |p| {
-        let ports = ReactivePorts {
-            percepts: p.input("percepts", Policy::Latest),
-            world: p.input("world", Policy::Latest),
-            deliberative: p.input("deliberative", Policy::Latest),
-            actuation: p.input("actuation", Policy::queue(64)),
-            commands: p.output("commands"),
-            report: p.output("report"),
-            stability: p.output("stability"),
-        };
-        p.trigger(Trigger::on_any([ports.percepts.into()]));
-        p.processing_time(processing_time);
-        (ReactiveModule::new(layer, ports), ())
-    });
-}
-
-/// A layer's processing-time model, as the assembly resolves it.
-fn processing(timing: &LayerTiming) -> ProcessingTime {
-    timing.processing_time.clone().unwrap_or_default()
-}
-
-/// A periodic layer's period, as the assembly resolves it.
-fn period(timing: &LayerTiming, default_hz: f64) -> Duration {
-    let hz = timing.rate_hz.filter(|hz| hz.is_finite() && *hz > 0.0).unwrap_or(default_hz);
-    Duration::from_secs_f64(1.0 / hz)
 }
 
 /// The robot a module belongs to, and the run configuration it is rebuilt from.
@@ -237,6 +227,24 @@ impl<'a> Robot<'a> {
         match self.layout {
             Layout::Match { team } => self.get(&["world", team]),
             Layout::Robot => self.get(&["world"]),
+        }
+    }
+
+    /// The robot's team number and the half's length, s: a match's log holds them, a robot's
+    /// own log does not.
+    fn game(&self) -> Result<(u8, f64), BuildError> {
+        match self.layout {
+            Layout::Match { team } => {
+                let numbers: [u8; 2] = self.get(&["team_numbers"])?;
+                let number = if team == "home" { numbers[0] } else { numbers[1] };
+                Ok((number, self.get(&["half_duration"])?))
+            }
+            Layout::Robot => Err(format!(
+                "robot `{}`: the planning layer replays from a match's log only (a robot's or an \
+                 experiment's log does not hold its team number and the half's length)",
+                self.name
+            )
+            .into()),
         }
     }
 

@@ -101,9 +101,16 @@ fn soccer_robots_run_against_the_simulator_server() {
         for layer in report["layers"].as_array().into_iter().flatten() {
             assert!(count(layer, "cycles") > 0, "{layer}");
         }
-        // Perception, world modeling and actuation ran too: all six modules.
-        let modules = report["host"]["modules"].as_array().map(Vec::len);
-        assert_eq!(modules, Some(6), "{report}");
+        // Perception, world modeling and actuation ran too, and the four edge modules (the
+        // platform's sensors and actuators, the links' source and sink): ten modules.
+        let modules: Vec<&str> = report["host"]["modules"]
+            .as_array()
+            .map(|m| m.iter().filter_map(|m| m["name"].as_str()).collect())
+            .unwrap_or_default();
+        assert_eq!(modules.len(), 10, "{report}");
+        for edge in ["sensors", "actuators", "links_in", "links_out"] {
+            assert!(modules.iter().any(|m| m.ends_with(edge)), "{edge}: {modules:?}");
+        }
     }
     assert!(tester.interrupt().success(), "{}", tester.stderr());
     let status = server.interrupt();
@@ -187,7 +194,7 @@ fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
     assert_eq!(reader.run_info().expect("run info").map(|r| r.seed), Some(77));
     let graphs = reader.graphs().expect("graphs");
     assert_eq!(graphs.len(), 1);
-    assert_eq!(graphs[0].description.modules.len(), 6);
+    assert_eq!(graphs[0].description.modules.len(), 10);
 
     // The viewer shows a robot's log too: no ground truth, the robot where it believes it is.
     let view = strata::view::load_log(&path).expect("the viewer opens the log");

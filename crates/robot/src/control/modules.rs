@@ -3,7 +3,9 @@
 
 use std::time::Duration;
 
-use strata_runtime::{Context, Input, Module, ModuleError, Output};
+use strata_runtime::{
+    Context, Input, Message, Module, ModuleError, Output, Policy, Ports, Trigger,
+};
 
 use crate::command::{ActuationMessage, MotionCommands};
 use crate::control::deliberative::{DeliberativeInput, DeliberativeOutput, DeliberativePolicy};
@@ -29,6 +31,36 @@ impl<H, B, X, W> Clone for ReactivePorts<H, B, X, W> {
     }
 }
 impl<H, B, X, W> Copy for ReactivePorts<H, B, X, W> {}
+
+impl<H, B, X, W> ReactivePorts<H, B, X, W>
+where
+    W: Message,
+    DeliberativeOutput<H, B, X>: Message,
+{
+    pub const PERCEPTS: &'static str = "percepts";
+    pub const WORLD: &'static str = "world";
+    pub const DELIBERATIVE: &'static str = "deliberative";
+    pub const ACTUATION: &'static str = "actuation";
+    pub const COMMANDS: &'static str = "commands";
+    pub const REPORT: &'static str = "report";
+    pub const STABILITY: &'static str = "stability";
+
+    /// Declares the ports, once for the assembly and for replay; the layer runs on every
+    /// percept.
+    pub fn declare(p: &mut Ports<'_>) -> Self {
+        let ports = ReactivePorts {
+            percepts: p.input(Self::PERCEPTS, Policy::Latest),
+            world: p.input(Self::WORLD, Policy::Latest),
+            deliberative: p.input(Self::DELIBERATIVE, Policy::Latest),
+            actuation: p.input(Self::ACTUATION, Policy::queue(64)),
+            commands: p.output(Self::COMMANDS),
+            report: p.output(Self::REPORT),
+            stability: p.output(Self::STABILITY),
+        };
+        p.trigger(Trigger::on_any([ports.percepts.into()]));
+        ports
+    }
+}
 
 /// Runs a reactive cycle on every new percept (the fastest layer, at the sensor rate).
 pub struct ReactiveModule<H, B, X, W> {
@@ -103,6 +135,29 @@ impl<H, B, X, W, A> Clone for DeliberativePorts<H, B, X, W, A> {
     }
 }
 impl<H, B, X, W, A> Copy for DeliberativePorts<H, B, X, W, A> {}
+
+impl<H, B, X, W, A> DeliberativePorts<H, B, X, W, A>
+where
+    W: Message,
+    A: Message,
+    DeliberativeOutput<H, B, X>: Message,
+{
+    pub const WORLD: &'static str = "world";
+    pub const ASSIGNMENT: &'static str = "assignment";
+    pub const STABILITY: &'static str = "stability";
+    pub const SCORES: &'static str = "scores";
+
+    /// Declares the ports, once for the assembly and for replay (the layer's period is the
+    /// caller's: it is configured).
+    pub fn declare(p: &mut Ports<'_>) -> Self {
+        DeliberativePorts {
+            world: p.input(Self::WORLD, Policy::Latest),
+            assignment: p.input(Self::ASSIGNMENT, Policy::Latest),
+            stability: p.input(Self::STABILITY, Policy::Latest),
+            output: p.output(Self::SCORES),
+        }
+    }
+}
 
 /// The ports of the deliberative layer of a given policy.
 pub type PolicyPorts<P> = DeliberativePorts<

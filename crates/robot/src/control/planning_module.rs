@@ -2,16 +2,16 @@
 //! external devices (paper 3.3: a robot that loses the network loses no ability of its own).
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::{Context, Input, Message, Module, ModuleError, Output, Time};
+use strata_runtime::{Context, Input, Message, Module, ModuleError, Output, Policy, Ports, Time};
 
 use crate::control::planning::{
     Assignment, Label, MessageBudget, OwnState, Planner, PlanningPolicy, PlanningStats,
     SharedObject, SharedSignal, StandingStatus, TeamMessage,
 };
 use crate::control::reactive::Stability;
+use crate::edge::{LinkInbox, LinkOutbox};
 use crate::geometry::Pose;
 use crate::percept::Signal;
-use crate::platform::{ExternalLink, TeamLink};
 use crate::world::{
     ObjectCategory, SharedObject as WorldSharedObject, TeammateEstimate, WorldCommand, WorldState,
 };
@@ -102,6 +102,8 @@ pub struct PlanningDecision<M, R, D> {
 /// The planning module's ports.
 #[derive(Debug)]
 pub struct PlanningPorts<M, R, D> {
+    /// What the links received since the previous cycle; each inbox is a cycle.
+    pub inbox: Input<LinkInbox>,
     pub world: Input<WorldState>,
     pub stability: Input<Stability>,
     /// Perception's signals, every one (a Queue): a whistle is one frame long.
@@ -109,6 +111,8 @@ pub struct PlanningPorts<M, R, D> {
     pub decision: Output<PlanningDecision<M, R, D>>,
     pub team_estimates: Output<TeammateEstimate>,
     pub world_commands: Output<WorldCommand>,
+    /// The team message and the external device's packet of the cycle, for the links.
+    pub outbox: Output<LinkOutbox>,
 }
 
 impl<M, R, D> Clone for PlanningPorts<M, R, D> {
@@ -118,14 +122,43 @@ impl<M, R, D> Clone for PlanningPorts<M, R, D> {
 }
 impl<M, R, D> Copy for PlanningPorts<M, R, D> {}
 
+impl<M, R, D> PlanningPorts<M, R, D>
+where
+    PlanningDecision<M, R, D>: Message,
+{
+    pub const INBOX: &'static str = "inbox";
+    pub const WORLD: &'static str = "world";
+    pub const STABILITY: &'static str = "stability";
+    pub const SIGNALS: &'static str = "signals";
+    pub const DECISION: &'static str = "decision";
+    pub const TEAM_ESTIMATES: &'static str = "team_estimates";
+    pub const WORLD_COMMANDS: &'static str = "world_commands";
+    pub const OUTBOX: &'static str = "outbox";
+
+    /// Declares the ports, once for the assembly and for replay; the layer runs on every
+    /// inbox, which the links' source sends at the layer's rate.
+    pub fn declare(p: &mut Ports<'_>) -> Self {
+        let ports = PlanningPorts {
+            inbox: p.input(Self::INBOX, Policy::queue(8)),
+            world: p.input(Self::WORLD, Policy::Latest),
+            stability: p.input(Self::STABILITY, Policy::Latest),
+            signals: p.input(Self::SIGNALS, Policy::queue(32)),
+            decision: p.output(Self::DECISION),
+            team_estimates: p.output(Self::TEAM_ESTIMATES),
+            world_commands: p.output(Self::WORLD_COMMANDS),
+            outbox: p.output(Self::OUTBOX),
+        };
+        p.trigger(strata_runtime::Trigger::on_any([ports.inbox.into()]));
+        ports
+    }
+}
+
 /// Runs the planner on the robot's links.
 pub struct PlanningModule<P: PlanningPolicy, C, F: Referee> {
     player: u8,
     planner: Planner<P>,
     codec: C,
     referee: F,
-    team: Option<Box<dyn TeamLink>>,
-    external: Option<Box<dyn ExternalLink>>,
     ports: PlanningPorts<P::Mission, P::Role, F::Directive>,
     world: Option<WorldState>,
     stability: Stability,
@@ -136,7 +169,6 @@ pub struct PlanningModule<P: PlanningPolicy, C, F: Referee> {
     /// teammates judge a striker by how long ago it saw the ball (MAMC), and a striker that
     /// is searching for a ball lost a few seconds ago is still accomplishing its mission.
     last_seen: Vec<Option<Time>>,
-    link_errors: u64,
 }
 
 impl<P: PlanningPolicy, C, F: Referee> std::fmt::Debug for PlanningModule<P, C, F> {
@@ -154,14 +186,11 @@ where
     C: TeamCodec<P::Mission, P::Role>,
     F: Referee,
 {
-    #[allow(clippy::too_many_arguments)]
     pub fn new(
         player: u8,
         planner: Planner<P>,
         codec: C,
         referee: F,
-        team: Option<Box<dyn TeamLink>>,
-        external: Option<Box<dyn ExternalLink>>,
         ports: PlanningPorts<P::Mission, P::Role, F::Directive>,
         shared_objects: Vec<String>,
     ) -> Self {
@@ -170,15 +199,12 @@ where
             planner,
             codec,
             referee,
-            team,
-            external,
             ports,
             world: None,
             stability: Stability::Stable,
             last_sent: None,
             last_seen: vec![None; shared_objects.len()],
             shared_objects,
-            link_errors: 0,
         }
     }
 
@@ -298,21 +324,15 @@ where
         for signal in ctx.drain(self.ports.signals) {
             self.referee.perceive(signal.stamp, &signal.value);
         }
+        let mut inbox = LinkInbox::default();
+        for package in ctx.drain(self.ports.inbox) {
+            inbox.team.extend(package.value.team);
+            inbox.external.extend(package.value.external);
+        }
         // External device (GameController).
-        if let Some(external) = self.external.as_mut() {
-            match external.receive(now) {
-                Ok(packets) => {
-                    for packet in packets {
-                        if let Err(error) = self.referee.receive(packet.received, &packet.bytes) {
-                            self.link_errors += 1;
-                            tracing::debug!(module = ctx.module_name(), %error, "external packet rejected");
-                        }
-                    }
-                }
-                Err(error) => {
-                    self.link_errors += 1;
-                    tracing::warn!(module = ctx.module_name(), %error, "external link");
-                }
+        for packet in inbox.external {
+            if let Err(error) = self.referee.receive(packet.received, &packet.bytes) {
+                tracing::debug!(module = ctx.module_name(), %error, "external packet rejected");
             }
         }
         for command in self.referee.world_commands() {
@@ -322,37 +342,22 @@ where
             self.planner.budget = budget;
         }
         // Teammates: evaluation is asynchronous, on every message received.
-        if let Some(team) = self.team.as_mut() {
-            match team.receive(now) {
-                Ok(packets) => {
-                    for packet in packets {
-                        match self.codec.decode(&packet.bytes) {
-                            Ok(message) if message.sender == self.player => {}
-                            Ok(message) => {
-                                if let Some(estimate) = self.estimate_of(packet.received, &message)
-                                {
-                                    ctx.send(self.ports.team_estimates, estimate);
-                                }
-                                if let Some(signal) = &message.signal {
-                                    self.referee.teammate_signal(
-                                        packet.received,
-                                        message.sender,
-                                        signal,
-                                    );
-                                }
-                                self.planner.receive(packet.received, message);
-                            }
-                            Err(error) => {
-                                // A teammate sending garbage costs that message only.
-                                self.planner.reject();
-                                tracing::debug!(module = ctx.module_name(), %error, "team message rejected");
-                            }
-                        }
+        for packet in inbox.team {
+            match self.codec.decode(&packet.bytes) {
+                Ok(message) if message.sender == self.player => {}
+                Ok(message) => {
+                    if let Some(estimate) = self.estimate_of(packet.received, &message) {
+                        ctx.send(self.ports.team_estimates, estimate);
                     }
+                    if let Some(signal) = &message.signal {
+                        self.referee.teammate_signal(packet.received, message.sender, signal);
+                    }
+                    self.planner.receive(packet.received, message);
                 }
                 Err(error) => {
-                    self.link_errors += 1;
-                    tracing::warn!(module = ctx.module_name(), %error, "team link");
+                    // A teammate sending garbage costs that message only.
+                    self.planner.reject();
+                    tracing::debug!(module = ctx.module_name(), %error, "team message rejected");
                 }
             }
         }
@@ -398,29 +403,23 @@ where
             self.last_sent = Some(decision.clone());
             ctx.send(self.ports.decision, decision);
         }
+        // The links' sink sends what this robot has links for: a robot without teammates
+        // composes its messages all the same, so its planning is the same with or without.
+        let mut outbox = LinkOutbox::default();
         if let Some(kind) = self.planner.message_due(now)
             && let Some(mut message) = self.planner.compose(now, kind)
-            && let Some(team) = self.team.as_mut()
         {
             message.signal = self.referee.shared_signal(now);
             match self.codec.encode(&message) {
-                Ok(bytes) => {
-                    if let Err(error) = team.send(now, &bytes) {
-                        self.link_errors += 1;
-                        tracing::warn!(module = ctx.module_name(), %error, "team message not sent");
-                    }
-                }
+                Ok(bytes) => outbox.team = Some(bytes),
                 Err(error) => {
                     tracing::warn!(module = ctx.module_name(), %error, "team message not encoded")
                 }
             }
         }
-        if let Some(packet) = self.referee.status_packet(now, &own, self.world.as_ref())
-            && let Some(external) = self.external.as_mut()
-            && let Err(error) = external.send(now, &packet)
-        {
-            self.link_errors += 1;
-            tracing::debug!(module = ctx.module_name(), %error, "status packet not sent");
+        outbox.external = self.referee.status_packet(now, &own, self.world.as_ref());
+        if outbox.team.is_some() || outbox.external.is_some() {
+            ctx.send(self.ports.outbox, outbox);
         }
         Ok(())
     }

@@ -237,7 +237,14 @@ fn default_real_time_priority() -> u8 {
 
 /// How a robot's sensor-path threads were scheduled, in a few words for the report.
 fn scheduling_note(stats: &HostStats, modules: &RobotModules) -> String {
-    let sensor_path = [&modules.perception, &modules.world, &modules.reactive, &modules.actuation];
+    let sensor_path = [
+        &modules.sensors,
+        &modules.perception,
+        &modules.world,
+        &modules.reactive,
+        &modules.actuation,
+        &modules.actuators,
+    ];
     let mut notes: Vec<String> = sensor_path
         .iter()
         .filter_map(|name| stats.module(name))
