@@ -35,9 +35,9 @@ use crate::control::planning_module::{
 };
 use crate::control::reactive::ReactiveLayer;
 use crate::control::scores::Goal;
-use crate::edge::{EdgeModules, Links, add_link_edge, add_platform_edge};
+use crate::edge::{EdgeModules, Links, RobotPlatform, add_link_edge};
 use crate::perception::{PerceptionConfig, PerceptionModule, PerceptionPorts};
-use crate::platform::{ExternalLink, PlatformInfo, SharedPlatform, TeamLink, lock_platform};
+use crate::platform::{ExternalLink, PlatformInfo, TeamLink};
 use crate::world::{ConfigError, WorldModelConfig, WorldState, add_world_module};
 
 /// How often a layer runs (for periodic layers) and how long its cycles take on the lockstep
@@ -140,7 +140,7 @@ where
     /// Prefix of the module names (`"blue/3"` gives `"blue/3/reactive"`...).
     pub name: String,
     pub player: u8,
-    pub platform: SharedPlatform,
+    pub platform: RobotPlatform,
     pub perception: PerceptionConfig,
     pub world: WorldModelConfig,
     pub reactive: ReactiveLayer<H, B, X, WorldState>,
@@ -338,9 +338,8 @@ where
     // the sensor rate whatever the deliberative and planning layers do (paper 3.7, Table 6).
     graph.set_real_time(&names.world);
 
-    let info = lock_platform(&parts.platform).info();
-    let (sensors, actuators) =
-        add_platform_edge(graph, &parts.name, parts.platform, timing.perception.period(83.3));
+    let info = parts.platform.info();
+    let edge = parts.platform.into_ports(graph, &parts.name, timing.perception.period(83.3));
     let perception =
         add_perception(graph, &names.perception, info, parts.perception, &timing.perception);
     let actuation = add_actuation(graph, &names.actuation, parts.actuation, &timing.actuation);
@@ -364,10 +363,10 @@ where
 
     graph.connect(links_in.inbox, planning.inbox);
     graph.connect(planning.outbox, links_out.outbox);
-    graph.connect(sensors.frames, perception.frames);
-    graph.connect(sensors.motion, actuation.motion);
-    graph.connect(actuation.orders, actuators.orders);
-    graph.connect(actuators.refusals, actuation.refusals);
+    graph.connect(edge.frames, perception.frames);
+    graph.connect(edge.motion, actuation.motion);
+    graph.connect(actuation.orders, edge.orders);
+    graph.connect(edge.refusals, actuation.refusals);
     graph.fan_out(perception.percepts, [reactive.percepts, world.percepts]);
     graph.fan_out(world.world_state, [reactive.world, deliberative.world, planning.world]);
     graph.connect(reactive.commands, actuation.commands);

@@ -25,8 +25,8 @@ use strata_runtime::{Context, GraphBuilder, Input, Module, ModuleError, Output, 
 
 use crate::command::Resource;
 use crate::platform::{
-    ActuatorOrders, ExternalLink, MotionFeedback, PlatformError, ReceivedPacket, SensorFrame,
-    SharedPlatform, TeamLink, lock_platform,
+    ActuatorOrders, ExternalLink, MotionFeedback, PlatformError, PlatformInfo, ReceivedPacket,
+    SensorFrame, SharedPlatform, TeamLink, lock_platform,
 };
 
 /// Orders the platform refused (a NAO without a gait engine asked to walk): actuation tells the
@@ -63,6 +63,71 @@ impl ActuatorPorts {
     pub const REFUSALS: &'static str = "refusals";
     /// Orders actuation sent that the platform has not been given yet.
     pub const ORDER_QUEUE: usize = 16;
+}
+
+/// A platform as the robot's graph sees it: what it publishes and what it takes, whichever
+/// modules do it — a robot's own `sensors` and `actuators` over a [`Platform`], or a module
+/// that is the platform of several robots (the in-process simulator).
+#[derive(Clone, Debug)]
+pub struct PlatformPorts {
+    pub info: PlatformInfo,
+    pub frames: Output<SensorFrame>,
+    pub motion: Output<MotionFeedback>,
+    pub orders: Input<ActuatorOrders>,
+    pub refusals: Output<OrderRefused>,
+}
+
+/// Where a robot's platform comes from.
+pub enum RobotPlatform {
+    /// A platform object: the robot's own edge modules read and write it
+    /// ([`add_platform_edge`]).
+    Shared(SharedPlatform),
+    /// A module already in the graph publishes the robot's frames and takes its orders.
+    Module(PlatformPorts),
+}
+
+impl std::fmt::Debug for RobotPlatform {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RobotPlatform::Shared(_) => f.write_str("RobotPlatform::Shared"),
+            RobotPlatform::Module(ports) => {
+                f.debug_tuple("RobotPlatform::Module").field(ports).finish()
+            }
+        }
+    }
+}
+
+impl RobotPlatform {
+    pub fn info(&self) -> PlatformInfo {
+        match self {
+            RobotPlatform::Shared(platform) => lock_platform(platform).info(),
+            RobotPlatform::Module(ports) => ports.info.clone(),
+        }
+    }
+
+    /// The platform's ports, adding the robot's own edge modules (named after `prefix`,
+    /// reading every `period`) for a platform object.
+    pub fn into_ports(
+        self,
+        graph: &mut GraphBuilder,
+        prefix: &str,
+        period: std::time::Duration,
+    ) -> PlatformPorts {
+        match self {
+            RobotPlatform::Module(ports) => ports,
+            RobotPlatform::Shared(platform) => {
+                let info = lock_platform(&platform).info();
+                let (sensors, actuators) = add_platform_edge(graph, prefix, platform, period);
+                PlatformPorts {
+                    info,
+                    frames: sensors.frames,
+                    motion: sensors.motion,
+                    orders: actuators.orders,
+                    refusals: actuators.refusals,
+                }
+            }
+        }
+    }
 }
 
 /// Reads the platform every sensor period.

@@ -32,7 +32,7 @@
 //! platform.write(Time::ZERO, &ActuatorOrders { head: None, body: Some(walk) })?;
 //!
 //! let mut graph = GraphBuilder::new();
-//! add_simulator(&mut graph, sim.clone());
+//! add_simulator(&mut graph, sim.clone(), &[]); // `platform` reads the world itself
 //! let mut host = LockstepHost::new(graph.build()?, HostConfig::with_seed(1));
 //! host.run_for(Duration::from_secs(2))?;
 //! let frame = platform.read_sensors(host.now())?.expect("a frame every 12 ms");
@@ -60,7 +60,9 @@ mod world;
 
 pub use body::FallCause;
 pub use config::{ConfigError, SimConfig};
-pub use module::{SIMULATOR_PRIORITY, SimulatorModule, SimulatorPorts, add_simulator};
+pub use module::{
+    SIMULATOR_PRIORITY, SimulatorModule, SimulatorPorts, add_simulator, robot_port_prefix,
+};
 pub use noise::{NoiseConfig, NoiseLevel, NoiseParams};
 pub use physics::BallScript;
 pub use platform::{SimGameControllerLink, SimHandle, SimPlatform, SimTeamLink};

@@ -60,7 +60,7 @@ fn play(seed: u64) -> (GroundTruth, u64, Trajectory) {
     let config = SimConfig { seed, ..SimConfig::default() };
     let sim = SimHandle::new(Simulation::new(config).expect("the default config is valid"));
     let mut graph = GraphBuilder::new();
-    let ports = add_simulator(&mut graph, sim.clone());
+    let ports = add_simulator(&mut graph, sim.clone(), &[]);
     let trajectory = std::sync::Arc::new(std::sync::Mutex::new(Trajectory::default()));
     let digest = graph.add("digest", |p| {
         let input = p.input("truth", strata_runtime::Policy::queue(1000));
@@ -153,7 +153,7 @@ impl strata_runtime::Module for Recorder {
 fn the_simulator_module_publishes_ground_truth_with_new_events() {
     let sim = SimHandle::new(Simulation::new(SimConfig::default()).expect("valid"));
     let mut graph = GraphBuilder::new();
-    let ports = add_simulator(&mut graph, sim.clone());
+    let ports = add_simulator(&mut graph, sim.clone(), &[]);
     let received = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
     let sink = graph.add("recorder", |p| {
         let input = p.input("truth", strata_runtime::Policy::queue(1000));

@@ -16,10 +16,9 @@ use strata_robot::control::reactive::{
     FallDetectorConfig, Multiplexer, MultiplexerConfig, ReactiveLayer,
 };
 use strata_robot::control::scores::{GoalScore, ScoreVector};
+use strata_robot::edge::RobotPlatform;
 use strata_robot::perception::PerceptionConfig;
-use strata_robot::platform::{
-    ExternalLink, ObjectClass, PlatformInfo, SharedPlatform, TeamLink, lock_platform,
-};
+use strata_robot::platform::{ExternalLink, ObjectClass, PlatformInfo, TeamLink};
 use strata_robot::world::{PosePrior, SymmetryHint, WorldModelConfig, WorldState};
 use strata_runtime::GraphBuilder;
 use strata_spl::ObjectKind;
@@ -260,7 +259,7 @@ pub struct SoccerRobotSpec {
     pub team_number: u8,
     pub player: u8,
     pub field: Arc<TeamField>,
-    pub platform: SharedPlatform,
+    pub platform: RobotPlatform,
     pub team_link: Option<Box<dyn TeamLink>>,
     pub game_controller: Option<Box<dyn ExternalLink>>,
     pub half_duration: f64,
@@ -435,7 +434,7 @@ pub fn add_soccer_robot(
     spec: SoccerRobotSpec,
     config: &TeamConfig,
 ) -> Result<RobotModules, String> {
-    let info = lock_platform(&spec.platform).info();
+    let info = spec.platform.info();
     let field = Arc::clone(&spec.field);
     let reactive = reactive_layer(config, &info, &field);
     let deliberative = deliberative_behavior(config, &info, &field, spec.player)?;

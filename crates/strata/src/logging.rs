@@ -220,8 +220,14 @@ impl MatchLog {
             .describe();
         let mut modules: Vec<String> = settings.robots.iter().map(|r| format!("{r}/")).collect();
         if !modules.is_empty() {
-            // Ground truth comes from the simulator module.
-            modules.push("simulator/".to_owned());
+            // Ground truth comes from the simulator module, and so do the chosen robots' sensor
+            // frames and motion feedback (it is their platform).
+            modules.push("simulator/ground_truth".to_owned());
+            for (id, _) in &game.robots {
+                if settings.robots.contains(&robot_name(*id)) {
+                    modules.push(format!("simulator/{}/", strata_sim::robot_port_prefix(*id)));
+                }
+            }
         }
         let options = McapTapOptions {
             // The lockstep host runs in simulated time: waiting for the disk costs no deadline

@@ -8,11 +8,14 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use serde::{Deserialize, Serialize};
 use strata_robot::assembly::RobotModules;
+use strata_robot::edge::RobotPlatform;
 use strata_runtime::{
     HostConfig, HostStats, LockstepHost, Package, Tap, TapOutput, TapRecord, ThreadedHost, Time,
 };
 use strata_sim::{EventKind, RobotId};
-use strata_sim::{GameState, NoiseLevel, SimConfig, SimHandle, Simulation, add_simulator};
+use strata_sim::{
+    GameState, NoiseLevel, SimConfig, SimHandle, Simulation, SimulatorPorts, add_simulator,
+};
 use strata_soccer::behaviors::Decision;
 use strata_soccer::catalog::Role;
 use strata_soccer::field::TeamField;
@@ -228,7 +231,10 @@ impl Match {
             Simulation::new(sim_config.clone()).context("building the simulated world")?;
         let sim = SimHandle::new(simulation);
         let mut graph = strata_runtime::GraphBuilder::new();
-        add_simulator(&mut graph, sim.clone());
+        let ids: Vec<RobotId> = (0..2usize)
+            .flat_map(|team| (1..=config.players).map(move |player| RobotId::new(team, player)))
+            .collect();
+        let served = add_simulator(&mut graph, sim.clone(), &ids);
         let mut robots = Vec::new();
         let field = sim.lock().field().clone();
         for team in 0..2usize {
@@ -245,7 +251,7 @@ impl Match {
                     team_number,
                     player,
                     field: Arc::clone(&team_field),
-                    platform: sim.shared_platform(id)?,
+                    platform: served_platform(&served, id)?,
                     team_link: Some(Box::new(sim.team_link(id)?)),
                     game_controller: Some(Box::new(sim.game_controller_link(id)?)),
                     half_duration: config.half_duration,
@@ -573,4 +579,12 @@ impl RoleSampler {
             samples: self.samples[team],
         }
     }
+}
+
+/// The platform of robot `id`, as the simulator module serves it through the graph.
+pub(crate) fn served_platform(served: &SimulatorPorts, id: RobotId) -> Result<RobotPlatform> {
+    served
+        .platform(id)
+        .map(RobotPlatform::Module)
+        .ok_or_else(|| anyhow::anyhow!("robot {} is not served by the simulator", robot_name(id)))
 }

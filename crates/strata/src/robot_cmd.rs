@@ -38,6 +38,7 @@ use strata_rcssmj::platform::{FALL_ONSET_TILT, FallRecord, RcssConfig, RcssPlatf
 use strata_rcssmj::referee::{TeamNumbers, penalty_spots};
 use strata_robot::assembly::RobotModules;
 use strata_robot::control::reactive::FallDetectorConfig;
+use strata_robot::edge::RobotPlatform;
 use strata_robot::geometry::{Pose, normalize_angle};
 use strata_robot::platform::{
     ActuatorOrders, ExternalLink, MotionFeedback, Platform, PlatformError, PlatformInfo,
@@ -380,7 +381,7 @@ pub fn run(args: RobotArgs) -> Result<()> {
         team_number: args.team,
         player: args.player,
         field: Arc::clone(&team_field),
-        platform: Arc::clone(&platform.shared),
+        platform: RobotPlatform::Shared(Arc::clone(&platform.shared)),
         team_link,
         game_controller: Some(gc_link),
         half_duration: args.half_duration,

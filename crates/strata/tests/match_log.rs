@@ -152,9 +152,12 @@ fn logged_robots_can_be_chosen_and_the_world_state_decimated() {
         topics.iter().all(|t| t.starts_with("home/2/")
             || t.starts_with("shared/")
             || *t == "simulator/ground_truth"
+            || t.starts_with("simulator/home_2/")
             || *t == GAME_STATE_TOPIC),
         "{topics:?}"
     );
+    // The chosen robot's platform is in, so its perception replays from this log.
+    assert!(topics.contains(&"simulator/home_2/frames"), "{topics:?}");
     let world = reader.topic("home/2/world/world_state").expect("world state").messages;
     // 4 s at 5 Hz, give or take the first and last.
     assert!((14..=21).contains(&world), "{world} world states");
@@ -208,7 +211,7 @@ fn logged_modules_replay_identically_and_parameters_can_be_changed() {
     assert!(details.iter().any(|d| d.contains("covariance")), "{report}");
 
     // What cannot be replayed says why; a mistyped key names what exists.
-    let error = replay(&reader, &registry, &options("home/2", &["sensors"], &[]))
+    let error = replay(&reader, &registry, &options("home/2", &["links_in"], &[]))
         .err()
         .map(|e| e.to_string())
         .unwrap_or_default();

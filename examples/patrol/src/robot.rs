@@ -15,6 +15,7 @@ use strata_robot::control::reactive::{
     FallDetectorConfig, Multiplexer, MultiplexerConfig, ReactiveLayer,
 };
 use strata_robot::control::scores::{GoalScore, ScoreVector};
+use strata_robot::edge::RobotPlatform;
 use strata_robot::geometry::Pose;
 use strata_robot::platform::{ExternalLink, SharedPlatform, TeamLink, lock_platform};
 use strata_runtime::{GraphBuilder, ProcessingTime};
@@ -135,7 +136,7 @@ pub fn add_patrol_robot(
     let parts = RobotParts {
         name: spec.name,
         player: spec.player,
-        platform: spec.platform,
+        platform: RobotPlatform::Shared(spec.platform),
         perception: perception_config(),
         world: world_config(&plan, spec.start),
         reactive,

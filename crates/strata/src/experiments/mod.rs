@@ -46,7 +46,7 @@ use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
 use strata_soccer::world_config::world_config;
 
 use crate::logging::{RobotRunConfig, open_run_log};
-use crate::matches::robot_name;
+use crate::matches::{robot_name, served_platform};
 use crate::physics::Engine;
 use strata_log::{ConfigFormat, McapTap, McapTapOptions, RunInfo, WhenFull};
 
@@ -682,7 +682,8 @@ impl Scene {
         simulation.set_game_state(GameState::Playing);
         let sim = SimHandle::new(simulation);
         let mut graph = GraphBuilder::new();
-        add_simulator(&mut graph, sim.clone());
+        let ids: Vec<RobotId> = robots.iter().map(|r| RobotId::new(0, r.player)).collect();
+        let served = add_simulator(&mut graph, sim.clone(), &ids);
         let mut added = Vec::new();
         let mut robot_configs = BTreeMap::new();
         let platform = sim.lock().platform_info();
@@ -704,7 +705,7 @@ impl Scene {
                 team_number,
                 player: robot.player,
                 field: Arc::clone(&team_field),
-                platform: sim.shared_platform(id)?,
+                platform: served_platform(&served, id)?,
                 team_link: Some(Box::new(sim.team_link(id)?)),
                 game_controller: Some(Box::new(sim.game_controller_link(id)?)),
                 half_duration: 600.0,
