@@ -7,12 +7,15 @@
 //!               │                        └─signals (Queue)─▶ Planning (the referee's whistle, gestures)  │    └──refusals──────┘
 //!               └─motion feedback (Merge)───────────────────────────────────────────────────────────────▶┤
 //!                                world state (Latest)├──────▶ Reactive, Deliberative, Planning          │
-//!   team ◀─▶ Planning ─decision (Latest)─▶ Deliberative ─score vectors (Latest)─▶ Reactive ◀─messages (Queue)
-//!            Planning ─teammates' estimates, commands (Queue)─▶ World
+//!   links_in ─inbox─▶ Planning ─decision (Latest)─▶ Deliberative ─score vectors (Latest)─▶ Reactive ◀─messages (Queue)
+//!                     Planning ─teammates' estimates, commands (Queue)─▶ World
+//!                     Planning ─outbox─▶ links_out
 //! ```
 //!
-//! Only `sensors` and `actuators` touch the platform ([`crate::edge`]); every module between
-//! them computes on packages and replays from a log. Each module runs on its own trigger:
+//! Only the edge touches the platform and the links ([`crate::edge`]): `sensors` and
+//! `actuators` (or a module that is the platform of several robots, such as the in-process
+//! simulator: [`RobotPlatform::Module`]), `links_in` and `links_out`. Every module between them
+//! computes on packages and replays from a log. Each module runs on its own trigger:
 //! `sensors` at the sensor rate, perception on every frame, world modeling and the reactive
 //! layer on every percept, actuation on every command, the deliberative and planning layers at
 //! their own rates. The same graph runs on either host. Each module's ports are declared once
