@@ -246,116 +246,22 @@ pub fn run(args: RobotArgs) -> Result<()> {
     // simulator client maps its server's stamps with the smallest offset seen between a
     // reader's clock and the server's, and an earlier clock would corrupt that offset.
     let early_clock = MonotonicClock::start();
-    let mut config = TeamConfig::resolve(&args.team_config)
-        .with_context(|| format!("team configuration `{}`", args.team_config))?;
-    if args.platform == PlatformKind::Rcssservermj && config.motion == MotionModel::default() {
-        // The team file's primitives assume a NAO unless it says otherwise: a T1's camera is
-        // twice as high, its neck pitches further and it kicks from further away.
-        config.motion = MotionModel::booster_t1();
-    }
-    if args.platform == PlatformKind::Rcssservermj
-        && config.fall_detector == FallDetectorConfig::default()
-    {
-        config.fall_detector = strata_rcssmj::controller::fall_detector();
-    }
-    let field = resolve_field(args.field.as_deref().unwrap_or(match args.platform {
-        PlatformKind::Rcssservermj => "rcssservermj",
-        PlatformKind::Sim | PlatformKind::Nao => "spl",
-    }))?;
-    if args.platform == PlatformKind::Rcssservermj && config.behavior.set_play_distance == 0.0 {
-        // The server's referee moves a robot within its centre circle's radius of the ball
-        // during the other team's set play off the field.
-        config.behavior.set_play_distance = field.dimensions().center_circle_diameter / 2.0 + 0.5;
-    }
-    if args.platform == PlatformKind::Rcssservermj {
-        // The server's referee gives the other team a free kick when a restart's taker touches
-        // the ball again before anyone else has.
-        config.behavior.no_second_touch = true;
-    }
-    if args.platform == PlatformKind::Rcssservermj
-        && config.behavior.dribble_distance == BehaviorConfig::default().dribble_distance
-    {
-        // The T1 dribbles the ball toward the goal faster than its kicks, which go 3 m in
-        // a direction 20-60 degrees off, move it there (docs/rcssservermj.md).
-        config.behavior.dribble_distance = field.dimensions().field_length;
-    }
+    let (config, field) = team_config_and_field(&args)?;
     let out = Output { json: args.json, name: format!("robot {}/{}", args.team, args.player) };
 
     // The body.
-    let platform = open_platform(&args)?;
+    let mut platform = open_platform(&args)?;
     let info = platform.info.clone();
 
     // The radio and the referee.
-    let net = args.net || args.platform == PlatformKind::Nao;
-    let mut unused_sim_links: Vec<Box<dyn FnMut() + Send>> = Vec::new();
-    let (team_link, gc_link, team_counters, gc_counters, endpoints) = if net {
-        let net_config = net_config(&args)?;
-        let (team, gc) = net_config.bind().with_context(|| {
-            format!(
-                "binding UDP ports {} (GameController) and {} (team)",
-                net_config.gc_port, net_config.team_port
-            )
-        })?;
-        let endpoints = Endpoints {
-            game_controller: format!(
-                "UDP :{} (return packets to the sender's :{})",
-                net_config.gc_port, net_config.gc_return_port
-            ),
-            team: format!(
-                "UDP :{} -> {}:{}",
-                net_config.team_port, net_config.broadcast, net_config.team_port
-            ),
-        };
-        let (team_counters, gc_counters) = (team.counters(), gc.counters());
-        if let Some(links) = platform.links {
-            // The server still forwards its referee's packets and teammates' messages; drain
-            // them so they do not pile up in the client.
-            let PlatformLinks { mut team_link, mut game_controller, .. } = links;
-            let clock = early_clock;
-            unused_sim_links.push(Box::new(move || {
-                if let Some(team_link) = &mut team_link {
-                    let _ = team_link.receive(clock.now());
-                }
-                let _ = game_controller.receive(clock.now());
-            }));
-        }
-        let team: Box<dyn TeamLink> = Box::new(team);
-        let gc: Box<dyn ExternalLink> = Box::new(gc);
-        (Some(team), gc, team_counters, gc_counters, endpoints)
-    } else {
-        let Some(PlatformLinks { team_link, game_controller, label }) = platform.links else {
-            bail!("without --net the simulator server must carry team messages and game state");
-        };
-        let gc_counters = Arc::<LinkCounters>::default();
-        let (team, team_counters, team_label): (Option<Box<dyn TeamLink>>, _, _) = if args.team_udp
-        {
-            let net_config = net_config(&args)?;
-            let udp = links::UdpTeamLink::bind(net_config.team_port, net_config.broadcast)
-                .with_context(|| format!("binding UDP port {} (team)", net_config.team_port))?;
-            let counters = udp.counters();
-            let label = format!(
-                "UDP :{} -> {}:{}",
-                net_config.team_port, net_config.broadcast, net_config.team_port
-            );
-            (Some(Box::new(udp)), counters, label)
-        } else {
-            let counters = Arc::<LinkCounters>::default();
-            let link = team_link.map(|link| {
-                Box::new(Counted::new(link, Arc::clone(&counters))) as Box<dyn TeamLink>
-            });
-            let label = match link {
-                Some(_) => label.to_owned(),
-                None => "none (the platform carries no team messages; --team-udp or --net \
-                             for UDP)"
-                    .to_owned(),
-            };
-            (link, counters, label)
-        };
-        let gc: Box<dyn ExternalLink> =
-            Box::new(Counted::new(game_controller, Arc::clone(&gc_counters)));
-        let endpoints = Endpoints { game_controller: label.to_owned(), team: team_label };
-        (team, gc, team_counters, gc_counters, endpoints)
-    };
+    let RobotLinks {
+        team: team_link,
+        game_controller: gc_link,
+        team_counters,
+        gc_counters,
+        endpoints,
+        unused: unused_sim_links,
+    } = open_links(&args, platform.links.take(), early_clock)?;
 
     // Which way the team attacks, from the first control packet if one comes.
     let (gc_link, attack_sign, attack_source) =
@@ -471,61 +377,28 @@ pub fn run(args: RobotArgs) -> Result<()> {
     // platform is gone.
     let done = Arc::new(AtomicBool::new(false));
     let end = Arc::new(Mutex::new(None::<String>));
-    let monitor = {
-        let (done, end, watch, out) =
-            (Arc::clone(&done), Arc::clone(&end), Arc::clone(&watch), out.clone());
-        let counters = Arc::clone(&platform.counters);
-        let (team_counters, gc_counters) = (Arc::clone(&team_counters), Arc::clone(&gc_counters));
-        let accuracy = accuracy.clone();
-        let log = log.clone();
-        let duration = args.duration.map(|d| Duration::from_secs_f64(d.max(0.0)));
-        let status_every = Duration::from_secs_f64(args.status_interval.max(0.1));
-        std::thread::Builder::new()
-            .name("robot-monitor".to_owned())
-            .spawn(move || {
-                let mut last_status = Instant::now();
-                let mut rates = LayerMeter::new(layer_modules);
-                let mut log_failed = false;
-                while !done.load(Ordering::Relaxed) {
-                    std::thread::sleep(Duration::from_millis(20));
-                    // A full disk is said when it happens, not when the robot stops.
-                    if !log_failed && let Some(error) = log.as_ref().and_then(|log| log.error()) {
-                        log_failed = true;
-                        out.note(&format!("log: {error}; nothing more is logged"));
-                    }
-                    let elapsed = started.elapsed();
-                    for event in watch.take_events() {
-                        out.game_event(elapsed.as_secs_f64(), &event);
-                    }
-                    for drain in &mut unused_sim_links {
-                        drain();
-                    }
-                    if last_status.elapsed() >= status_every {
-                        last_status = Instant::now();
-                        out.status(&Status::gather(
-                            elapsed.as_secs_f64(),
-                            &counters,
-                            &watch,
-                            &team_counters,
-                            &gc_counters,
-                            accuracy.as_deref().and_then(Accuracy::snapshot),
-                            rates.read(&probe.stats()),
-                        ));
-                    }
-                    let reason = if duration.is_some_and(|d| elapsed >= d) {
-                        Some("duration reached".to_owned())
-                    } else {
-                        counters.disconnected().map(|r| format!("platform disconnected: {r}"))
-                    };
-                    if let Some(reason) = reason {
-                        end.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert(reason);
-                        stop.stop();
-                        return;
-                    }
-                }
-            })
-            .context("starting the monitor thread")?
+    let monitor = Monitor {
+        done: Arc::clone(&done),
+        end: Arc::clone(&end),
+        watch: Arc::clone(&watch),
+        out: out.clone(),
+        counters: Arc::clone(&platform.counters),
+        team_counters: Arc::clone(&team_counters),
+        gc_counters: Arc::clone(&gc_counters),
+        accuracy: accuracy.clone(),
+        log: log.clone(),
+        duration: args.duration.map(|d| Duration::from_secs_f64(d.max(0.0))),
+        status_every: Duration::from_secs_f64(args.status_interval.max(0.1)),
+        started,
+        rates: LayerMeter::new(layer_modules),
+        unused_links: unused_sim_links,
+        probe,
+        stop,
     };
+    let monitor = std::thread::Builder::new()
+        .name("robot-monitor".to_owned())
+        .spawn(move || monitor.run())
+        .context("starting the monitor thread")?;
     let result = running.wait();
     done.store(true, Ordering::Relaxed);
     let _ = monitor.join();
@@ -543,61 +416,13 @@ pub fn run(args: RobotArgs) -> Result<()> {
     }
 
     let planned_end = end.lock().unwrap_or_else(PoisonError::into_inner).clone();
-    let (stats, ended, failure) = match result {
-        Ok(stats) => (stats, planned_end.unwrap_or_else(|| "interrupted".to_owned()), None),
-        Err(error) => {
-            let Some(stats) = error.stats().cloned() else {
-                return Err(error).context("the robot's host failed");
-            };
-            // A platform that went away (the simulator server stopped) ends the run; any other
-            // failure of a module is an error of this robot.
-            match (&error, platform.counters.disconnected()) {
-                (HostError::ModuleFailed { .. }, Some(reason)) => {
-                    (stats, format!("platform disconnected: {reason}"), None)
-                }
-                _ => (stats, format!("failed: {error}"), Some(error)),
-            }
-        }
-    };
-    let report = Report::new(
+    conclude(
         &args,
-        started.elapsed().as_secs_f64(),
-        ended,
-        &platform.counters,
-        &watch,
-        team_counters.snapshot(),
-        gc_counters.snapshot(),
-        &modules,
-        stats,
-    );
-    let t1 = platform.t1.as_ref().map(|t1| t1.lock().unwrap_or_else(PoisonError::into_inner));
-    let falls = t1.as_ref().map(|t1| t1.inner.falls()).unwrap_or_default();
-    let false_falls = t1.as_ref().map(|t1| t1.inner.false_falls()).unwrap_or_default();
-    let compute = t1.as_ref().map(|t1| Compute::new(t1.inner.compute(), &report.host));
-    let lost_server = t1.as_ref().and_then(|t1| t1.inner.lost_mid_game());
-    drop(t1);
-    let report = Report {
-        localization: accuracy.and_then(|a| a.snapshot()),
-        falls,
-        false_falls,
-        compute,
-        ..report
-    };
-    out.report(&report);
-    match (failure, lost_server) {
-        (Some(error), _) => Err(error).context("a module of the robot failed"),
-        // The 2D simulator's server ends a game by closing its connections; rcssservermj does
-        // not, so a closed link before its GameOver is a server that stopped or crashed.
-        (None, Some(reason)) => bail!(
-            "lost the server mid-game: {reason} (it stopped or crashed); the run's report is \
-             written{}",
-            args.log
-                .as_ref()
-                .map(|p| format!(" and its log {} finalized", p.display()))
-                .unwrap_or_default()
-        ),
-        (None, None) => Ok(()),
-    }
+        result,
+        planned_end,
+        Ran { started, platform: &platform, watch: &watch, modules: &modules, accuracy, out: &out },
+        (team_counters.snapshot(), gc_counters.snapshot()),
+    )
 }
 
 /// Creates the robot's log and writes what a reader needs besides the packages: the run (seed,
@@ -723,6 +548,286 @@ fn validate(args: &RobotArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// What ran, for the final report.
+struct Ran<'a> {
+    started: Instant,
+    platform: &'a OpenPlatform,
+    watch: &'a Watch,
+    modules: &'a RobotModules,
+    accuracy: Option<Arc<Accuracy>>,
+    out: &'a Output,
+}
+
+/// Prints the final report and says how the run ended: an error for a failed module or a
+/// server lost mid-game.
+fn conclude(
+    args: &RobotArgs,
+    result: Result<HostStats, HostError>,
+    planned_end: Option<String>,
+    ran: Ran<'_>,
+    (team_link, gc_link): (LinkStats, LinkStats),
+) -> Result<()> {
+    let Ran { started, platform, watch, modules, accuracy, out } = ran;
+    let (stats, ended, failure) = match result {
+        Ok(stats) => (stats, planned_end.unwrap_or_else(|| "interrupted".to_owned()), None),
+        Err(error) => {
+            let Some(stats) = error.stats().cloned() else {
+                return Err(error).context("the robot's host failed");
+            };
+            // A platform that went away (the simulator server stopped) ends the run; any other
+            // failure of a module is an error of this robot.
+            match (&error, platform.counters.disconnected()) {
+                (HostError::ModuleFailed { .. }, Some(reason)) => {
+                    (stats, format!("platform disconnected: {reason}"), None)
+                }
+                _ => (stats, format!("failed: {error}"), Some(error)),
+            }
+        }
+    };
+    let report = Report::new(
+        args,
+        started.elapsed().as_secs_f64(),
+        ended,
+        &platform.counters,
+        watch,
+        team_link,
+        gc_link,
+        modules,
+        stats,
+    );
+    let t1 = platform.t1.as_ref().map(|t1| t1.lock().unwrap_or_else(PoisonError::into_inner));
+    let falls = t1.as_ref().map(|t1| t1.inner.falls()).unwrap_or_default();
+    let false_falls = t1.as_ref().map(|t1| t1.inner.false_falls()).unwrap_or_default();
+    let compute = t1.as_ref().map(|t1| Compute::new(t1.inner.compute(), &report.host));
+    let lost_server = t1.as_ref().and_then(|t1| t1.inner.lost_mid_game());
+    drop(t1);
+    let report = Report {
+        localization: accuracy.and_then(|a| a.snapshot()),
+        falls,
+        false_falls,
+        compute,
+        ..report
+    };
+    out.report(&report);
+    match (failure, lost_server) {
+        (Some(error), _) => Err(error).context("a module of the robot failed"),
+        // The 2D simulator's server ends a game by closing its connections; rcssservermj does
+        // not, so a closed link before its GameOver is a server that stopped or crashed.
+        (None, Some(reason)) => bail!(
+            "lost the server mid-game: {reason} (it stopped or crashed); the run's report is \
+             written{}",
+            args.log
+                .as_ref()
+                .map(|p| format!(" and its log {} finalized", p.display()))
+                .unwrap_or_default()
+        ),
+        (None, None) => Ok(()),
+    }
+}
+
+/// Reports progress while the robot runs, on a thread of its own, and asks the host to stop at
+/// the end of `--duration` or when the platform is gone.
+struct Monitor {
+    done: Arc<AtomicBool>,
+    end: Arc<Mutex<Option<String>>>,
+    watch: Arc<Watch>,
+    out: Output,
+    counters: Arc<PlatformCounters>,
+    team_counters: Arc<LinkCounters>,
+    gc_counters: Arc<LinkCounters>,
+    accuracy: Option<Arc<Accuracy>>,
+    log: Option<Arc<McapTap>>,
+    duration: Option<Duration>,
+    status_every: Duration,
+    started: Instant,
+    rates: LayerMeter,
+    unused_links: Vec<Box<dyn FnMut() + Send>>,
+    probe: strata_runtime::StatsProbe,
+    stop: strata_runtime::StopHandle,
+}
+
+impl Monitor {
+    fn run(mut self) {
+        let mut last_status = Instant::now();
+        let mut log_failed = false;
+        while !self.done.load(Ordering::Relaxed) {
+            std::thread::sleep(Duration::from_millis(20));
+            // A full disk is said when it happens, not when the robot stops.
+            if !log_failed && let Some(error) = self.log.as_ref().and_then(|log| log.error()) {
+                log_failed = true;
+                self.out.note(&format!("log: {error}; nothing more is logged"));
+            }
+            let elapsed = self.started.elapsed();
+            for event in self.watch.take_events() {
+                self.out.game_event(elapsed.as_secs_f64(), &event);
+            }
+            for drain in &mut self.unused_links {
+                drain();
+            }
+            if last_status.elapsed() >= self.status_every {
+                last_status = Instant::now();
+                self.out.status(&Status::gather(
+                    elapsed.as_secs_f64(),
+                    &self.counters,
+                    &self.watch,
+                    &self.team_counters,
+                    &self.gc_counters,
+                    self.accuracy.as_deref().and_then(Accuracy::snapshot),
+                    self.rates.read(&self.probe.stats()),
+                ));
+            }
+            let reason = if self.duration.is_some_and(|d| elapsed >= d) {
+                Some("duration reached".to_owned())
+            } else {
+                self.counters.disconnected().map(|r| format!("platform disconnected: {r}"))
+            };
+            if let Some(reason) = reason {
+                self.end.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert(reason);
+                self.stop.stop();
+                return;
+            }
+        }
+    }
+}
+
+/// The team configuration and the field, with what the platform needs that the team file
+/// leaves at its defaults.
+fn team_config_and_field(args: &RobotArgs) -> Result<(TeamConfig, Field)> {
+    let mut config = TeamConfig::resolve(&args.team_config)
+        .with_context(|| format!("team configuration `{}`", args.team_config))?;
+    if args.platform == PlatformKind::Rcssservermj && config.motion == MotionModel::default() {
+        // The team file's primitives assume a NAO unless it says otherwise: a T1's camera is
+        // twice as high, its neck pitches further and it kicks from further away.
+        config.motion = MotionModel::booster_t1();
+    }
+    if args.platform == PlatformKind::Rcssservermj
+        && config.fall_detector == FallDetectorConfig::default()
+    {
+        config.fall_detector = strata_rcssmj::controller::fall_detector();
+    }
+    let field = resolve_field(args.field.as_deref().unwrap_or(match args.platform {
+        PlatformKind::Rcssservermj => "rcssservermj",
+        PlatformKind::Sim | PlatformKind::Nao => "spl",
+    }))?;
+    if args.platform == PlatformKind::Rcssservermj && config.behavior.set_play_distance == 0.0 {
+        // The server's referee moves a robot within its centre circle's radius of the ball
+        // during the other team's set play off the field.
+        config.behavior.set_play_distance = field.dimensions().center_circle_diameter / 2.0 + 0.5;
+    }
+    if args.platform == PlatformKind::Rcssservermj {
+        // The server's referee gives the other team a free kick when a restart's taker touches
+        // the ball again before anyone else has.
+        config.behavior.no_second_touch = true;
+    }
+    if args.platform == PlatformKind::Rcssservermj
+        && config.behavior.dribble_distance == BehaviorConfig::default().dribble_distance
+    {
+        // The T1 dribbles the ball toward the goal faster than its kicks, which go 3 m in
+        // a direction 20-60 degrees off, move it there (docs/rcssservermj.md).
+        config.behavior.dribble_distance = field.dimensions().field_length;
+    }
+    Ok((config, field))
+}
+
+/// A robot's links and what the start line and the report say of them.
+struct RobotLinks {
+    team: Option<Box<dyn TeamLink>>,
+    game_controller: Box<dyn ExternalLink>,
+    team_counters: Arc<LinkCounters>,
+    gc_counters: Arc<LinkCounters>,
+    endpoints: Endpoints,
+    /// Links the platform carries that the robot does not use: drained now and then so they
+    /// do not pile up.
+    unused: Vec<Box<dyn FnMut() + Send>>,
+}
+
+/// The team and GameController links: UDP on a field (`--net`, always on a NAO), or the ones
+/// the platform carries (with `--team-udp`, the team's over UDP).
+fn open_links(
+    args: &RobotArgs,
+    platform_links: Option<PlatformLinks>,
+    early_clock: MonotonicClock,
+) -> Result<RobotLinks> {
+    let net = args.net || args.platform == PlatformKind::Nao;
+    let mut unused_sim_links: Vec<Box<dyn FnMut() + Send>> = Vec::new();
+    let (team, game_controller, team_counters, gc_counters, endpoints) = if net {
+        let net_config = net_config(args)?;
+        let (team, gc) = net_config.bind().with_context(|| {
+            format!(
+                "binding UDP ports {} (GameController) and {} (team)",
+                net_config.gc_port, net_config.team_port
+            )
+        })?;
+        let endpoints = Endpoints {
+            game_controller: format!(
+                "UDP :{} (return packets to the sender's :{})",
+                net_config.gc_port, net_config.gc_return_port
+            ),
+            team: format!(
+                "UDP :{} -> {}:{}",
+                net_config.team_port, net_config.broadcast, net_config.team_port
+            ),
+        };
+        let (team_counters, gc_counters) = (team.counters(), gc.counters());
+        if let Some(links) = platform_links {
+            // The server still forwards its referee's packets and teammates' messages; drain
+            // them so they do not pile up in the client.
+            let PlatformLinks { mut team_link, mut game_controller, .. } = links;
+            let clock = early_clock;
+            unused_sim_links.push(Box::new(move || {
+                if let Some(team_link) = &mut team_link {
+                    let _ = team_link.receive(clock.now());
+                }
+                let _ = game_controller.receive(clock.now());
+            }));
+        }
+        let team: Box<dyn TeamLink> = Box::new(team);
+        let gc: Box<dyn ExternalLink> = Box::new(gc);
+        (Some(team), gc, team_counters, gc_counters, endpoints)
+    } else {
+        let Some(PlatformLinks { team_link, game_controller, label }) = platform_links else {
+            bail!("without --net the simulator server must carry team messages and game state");
+        };
+        let gc_counters = Arc::<LinkCounters>::default();
+        let (team, team_counters, team_label): (Option<Box<dyn TeamLink>>, _, _) = if args.team_udp
+        {
+            let net_config = net_config(args)?;
+            let udp = links::UdpTeamLink::bind(net_config.team_port, net_config.broadcast)
+                .with_context(|| format!("binding UDP port {} (team)", net_config.team_port))?;
+            let counters = udp.counters();
+            let label = format!(
+                "UDP :{} -> {}:{}",
+                net_config.team_port, net_config.broadcast, net_config.team_port
+            );
+            (Some(Box::new(udp)), counters, label)
+        } else {
+            let counters = Arc::<LinkCounters>::default();
+            let link = team_link.map(|link| {
+                Box::new(Counted::new(link, Arc::clone(&counters))) as Box<dyn TeamLink>
+            });
+            let label = match link {
+                Some(_) => label.to_owned(),
+                None => "none (the platform carries no team messages; --team-udp or --net \
+                             for UDP)"
+                    .to_owned(),
+            };
+            (link, counters, label)
+        };
+        let gc: Box<dyn ExternalLink> =
+            Box::new(Counted::new(game_controller, Arc::clone(&gc_counters)));
+        let endpoints = Endpoints { game_controller: label.to_owned(), team: team_label };
+        (team, gc, team_counters, gc_counters, endpoints)
+    };
+    Ok(RobotLinks {
+        team,
+        game_controller,
+        team_counters,
+        gc_counters,
+        endpoints,
+        unused: unused_sim_links,
+    })
 }
 
 fn net_config(args: &RobotArgs) -> Result<NetConfig> {
