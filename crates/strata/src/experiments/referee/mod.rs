@@ -346,73 +346,10 @@ fn play(scenario: &Scenario, job: &Job, log: Option<&Path>) -> Result<GameResult
     let timeline = state_timeline(events);
     let game_truth = sim.game();
 
-    let ready = ready_phases(&timeline)
-        .into_iter()
-        .filter_map(|phase| {
-            let in_phase = |s: &&Snapshot| {
-                s.state == GameState::Ready && s.time >= phase.start && s.time < phase.end
-            };
-            let last = boundaries.iter().rfind(in_phase)?;
-            let robots = last
-                .robots
-                .iter()
-                .filter_map(|sample| {
-                    let mut r = ready_check(&field, last.kicking_team, sample, scenario.tolerance)?;
-                    (r.fell, r.penalized) = incidents(events, sample.robot, phase.start, phase.end);
-                    r.believed_ready = beliefs.get(&sample.robot).and_then(|changes| {
-                        first_belief(changes, GameState::Ready, phase.start, phase.end)
-                    });
-                    let set_off = phase.start + r.believed_ready.unwrap_or(0.0);
-                    r.start_distance = ready_looks
-                        .iter()
-                        .filter(in_phase)
-                        .find(|look| look.time >= set_off)
-                        .and_then(|look| look.robots.iter().find(|s| s.robot == sample.robot))
-                        .map(|s| {
-                            kick_off_distance(&field, last.kicking_team, s.robot, s.team_pose)
-                        });
-                    Some(r)
-                })
-                .collect();
-            Some(ReadyResult {
-                phase,
-                first_half: last.first_half,
-                kicking_team: last.kicking_team,
-                robots,
-            })
-        })
-        .collect();
-
+    let looks = Looks { boundaries: &boundaries, ready_looks: &ready_looks, beliefs: &beliefs };
+    let ready = ready_results(&looks, &timeline, events, &field, scenario.tolerance);
     let whistles = kick_off_whistles(events);
-    let kick_offs = whistles
-        .iter()
-        .filter_map(|k| {
-            let last =
-                boundaries.iter().rfind(|s| s.state == GameState::Set && s.time <= k.time)?;
-            let until = timeline
-                .iter()
-                .find(|(t, _)| *t > k.time + SAME_INSTANT)
-                .map_or(simulated_s, |(t, _)| *t);
-            let robots = last
-                .robots
-                .iter()
-                .filter(|s| s.on_field)
-                .map(|s| RobotStart {
-                    robot: s.robot,
-                    heard: k.heard.contains(&s.robot),
-                    delay: beliefs
-                        .get(&s.robot)
-                        .and_then(|changes| start_delay(changes, k.time, until)),
-                })
-                .collect();
-            Some(KickOffResult {
-                kick_off: k.clone(),
-                first_half: last.first_half,
-                kicking_team: last.kicking_team,
-                robots,
-            })
-        })
-        .collect();
+    let kick_offs = kick_off_results(&looks, &whistles, &timeline, simulated_s);
     let whistle_times: Vec<f64> = whistles.iter().map(|k| k.time).collect();
     let detections = false_whistles(events);
     let false_starts =
@@ -434,6 +371,98 @@ fn play(scenario: &Scenario, job: &Job, log: Option<&Path>) -> Result<GameResult
         false_whistles,
         false_whistles_in_set,
     })
+}
+
+/// What the experiment saw of a game as it ran: the last look before each change of the true
+/// state, every look in Ready, and each robot's beliefs of the game state.
+struct Looks<'a> {
+    boundaries: &'a [Snapshot],
+    ready_looks: &'a [Snapshot],
+    beliefs: &'a Beliefs,
+}
+
+/// Each Ready phase: where every robot ended it, set off from, and what happened to it.
+fn ready_results(
+    looks: &Looks<'_>,
+    timeline: &[(f64, GameState)],
+    events: &[strata_sim::Event],
+    field: &TeamField,
+    tolerance: f64,
+) -> Vec<ReadyResult> {
+    ready_phases(timeline)
+        .into_iter()
+        .filter_map(|phase| {
+            let in_phase = |s: &&Snapshot| {
+                s.state == GameState::Ready && s.time >= phase.start && s.time < phase.end
+            };
+            let last = looks.boundaries.iter().rfind(in_phase)?;
+            let robots = last
+                .robots
+                .iter()
+                .filter_map(|sample| {
+                    let mut r = ready_check(field, last.kicking_team, sample, tolerance)?;
+                    (r.fell, r.penalized) = incidents(events, sample.robot, phase.start, phase.end);
+                    r.believed_ready = looks.beliefs.get(&sample.robot).and_then(|changes| {
+                        first_belief(changes, GameState::Ready, phase.start, phase.end)
+                    });
+                    let set_off = phase.start + r.believed_ready.unwrap_or(0.0);
+                    r.start_distance = looks
+                        .ready_looks
+                        .iter()
+                        .filter(in_phase)
+                        .find(|look| look.time >= set_off)
+                        .and_then(|look| look.robots.iter().find(|s| s.robot == sample.robot))
+                        .map(|s| kick_off_distance(field, last.kicking_team, s.robot, s.team_pose));
+                    Some(r)
+                })
+                .collect();
+            Some(ReadyResult {
+                phase,
+                first_half: last.first_half,
+                kicking_team: last.kicking_team,
+                robots,
+            })
+        })
+        .collect()
+}
+
+/// Each kick-off whistle: when every robot on the field started playing after it.
+fn kick_off_results(
+    looks: &Looks<'_>,
+    whistles: &[KickOffWhistle],
+    timeline: &[(f64, GameState)],
+    simulated_s: f64,
+) -> Vec<KickOffResult> {
+    whistles
+        .iter()
+        .filter_map(|k| {
+            let last =
+                looks.boundaries.iter().rfind(|s| s.state == GameState::Set && s.time <= k.time)?;
+            let until = timeline
+                .iter()
+                .find(|(t, _)| *t > k.time + SAME_INSTANT)
+                .map_or(simulated_s, |(t, _)| *t);
+            let robots = last
+                .robots
+                .iter()
+                .filter(|s| s.on_field)
+                .map(|s| RobotStart {
+                    robot: s.robot,
+                    heard: k.heard.contains(&s.robot),
+                    delay: looks
+                        .beliefs
+                        .get(&s.robot)
+                        .and_then(|changes| start_delay(changes, k.time, until)),
+                })
+                .collect();
+            Some(KickOffResult {
+                kick_off: k.clone(),
+                first_half: last.first_half,
+                kicking_team: last.kicking_team,
+                robots,
+            })
+        })
+        .collect()
 }
 
 /// The progress line of a finished game.
