@@ -175,7 +175,8 @@ impl<H, B, X, D, P: PlanningPolicy, C, F: Referee> std::fmt::Debug
 /// The names of a robot's modules, for statistics and logs.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RobotModules {
-    /// The platform's edge: the sensor source and the actuator sink.
+    /// The platform's edge: the sensor source and the actuator sink (no such modules when the
+    /// platform is a module of its own, as the in-process simulator is).
     #[serde(default)]
     pub sensors: String,
     #[serde(default)]

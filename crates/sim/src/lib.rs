@@ -5,9 +5,10 @@
 //!   an IMU), a rolling ball, a referee that publishes real GameController packets, and team
 //!   broadcast emulation — with every noise and error level in one config section and one seed
 //!   for everything. `step` is deterministic, bit for bit.
-//! - In process: a [`SimHandle`] gives each robot a [`SimPlatform`] (the `robot::Platform`
-//!   trait), a [`SimTeamLink`] and a [`SimGameControllerLink`]; [`add_simulator`] steps the
-//!   world on the lockstep host.
+//! - In process: [`add_simulator`] steps the world as a module of the graph and is the
+//!   platform of the robots it is given (their frames, motion feedback and orders through its
+//!   ports); a [`SimHandle`] gives each robot a [`SimTeamLink`] and a [`SimGameControllerLink`],
+//!   and a [`SimPlatform`] (the `robot::Platform` trait) to code that drives a robot directly.
 //! - Over TCP ([`net`]): a real-time server and one process per robot, with the same traits on
 //!   the client side.
 //! - Ground truth ([`GroundTruth`]) and experiment controls (kidnap, push, place or script the
