@@ -14,9 +14,11 @@
 //! team and external links received once per planning period and wakes the planning layer
 //! with it; `links_out` sends what planning composed. Everything between the edges is
 //! computation on packages, so every module of the robot replays from a log. Every platform
-//! plugs in the same way — the in-process simulator, the simulator server's client, the NAO's
-//! LoLA socket and the T1 in rcssservermj — through [`add_platform_edge`], and every pair of
-//! links (the simulator's, UDP on a field, rcssservermj's referee) through [`add_link_edge`].
+//! plugs in the same way, as [`PlatformPorts`]: a platform object (the simulator server's
+//! client, the NAO's LoLA socket, the T1 in rcssservermj) through [`add_platform_edge`], a
+//! platform that is a module of the graph (the in-process simulator) with its own ports. Every
+//! pair of links (the simulator's, UDP on a field, rcssservermj's referee) plugs in through
+//! [`add_link_edge`].
 
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
