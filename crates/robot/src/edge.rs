@@ -41,6 +41,14 @@ pub struct OrderRefused {
     pub reason: String,
 }
 
+impl OrderRefused {
+    /// The platform refused `orders` for `reason`.
+    pub fn of(orders: &ActuatorOrders, reason: String) -> OrderRefused {
+        let resource = if orders.body.is_some() { Resource::Body } else { Resource::Head };
+        OrderRefused { resource, reason }
+    }
+}
+
 /// The ports of the sensor source, declared once for the assembly and for replay.
 #[derive(Clone, Copy, Debug)]
 pub struct SensorPorts {
@@ -194,9 +202,7 @@ impl Module for ActuatorSink {
             match lock_platform(&self.platform).write(now, &orders) {
                 Ok(()) => {}
                 Err(PlatformError::Unsupported(reason)) => {
-                    let resource =
-                        if orders.body.is_some() { Resource::Body } else { Resource::Head };
-                    ctx.send(self.ports.refusals, OrderRefused { resource, reason });
+                    ctx.send(self.ports.refusals, OrderRefused::of(&orders, reason));
                 }
                 Err(other) => return Err(Box::new(other)),
             }

@@ -178,7 +178,8 @@ impl PerceptionModule {
 
 impl Module for PerceptionModule {
     fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
-        for package in ctx.drain(self.ports.frames) {
+        // One at a time: no list is allocated in the sensor path.
+        while let Some(package) = ctx.take(self.ports.frames) {
             let (percepts, rejected) = percepts_from_frame(
                 &package.value,
                 &self.info,

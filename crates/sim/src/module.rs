@@ -55,12 +55,7 @@ impl Module for SimulatorModule {
                 match sim.apply_orders(ports.robot, &orders) {
                     Ok(()) => {}
                     Err(PlatformError::Unsupported(reason)) => {
-                        let resource = if orders.body.is_some() {
-                            strata_robot::command::Resource::Body
-                        } else {
-                            strata_robot::command::Resource::Head
-                        };
-                        ctx.send(ports.refusals, OrderRefused { resource, reason });
+                        ctx.send(ports.refusals, OrderRefused::of(&orders, reason));
                     }
                     Err(other) => return Err(Box::new(other)),
                 }
