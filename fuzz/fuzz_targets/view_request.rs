@@ -1,10 +1,10 @@
-//! Any bytes from a viewer client (crates/strata/src/view/request.rs): the request reader
+//! Any bytes from a viewer client (crates/view/src/request.rs): the request reader
 //! answers with a request, a refusal with its status, or nothing, never panics, and never reads
 //! more than the request limit plus a line.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use strata::view::request::read_request;
+use strata_view::request::read_request;
 
 fuzz_target!(|bytes: &[u8]| {
     let mut reader = bytes;

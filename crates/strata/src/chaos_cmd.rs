@@ -1,4 +1,4 @@
-//! `strata chaos`: a real-time game under faults, measured (`strata::chaos`,
+//! `strata chaos`: a real-time game under faults, measured (`strata_experiments::chaos`,
 //! docs/reliability.md).
 
 use std::io::Write as _;
@@ -8,7 +8,7 @@ use std::time::Duration;
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use strata::chaos::{self, Options, STEPS};
+use strata_experiments::chaos::{self, Options, STEPS};
 
 /// `strata chaos`.
 #[derive(Debug, Args)]

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
-use strata::experiments::{self, EXPERIMENTS, Options};
-use strata::physics::Engine;
+use strata_experiments::{self as experiments, EXPERIMENTS, Options};
+use strata_games::physics::Engine;
 
 #[derive(Debug, Args)]
 pub struct ExperimentArgs {
@@ -29,7 +29,7 @@ pub struct ExperimentArgs {
     /// Print the summary as one JSON object (and no progress bar).
     #[arg(long)]
     pub json: bool,
-    /// A scenario TOML file instead of the built-in one (crates/strata/scenarios/NAME.toml).
+    /// A scenario TOML file instead of the built-in one (crates/experiments/scenarios/NAME.toml).
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
     /// Runs executed at once [default: every core].

@@ -157,7 +157,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Experiment(args) => experiment_cmd::run(args),
         Command::Chaos(args) => chaos_cmd::run(args),
         Command::View(args) => view_cmd::run(args),
-        Command::Replay(args) => replay_cmd::run(args, &strata::replay_registry::soccer()),
+        Command::Replay(args) => replay_cmd::run(args, &strata_games::replay_registry::soccer()),
     }
 }
 

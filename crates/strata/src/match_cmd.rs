@@ -7,15 +7,15 @@ use std::sync::{Arc, PoisonError};
 use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use strata::logging::{LogSettings, MatchLog, parse_robots};
-use strata::matches::{Match, MatchConfig, MatchReport};
-use strata::physics::game::{GameConfig, PhysicsReport, RULES_HALF_TIME};
-use strata::physics::{self, Engine};
-use strata::view::{LiveTap, ViewServer};
+use strata_games::logging::{LogSettings, MatchLog, parse_robots};
+use strata_games::matches::{Match, MatchConfig, MatchReport};
+use strata_games::physics::game::{GameConfig, PhysicsReport, RULES_HALF_TIME};
+use strata_games::physics::{self, Engine};
 use strata_log::LogCompression;
 use strata_runtime::Encoding;
 use strata_sim::NoiseLevel;
 use strata_soccer::team::TeamConfig;
+use strata_view::{LiveTap, ViewServer};
 
 #[derive(Debug, Args)]
 pub struct MatchArgs {
@@ -209,7 +209,7 @@ pub fn run(args: MatchArgs) -> Result<()> {
     Ok(())
 }
 
-/// A game of T1s in rcssservermj (`strata::physics::game`).
+/// A game of T1s in rcssservermj (`strata_games::physics::game`).
 fn run_physics(args: &MatchArgs) -> Result<()> {
     let defaults = MatchArgs::defaults();
     let not_here = [

@@ -26,9 +26,9 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use clap::{Args, ValueEnum};
 use serde::Serialize;
-use strata::links::{self, Counted, LinkCounters, LinkStats, NetConfig, Prefetched};
-use strata::logging::{RobotRunConfig, open_run_log};
-use strata::matches::LayerRate;
+use strata_games::links::{self, Counted, LinkCounters, LinkStats, NetConfig, Prefetched};
+use strata_games::logging::{RobotRunConfig, open_run_log};
+use strata_games::matches::LayerRate;
 use strata_log::{
     ConfigFormat, LogCompression, LogSummary, McapTap, McapTapOptions, RunInfo, WhenFull,
 };

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use anyhow::{Context as _, Result};
 use clap::Args;
-use strata::view::{ViewServer, load_log};
+use strata_view::{ViewServer, load_log};
 
 use crate::match_cmd;
 

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use strata::experiments::{self, Options};
+use strata_experiments::{self as experiments, Options};
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir =
@@ -535,7 +535,7 @@ fn an_experiments_first_run_can_be_logged() {
     let path = reader.topic("home/1/behavior_path").expect("the keeper's behavior paths");
     assert!(path.messages > 0);
     // The log holds what the keeper was built from: its layers replay exactly (lockstep).
-    let registry = strata::replay_registry::soccer();
+    let registry = strata_games::replay_registry::soccer();
     for module in ["world", "deliberative", "reactive"] {
         let replay = strata_log::replay::ReplayOptions {
             robot: Some("home/1".to_owned()),

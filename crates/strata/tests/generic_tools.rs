@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use serde_json::Value;
-use strata::logging::LogSettings;
+use strata_games::logging::LogSettings;
 use strata_log::LogReader;
 use view_support::{record_match, required_tool, scratch};
 

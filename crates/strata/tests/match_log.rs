@@ -11,8 +11,8 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
 use serde_json::Value;
-use strata::logging::{BEHAVIOR_PATH_TOPIC, GAME_STATE_TOPIC, LogSettings};
-use strata::replay_registry;
+use strata_games::logging::{BEHAVIOR_PATH_TOPIC, GAME_STATE_TOPIC, LogSettings};
+use strata_games::replay_registry;
 use strata_log::LogReader;
 use strata_log::overrides::Override;
 use strata_log::replay::{ReplayOptions, replay};
@@ -243,9 +243,9 @@ fn the_viewer_endpoints_say_what_the_log_says() {
     let dir = scratch("match-log-view");
     let path = dir.join("view.mcap");
     record_match(&LogSettings::full(&path), 2, 6.0, 9, None);
-    let data = strata::view::load_log(&path).expect("load");
-    assert!(strata::view::wait_loaded(&data, Duration::from_secs(120)), "the log was not read");
-    let server = strata::view::ViewServer::start(data, 0).expect("serve");
+    let data = strata_view::load_log(&path).expect("load");
+    assert!(strata_view::wait_loaded(&data, Duration::from_secs(120)), "the log was not read");
+    let server = strata_view::ViewServer::start(data, 0).expect("serve");
     let base = server.url();
 
     let info = get_json(&format!("{base}api/info"));

@@ -197,7 +197,7 @@ fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
     assert_eq!(graphs[0].description.modules.len(), 10);
 
     // The viewer shows a robot's log too: no ground truth, the robot where it believes it is.
-    let view = strata::view::load_log(&path).expect("the viewer opens the log");
+    let view = strata_view::load_log(&path).expect("the viewer opens the log");
     let info = loop {
         let info = view.read().unwrap_or_else(std::sync::PoisonError::into_inner).info();
         if !info.growing {
@@ -226,8 +226,9 @@ fn a_robot_logs_its_packages_and_finishes_the_log_on_ctrl_c() {
         ignore_time: true,
         ..strata_log::replay::ReplayOptions::default()
     };
-    let report = strata_log::replay::replay(&reader, &strata::replay_registry::soccer(), &options)
-        .expect("the robot's world model replays from its log");
+    let report =
+        strata_log::replay::replay(&reader, &strata_games::replay_registry::soccer(), &options)
+            .expect("the robot's world model replays from its log");
     let world = &report.outputs[0];
     assert_eq!(world.topic, "t10/3/world/world_state");
     assert!(world.logged > 0 && world.replayed > 0, "{world:?}");

@@ -8,8 +8,8 @@ use std::f64::consts::FRAC_PI_4;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-use strata::experiments::{Host, HostKind, Scene, SceneRobot};
-use strata::matches::{Match, MatchConfig};
+use strata_experiments::{Host, HostKind, Scene, SceneRobot};
+use strata_games::matches::{Match, MatchConfig};
 use strata_robot::geometry::{Field as FieldFrame, Point, Pose, Vector};
 use strata_runtime::{Package, Tap, TapRecord};
 use strata_sim::{BallScript, EventKind, FallDirection, GameState, NoiseLevel, RobotId, SimHandle};

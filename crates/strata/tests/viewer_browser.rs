@@ -16,7 +16,7 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde_json::Value;
-use strata::logging::LogSettings;
+use strata_games::logging::LogSettings;
 use view_support::{get_json, record_match, required_tool, scratch};
 
 /// How long one Chromium run may take before it is stopped (a hung browser must not hang the
@@ -162,9 +162,9 @@ fn the_viewer_draws_robots_and_ball_where_the_log_says() {
     let dir = scratch("viewer-browser");
     let log = dir.join("match.mcap");
     record_match(&LogSettings::full(&log), 2, 7.0, 21, None);
-    let data = strata::view::load_log(&log).expect("load");
-    assert!(strata::view::wait_loaded(&data, Duration::from_secs(120)), "the log was not read");
-    let server = strata::view::ViewServer::start(data, 0).expect("serve");
+    let data = strata_view::load_log(&log).expect("load");
+    assert!(strata_view::wait_loaded(&data, Duration::from_secs(120)), "the log was not read");
+    let server = strata_view::ViewServer::start(data, 0).expect("serve");
     let base = server.url();
     let profile = dir.join("chromium-profile");
 

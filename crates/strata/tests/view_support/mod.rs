@@ -9,8 +9,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use strata::logging::{LogSettings, MatchLog};
-use strata::matches::{Match, MatchConfig};
+use strata_games::logging::{LogSettings, MatchLog};
+use strata_games::matches::{Match, MatchConfig};
 use strata_runtime::Tap;
 use strata_sim::NoiseLevel;
 
