@@ -7,6 +7,8 @@
 //! - [`links`]: a robot's network links (team messages over UDP, GameController packets);
 //! - [`logging`]: the run configuration written at the start of every log, and match logs;
 //! - [`replay_registry`]: which modules of a logged robot `strata replay` can re-run;
+//! - [`robot`]: one robot in real time on its platform (the simulator server, a NAO, a T1 in
+//!   rcssservermj), what `strata robot` runs;
 //! - [`children`]: child processes that end with their parent.
 //!
 //! The soccer application (`strata-soccer`) never imports the simulator; this crate is where
@@ -18,3 +20,4 @@ pub mod logging;
 pub mod matches;
 pub mod physics;
 pub mod replay_registry;
+pub mod robot;

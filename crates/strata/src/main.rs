@@ -171,4 +171,17 @@ mod tests {
     fn the_command_line_is_consistent() {
         Cli::command().debug_assert();
     }
+
+    /// `strata robot`'s defaults are the library's: a robot run from Rust with
+    /// `RobotOptions::new` behaves as one run from the command line.
+    #[test]
+    fn robot_defaults_are_the_librarys() {
+        let cli = Cli::try_parse_from(["strata", "robot", "--team", "3", "--player", "2"])
+            .expect("parses");
+        let Command::Robot(args) = cli.command else { panic!("not the robot command") };
+        assert_eq!(
+            args.options(),
+            strata_games::robot::RobotOptions::new(3, 2, strata_games::robot::PlatformKind::Sim)
+        );
+    }
 }

@@ -15,8 +15,7 @@ use strata_runtime::{Clock, MonotonicClock};
 use strata_sim::net::{Server, ServerLimits, ServerOptions, TcpRobot, connect};
 use strata_sim::{SimConfig, SimHandle, Simulation, TestController};
 
-/// The port `strata server` listens on and `strata robot` connects to by default.
-pub const DEFAULT_ADDR: &str = "127.0.0.1:7500";
+pub use strata_sim::net::DEFAULT_ADDR;
 
 /// `strata server`: the simulated world in real time.
 #[derive(Debug, Args)]

@@ -11,7 +11,7 @@ pub use client::{
     ClientOptions, ConnectError, TcpGameControllerLink, TcpRobot, TcpSimPlatform, TcpTeamLink,
     Welcome, connect, connect_with,
 };
-pub use protocol::{ClientMessage, ErrorCode, ServerMessage};
+pub use protocol::{ClientMessage, DEFAULT_ADDR, ErrorCode, ServerMessage};
 pub use server::{
     RunningServer, Server, ServerCounters, ServerError, ServerLimits, ServerOptions, ServerStatus,
 };

@@ -16,6 +16,8 @@ use strata_runtime::Time;
 pub const PROTOCOL: &str = "strata-sim";
 /// The protocol version this build speaks.
 pub const VERSION: u32 = 1;
+/// Where `strata server` listens and `strata robot --platform sim` connects unless told.
+pub const DEFAULT_ADDR: &str = "127.0.0.1:7500";
 /// The largest frame a server accepts from a robot.
 pub const MAX_CLIENT_FRAME: usize = 64 * 1024;
 /// The largest frame a robot accepts from the server.
