@@ -1,8 +1,7 @@
-//! `strata server` and `strata robot`: the simulator over TCP, as in the paper's HL-SIM — the
-//! world runs in real time in the server, each robot is its own process.
-//!
-//! Until the hybrid control drives robot processes, `strata robot` runs the simulator's test
-//! controller (walk to the ball, kick, look around) against the server.
+//! `strata server`: the simulator over TCP, as in the paper's HL-SIM — the world runs in real
+//! time in the server, each robot is its own process (`strata robot`, `robot_cmd.rs`). Also
+//! `strata robot --controller test`: the simulator's test controller (walk to the ball, kick,
+//! look around) against the server, a check of the server without the architecture.
 
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -134,7 +133,7 @@ pub fn run_server(args: ServerArgs) -> Result<()> {
     Ok(())
 }
 
-/// `strata robot`: one robot process connected to a simulator server.
+/// `strata robot --controller test`: one robot process connected to a simulator server.
 #[derive(Debug, Args)]
 pub struct RobotArgs {
     /// The simulator server's address.
