@@ -34,7 +34,7 @@ use crate::control::modules::{
 };
 use crate::control::planning::{Planner, PlanningPolicy};
 use crate::control::planning_module::{
-    PlanningDecision, PlanningModule, PlanningPorts, Referee, TeamCodec,
+    ExternalDevice, PlanningDecision, PlanningModule, PlanningPorts, TeamCodec,
 };
 use crate::control::reactive::ReactiveLayer;
 use crate::control::scores::Goal;
@@ -138,7 +138,7 @@ impl RobotTiming {
 pub struct RobotParts<H, B, X, D, P, C, F>
 where
     P: PlanningPolicy,
-    F: Referee,
+    F: ExternalDevice,
 {
     /// Prefix of the module names (`"blue/3"` gives `"blue/3/reactive"`...).
     pub name: String,
@@ -150,7 +150,7 @@ where
     pub deliberative: D,
     pub planner: Planner<P>,
     pub codec: C,
-    pub referee: F,
+    pub device: F,
     pub team_link: Option<Box<dyn TeamLink>>,
     pub external_link: Option<Box<dyn ExternalLink>>,
     /// World-model object names this robot shares with teammates, most important first.
@@ -161,7 +161,7 @@ where
     pub deliberative_load: Duration,
 }
 
-impl<H, B, X, D, P: PlanningPolicy, C, F: Referee> std::fmt::Debug
+impl<H, B, X, D, P: PlanningPolicy, C, F: ExternalDevice> std::fmt::Debug
     for RobotParts<H, B, X, D, P, C, F>
 {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -301,7 +301,7 @@ pub fn add_planning<P, C, F>(
 where
     P: PlanningPolicy + 'static,
     C: TeamCodec<P::Mission, P::Role> + 'static,
-    F: Referee + 'static,
+    F: ExternalDevice + 'static,
 {
     graph.add(name, |p| {
         let ports = PlanningPorts::declare(p);
@@ -329,7 +329,7 @@ where
         > + 'static,
     P: PlanningPolicy + 'static,
     C: TeamCodec<P::Mission, P::Role> + 'static,
-    F: Referee + 'static,
+    F: ExternalDevice + 'static,
 {
     let names = RobotModules::new(&parts.name);
     let timing = parts.timing.resolved();
@@ -359,10 +359,10 @@ where
     let links = Links { team: parts.team_link, external: parts.external_link };
     let (links_in, links_out) =
         add_link_edge(graph, &parts.name, links, timing.planning.period(10.0));
-    let (player, planner, codec, referee, shared) =
-        (parts.player, parts.planner, parts.codec, parts.referee, parts.shared_objects);
+    let (player, planner, codec, device, shared) =
+        (parts.player, parts.planner, parts.codec, parts.device, parts.shared_objects);
     let planning = add_planning(graph, &names.planning, &timing.planning, |ports| {
-        PlanningModule::new(player, planner, codec, referee, ports, shared)
+        PlanningModule::new(player, planner, codec, device, ports, shared)
     });
 
     graph.connect(links_in.inbox, planning.inbox);

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 use strata_robot::control::planning::{MessageBudget, OwnState, SharedSignal, StandingStatus};
-use strata_robot::control::planning_module::Referee;
+use strata_robot::control::planning_module::ExternalDevice;
 use strata_robot::geometry::{Field, Point, Pose};
 use strata_robot::percept::{Signal, SignalKind};
 use strata_robot::platform::ObjectClass;
@@ -420,7 +420,7 @@ impl GameControllerReferee {
     }
 }
 
-impl Referee for GameControllerReferee {
+impl ExternalDevice for GameControllerReferee {
     type Directive = GameDirective;
 
     fn receive(&mut self, now: Time, packet: &[u8]) -> Result<(), String> {

@@ -450,7 +450,7 @@ pub fn add_soccer_robot(
         deliberative,
         planner,
         codec: SoccerCodec,
-        referee,
+        device: referee,
         team_link: if config.coordination { spec.team_link } else { None },
         external_link: spec.game_controller,
         shared_objects: shared_objects(),

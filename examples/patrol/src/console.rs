@@ -15,8 +15,8 @@
 use std::sync::{Arc, Mutex};
 
 use serde::{Deserialize, Serialize};
-use strata_robot::control::planning::{MessageBudget, OwnState, StandingStatus};
-use strata_robot::control::planning_module::Referee;
+use strata_robot::control::planning::{OwnState, StandingStatus};
+use strata_robot::control::planning_module::ExternalDevice;
 use strata_robot::geometry::{Field, Point};
 use strata_robot::world::WorldState;
 use strata_runtime::Time;
@@ -234,7 +234,7 @@ pub fn max_sigma(c: &nalgebra::Matrix2<f64>) -> f64 {
     (half_trace + (half_trace * half_trace - det).max(0.0).sqrt()).max(0.0).sqrt()
 }
 
-impl Referee for OperatorConsole {
+impl ExternalDevice for OperatorConsole {
     type Directive = OperatorDirective;
 
     fn receive(&mut self, _now: Time, packet: &[u8]) -> Result<(), String> {
@@ -245,14 +245,6 @@ impl Referee for OperatorConsole {
 
     fn directive(&self) -> OperatorDirective {
         OperatorDirective { alarm: read_board(&self.board) }
-    }
-
-    fn penalized(&self) -> bool {
-        false
-    }
-
-    fn budget(&self) -> Option<MessageBudget> {
-        None
     }
 
     fn status_packet(

@@ -143,7 +143,7 @@ pub fn add_patrol_robot(
         deliberative,
         planner,
         codec: PatrolCodec,
-        referee: OperatorConsole::new(spec.player, board),
+        device: OperatorConsole::new(spec.player, board),
         team_link: spec.team_link,
         external_link: spec.console_link,
         shared_objects: vec![INTRUDER.to_owned()],

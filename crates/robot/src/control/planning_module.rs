@@ -23,8 +23,13 @@ pub trait TeamCodec<M: Label, R: Label>: Send {
     fn decode(&self, bytes: &[u8]) -> Result<TeamMessage<M, R>, String>;
 }
 
-/// The application's side of an external device that directs the robot (a GameController).
-pub trait Referee: Send {
+/// The application's side of an external device that directs the robot (paper 3.3: the
+/// planning layer uses "information coming from other robots and eventually external devices";
+/// in soccer the GameController, in `examples/patrol` an operator's console). Only `receive`
+/// and `directive` are required: a device that never takes a robot out of play, publishes no
+/// message budget, wants no status packets or knows no signals leaves those methods at their
+/// defaults, and a robot without any device uses [`NoDevice`].
+pub trait ExternalDevice: Send {
     /// What the deliberative layer needs from the device (in soccer: the game state).
     type Directive: Message + PartialEq + Default + std::fmt::Debug;
 
@@ -32,16 +37,22 @@ pub trait Referee: Send {
     fn receive(&mut self, now: Time, packet: &[u8]) -> Result<(), String>;
     fn directive(&self) -> Self::Directive;
     /// Whether the device took the robot out of play.
-    fn penalized(&self) -> bool;
+    fn penalized(&self) -> bool {
+        false
+    }
     /// The team's message budget, when the device publishes one.
-    fn budget(&self) -> Option<MessageBudget>;
+    fn budget(&self) -> Option<MessageBudget> {
+        None
+    }
     /// A status packet for the device, when one is due.
     fn status_packet(
         &mut self,
-        now: Time,
-        own: &OwnState,
-        world: Option<&WorldState>,
-    ) -> Option<Vec<u8>>;
+        _now: Time,
+        _own: &OwnState,
+        _world: Option<&WorldState>,
+    ) -> Option<Vec<u8>> {
+        None
+    }
     /// Pose resets and hints the device's events imply (placed at a kick-off position, back
     /// from a penalty).
     fn world_commands(&mut self) -> Vec<WorldCommand> {
@@ -67,10 +78,24 @@ pub trait Referee: Send {
         false
     }
 
-    /// Called every planning cycle before [`Referee::directive`], with the newest world state:
+    /// Called every planning cycle before [`ExternalDevice::directive`], with the newest world state:
     /// beliefs that expire with time (a whistle the packets never confirmed) or read the
     /// world (where the ball went before a goal's whistle).
     fn update(&mut self, _now: Time, _world: Option<&WorldState>) {}
+}
+
+/// The device of a robot that has none: its directive is `()` and every packet is refused.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoDevice;
+
+impl ExternalDevice for NoDevice {
+    type Directive = ();
+
+    fn receive(&mut self, _now: Time, packet: &[u8]) -> Result<(), String> {
+        Err(format!("a packet of {} bytes for a robot without an external device", packet.len()))
+    }
+
+    fn directive(&self) {}
 }
 
 /// A teammate as the deliberative layer sees it.
@@ -154,11 +179,11 @@ where
 }
 
 /// Runs the planner on the robot's links.
-pub struct PlanningModule<P: PlanningPolicy, C, F: Referee> {
+pub struct PlanningModule<P: PlanningPolicy, C, F: ExternalDevice> {
     player: u8,
     planner: Planner<P>,
     codec: C,
-    referee: F,
+    device: F,
     ports: PlanningPorts<P::Mission, P::Role, F::Directive>,
     world: Option<WorldState>,
     stability: Stability,
@@ -171,7 +196,7 @@ pub struct PlanningModule<P: PlanningPolicy, C, F: Referee> {
     last_seen: Vec<Option<Time>>,
 }
 
-impl<P: PlanningPolicy, C, F: Referee> std::fmt::Debug for PlanningModule<P, C, F> {
+impl<P: PlanningPolicy, C, F: ExternalDevice> std::fmt::Debug for PlanningModule<P, C, F> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PlanningModule")
             .field("player", &self.player)
@@ -184,13 +209,13 @@ impl<P, C, F> PlanningModule<P, C, F>
 where
     P: PlanningPolicy,
     C: TeamCodec<P::Mission, P::Role>,
-    F: Referee,
+    F: ExternalDevice,
 {
     pub fn new(
         player: u8,
         planner: Planner<P>,
         codec: C,
-        referee: F,
+        device: F,
         ports: PlanningPorts<P::Mission, P::Role, F::Directive>,
         shared_objects: Vec<String>,
     ) -> Self {
@@ -198,7 +223,7 @@ where
             player,
             planner,
             codec,
-            referee,
+            device,
             ports,
             world: None,
             stability: Stability::Stable,
@@ -214,7 +239,7 @@ where
             Stability::Unstable(_) => StandingStatus::Unstable,
             Stability::Fallen(_) => StandingStatus::Fallen,
         };
-        let penalized = self.referee.penalized();
+        let penalized = self.device.penalized();
         match &self.world {
             None => OwnState {
                 id: self.player,
@@ -306,7 +331,7 @@ impl<P, C, F> Module for PlanningModule<P, C, F>
 where
     P: PlanningPolicy + 'static,
     C: TeamCodec<P::Mission, P::Role> + 'static,
-    F: Referee + 'static,
+    F: ExternalDevice + 'static,
 {
     fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
         let now = ctx.now();
@@ -322,7 +347,7 @@ where
             self.stability = stability.value;
         }
         for signal in ctx.drain(self.ports.signals) {
-            self.referee.perceive(signal.stamp, &signal.value);
+            self.device.perceive(signal.stamp, &signal.value);
         }
         let mut inbox = LinkInbox::default();
         for package in ctx.drain(self.ports.inbox) {
@@ -331,14 +356,14 @@ where
         }
         // External device (GameController).
         for packet in inbox.external {
-            if let Err(error) = self.referee.receive(packet.received, &packet.bytes) {
+            if let Err(error) = self.device.receive(packet.received, &packet.bytes) {
                 tracing::debug!(module = ctx.module_name(), %error, "external packet rejected");
             }
         }
-        for command in self.referee.world_commands() {
+        for command in self.device.world_commands() {
             ctx.send(self.ports.world_commands, command);
         }
-        if let Some(budget) = self.referee.budget() {
+        if let Some(budget) = self.device.budget() {
             self.planner.budget = budget;
         }
         // Teammates: evaluation is asynchronous, on every message received.
@@ -350,7 +375,7 @@ where
                         ctx.send(self.ports.team_estimates, estimate);
                     }
                     if let Some(signal) = &message.signal {
-                        self.referee.teammate_signal(packet.received, message.sender, signal);
+                        self.device.teammate_signal(packet.received, message.sender, signal);
                     }
                     self.planner.receive(packet.received, message);
                 }
@@ -361,8 +386,8 @@ where
                 }
             }
         }
-        self.referee.update(now, self.world.as_ref());
-        if self.referee.take_signal_news() {
+        self.device.update(now, self.world.as_ref());
+        if self.device.take_signal_news() {
             // Teammates that missed the signal follow this robot: the sooner the better, so
             // it may use the team's reserve.
             self.planner.request_instant(true);
@@ -371,7 +396,7 @@ where
         self.planner.evaluate(now, own.clone());
         let decision = PlanningDecision {
             assignment: self.planner.assignment().clone(),
-            directive: self.referee.directive(),
+            directive: self.device.directive(),
             teammates: self
                 .planner
                 .teammates()
@@ -409,7 +434,7 @@ where
         if let Some(kind) = self.planner.message_due(now)
             && let Some(mut message) = self.planner.compose(now, kind)
         {
-            message.signal = self.referee.shared_signal(now);
+            message.signal = self.device.shared_signal(now);
             match self.codec.encode(&message) {
                 Ok(bytes) => outbox.team = Some(bytes),
                 Err(error) => {
@@ -417,10 +442,38 @@ where
                 }
             }
         }
-        outbox.external = self.referee.status_packet(now, &own, self.world.as_ref());
+        outbox.external = self.device.status_packet(now, &own, self.world.as_ref());
         if outbox.team.is_some() || outbox.external.is_some() {
             ctx.send(self.ports.outbox, outbox);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A robot without a device: nothing to take it out of play, no budget, no status packet,
+    /// and a packet that arrives anyway is an error the module counts, not a crash.
+    #[test]
+    fn a_robot_without_a_device_keeps_the_defaults_and_refuses_packets() {
+        let mut device = NoDevice;
+        let now = Time::from_secs_f64(1.0);
+        assert!(!device.penalized());
+        assert!(device.budget().is_none());
+        let own = OwnState {
+            id: 1,
+            status: StandingStatus::Stable,
+            penalized: false,
+            localized: true,
+            pose: Pose::default(),
+            pose_confidence: 1.0,
+            objects: Vec::new(),
+        };
+        assert!(device.status_packet(now, &own, None).is_none());
+        assert!(device.world_commands().is_empty());
+        let error = device.receive(now, b"RGme").expect_err("no device to read it");
+        assert!(error.contains("4 bytes"), "{error}");
     }
 }
