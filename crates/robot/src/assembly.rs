@@ -28,14 +28,13 @@ use serde::{Deserialize, Serialize};
 use strata_runtime::{GraphBuilder, Message, ProcessingTime, Trigger};
 
 use crate::actuation::{ActuationConfig, ActuationModule, ActuationPorts};
+use crate::application::{Application, BodyGoalOf, HeadGoalOf, WholeBodyGoalOf};
 use crate::control::deliberative::DeliberativePolicy;
 use crate::control::modules::{
     DeliberativeModule, DeliberativePorts, PolicyPorts, ReactiveModule, ReactivePorts,
 };
 use crate::control::planning::{Planner, PlanningPolicy};
-use crate::control::planning_module::{
-    ExternalDevice, PlanningDecision, PlanningModule, PlanningPorts, TeamCodec,
-};
+use crate::control::planning_module::{ExternalDevice, PlanningModule, PlanningPorts, TeamCodec};
 use crate::control::reactive::ReactiveLayer;
 use crate::control::scores::Goal;
 use crate::edge::{EdgeModules, Links, RobotPlatform, add_link_edge};
@@ -134,23 +133,19 @@ impl RobotTiming {
     }
 }
 
-/// Everything one robot is made of.
-pub struct RobotParts<H, B, X, D, P, C, F>
-where
-    P: PlanningPolicy,
-    F: ExternalDevice,
-{
+/// Everything one robot is made of, for application `A`.
+pub struct RobotParts<A: Application> {
     /// Prefix of the module names (`"blue/3"` gives `"blue/3/reactive"`...).
     pub name: String,
     pub player: u8,
     pub platform: RobotPlatform,
     pub perception: PerceptionConfig,
     pub world: WorldModelConfig,
-    pub reactive: ReactiveLayer<H, B, X, WorldState>,
-    pub deliberative: D,
-    pub planner: Planner<P>,
-    pub codec: C,
-    pub device: F,
+    pub reactive: ReactiveLayer<HeadGoalOf<A>, BodyGoalOf<A>, WholeBodyGoalOf<A>, WorldState>,
+    pub deliberative: A::Deliberative,
+    pub planner: Planner<A::Planning>,
+    pub codec: A::Codec,
+    pub device: A::Device,
     pub team_link: Option<Box<dyn TeamLink>>,
     pub external_link: Option<Box<dyn ExternalLink>>,
     /// World-model object names this robot shares with teammates, most important first.
@@ -161,9 +156,7 @@ where
     pub deliberative_load: Duration,
 }
 
-impl<H, B, X, D, P: PlanningPolicy, C, F: ExternalDevice> std::fmt::Debug
-    for RobotParts<H, B, X, D, P, C, F>
-{
+impl<A: Application> std::fmt::Debug for RobotParts<A> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RobotParts")
             .field("name", &self.name)
@@ -312,25 +305,10 @@ where
 
 /// Adds one robot's modules to `graph`, with its platform and its links at the edge
 /// ([`crate::edge::add_platform_edge`], [`crate::edge::add_link_edge`]).
-pub fn add_robot<H, B, X, D, P, C, F>(
+pub fn add_robot<A: Application>(
     graph: &mut GraphBuilder,
-    parts: RobotParts<H, B, X, D, P, C, F>,
-) -> Result<RobotModules, ConfigError>
-where
-    H: Goal,
-    B: Goal,
-    X: Goal,
-    D: DeliberativePolicy<
-            HeadGoal = H,
-            BodyGoal = B,
-            WholeBodyGoal = X,
-            World = WorldState,
-            Assignment = PlanningDecision<P::Mission, P::Role, F::Directive>,
-        > + 'static,
-    P: PlanningPolicy + 'static,
-    C: TeamCodec<P::Mission, P::Role> + 'static,
-    F: ExternalDevice + 'static,
-{
+    parts: RobotParts<A>,
+) -> Result<RobotModules, ConfigError> {
     let names = RobotModules::new(&parts.name);
     let timing = parts.timing.resolved();
 

@@ -6,6 +6,7 @@
 //! missions, roles, goals, behaviors and value functions.
 
 pub mod actuation;
+pub mod application;
 pub mod assembly;
 pub mod command;
 pub mod control;

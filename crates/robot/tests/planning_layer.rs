@@ -283,3 +283,39 @@ fn the_message_budget_is_never_exceeded_and_lasts_the_game() {
     assert_eq!(planner.message_due(t(601.0)), None);
     assert!(planner.stats.withheld > 0);
 }
+
+/// A robot without teammates (`Alone`, `NoCodec`): its one mission and role, whatever it
+/// hears; its messages encode to nothing and no bytes decode as a teammate's.
+#[test]
+fn a_lone_robot_keeps_its_one_mission_and_role() {
+    use strata_robot::application::{Alone, NoCodec, Solo, TeamCodec};
+    let mut planner = Planner::new(Alone::default(), PlanningConfig::default());
+    planner.evaluate(t(1.0), own(1, 0.0, 1.0));
+    let a = planner.assignment();
+    assert_eq!((a.mission, a.role, a.alone), (Solo::Alone, Solo::Alone, true));
+    let stray = message(2, 1.0, 1.0, Role::Striker);
+    let stray = TeamMessage {
+        sender: stray.sender,
+        mission: Solo::Alone,
+        role: Solo::Alone,
+        status: stray.status,
+        penalized: stray.penalized,
+        localized: stray.localized,
+        since_last_received: stray.since_last_received,
+        data_received: stray.data_received,
+        utility: stray.utility,
+        conflict: stray.conflict,
+        pose: stray.pose,
+        pose_confidence: stray.pose_confidence,
+        objects: stray.objects,
+        signal: None,
+    };
+    assert_eq!(NoCodec.encode(&stray), Ok(Vec::new()));
+    assert!(TeamCodec::<Solo, Solo>::decode(&NoCodec, &[1, 2, 3]).is_err());
+    planner.receive(t(1.5), stray);
+    planner.evaluate(t(2.0), own(1, 0.0, 1.0));
+    assert_eq!(
+        (planner.assignment().mission, planner.assignment().role),
+        (Solo::Alone, Solo::Alone)
+    );
+}

@@ -7,8 +7,8 @@ use strata_robot::command::{
     WholeBodyCommand,
 };
 use strata_robot::control::reactive::{
-    ActivationPolicy, FallDetectorConfig, Multiplexer, MultiplexerConfig, PrimitiveBehavior,
-    ReactiveInput, ReactiveLayer, Stability,
+    ActivationPolicy, ActivationShortcuts, FallDetectorConfig, Multiplexer, MultiplexerConfig,
+    PrimitiveBehavior, ReactiveInput, ReactiveLayer, Stability,
 };
 use strata_robot::control::scores::{Goal, GoalScore, ScoreCombination, ScoreVector};
 use strata_robot::geometry::Velocity;
@@ -122,7 +122,9 @@ impl ActivationPolicy<HeadGoal, World> for HeadPolicy {
         };
         if known { &["track", "search"] } else { &["search"] }
     }
+}
 
+impl ActivationShortcuts<HeadGoal, World> for HeadPolicy {
     fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
         Some(0)
     }
@@ -161,7 +163,9 @@ impl ActivationPolicy<BodyGoal, World> for BodyPolicy {
             BodyGoal::GoToAndKick => &["walk"],
         }
     }
+}
 
+impl ActivationShortcuts<BodyGoal, World> for BodyPolicy {
     fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
         Some(0)
     }
@@ -225,12 +229,14 @@ type Layer = ReactiveLayer<HeadGoal, BodyGoal, WholeGoal, World>;
 
 fn layer(combination: ScoreCombination) -> Layer {
     let config = MultiplexerConfig { combination, hysteresis: 0.0 };
-    let head = Multiplexer::new(ResourceGroup::Head, config.clone(), Box::new(HeadPolicy))
-        .with_primitive(Box::new(Look("track")))
-        .with_primitive(Box::new(Look("search")));
-    let body = Multiplexer::new(ResourceGroup::Body, config.clone(), Box::new(BodyPolicy))
-        .with_primitive(Box::new(Walk))
-        .with_primitive(Box::new(Kick));
+    let head =
+        Multiplexer::with_shortcuts(ResourceGroup::Head, config.clone(), Box::new(HeadPolicy))
+            .with_primitive(Box::new(Look("track")))
+            .with_primitive(Box::new(Look("search")));
+    let body =
+        Multiplexer::with_shortcuts(ResourceGroup::Body, config.clone(), Box::new(BodyPolicy))
+            .with_primitive(Box::new(Walk))
+            .with_primitive(Box::new(Kick));
     let whole = Multiplexer::new(ResourceGroup::HeadAndBody, config, Box::new(WholePolicy))
         .with_primitive(Box::new(Sequence("fall", SpecialMotion::Fall(0))))
         .with_primitive(Box::new(Sequence("celebrate", SpecialMotion::Dive(9))))
@@ -511,6 +517,9 @@ impl ActivationPolicy<HeadGoal, World> for Counted {
     ) -> &'static [&'static str] {
         self.0.primitives_for(goal, input)
     }
+}
+
+impl ActivationShortcuts<HeadGoal, World> for Counted {
     fn reuse_key(&self, _: &ReactiveInput<'_, World>) -> Option<u64> {
         Some(0)
     }
@@ -524,7 +533,7 @@ impl ActivationPolicy<HeadGoal, World> for Counted {
 fn cycles_on_one_world_state_decide_as_cycles_that_ask_every_time() {
     let config = MultiplexerConfig { combination: ScoreCombination::Average, hysteresis: 0.05 };
     let counted = |asked: &std::sync::Arc<std::sync::atomic::AtomicUsize>| {
-        Multiplexer::new(
+        Multiplexer::with_shortcuts(
             ResourceGroup::Head,
             config.clone(),
             Box::new(Counted(HeadPolicy, asked.clone())),
@@ -583,6 +592,67 @@ fn cycles_on_one_world_state_decide_as_cycles_that_ask_every_time() {
     let plain = asked_plain.load(std::sync::atomic::Ordering::Relaxed);
     let revised = asked_revised.load(std::sync::atomic::Ordering::Relaxed);
     assert!(revised > 0 && 2 * revised < plain, "asked {revised} times, not {plain}");
+}
+
+/// A policy's shortcuts are behind its contract: a multiplexer that takes them
+/// (`with_shortcuts`) selects and commands exactly as one that asks the contract every cycle
+/// (`new`), even on cycles numbered by revision, where only the first may reuse answers.
+#[test]
+fn shortcuts_give_the_contracts_answers() {
+    let config = MultiplexerConfig { combination: ScoreCombination::Average, hysteresis: 0.05 };
+    let asked_contract = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let asked_shortcuts = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let mut contract = layer(ScoreCombination::Average);
+    contract.head = Multiplexer::new(
+        ResourceGroup::Head,
+        config.clone(),
+        Box::new(Counted(HeadPolicy, asked_contract.clone())),
+    )
+    .with_primitive(Box::new(Look("track")))
+    .with_primitive(Box::new(Look("search")));
+    contract.body = Multiplexer::new(ResourceGroup::Body, config.clone(), Box::new(BodyPolicy))
+        .with_primitive(Box::new(Walk))
+        .with_primitive(Box::new(Kick));
+    let mut shortcuts = layer(ScoreCombination::Average);
+    shortcuts.head = Multiplexer::with_shortcuts(
+        ResourceGroup::Head,
+        config,
+        Box::new(Counted(HeadPolicy, asked_shortcuts.clone())),
+    )
+    .with_primitive(Box::new(Look("track")))
+    .with_primitive(Box::new(Look("search")));
+    let worlds = [
+        World { confidence: vec![("ball", 0.5, 0.1), ("post", 0.4, 0.4)], target_close: false },
+        World { confidence: vec![("ball", 0.1, 0.0), ("post", 0.9, 0.2)], target_close: true },
+    ];
+    let goals = ScoreVector {
+        goals: vec![
+            GoalScore::new(HeadGoal::ObserveBoth("ball".into(), "post".into()), 0.8)
+                .about("ball")
+                .about("post"),
+            observe("ball", 0.3),
+        ],
+    };
+    for layer in [&mut contract, &mut shortcuts] {
+        layer.head.set_scores(goals.clone(), &Default::default(), Time::ZERO);
+        layer.body.set_scores(
+            ScoreVector::single(BodyGoal::GoToAndKick),
+            &Default::default(),
+            Time::ZERO,
+        );
+    }
+    for step in 0..24usize {
+        let revision = (step / 4) as u64;
+        let world = &worlds[(step / 4) % worlds.len()];
+        let percepts = if step == 10 { tipping() } else { upright() };
+        let now = Time::from_nanos(step as u64);
+        let expected = contract.step_on_revision(now, &percepts, Some(world), revision);
+        let got = shortcuts.step_on_revision(now, &percepts, Some(world), revision);
+        assert_eq!(got, expected, "cycle {step}");
+    }
+    let contract = asked_contract.load(std::sync::atomic::Ordering::Relaxed);
+    let shortcuts = asked_shortcuts.load(std::sync::atomic::Ordering::Relaxed);
+    assert!(shortcuts > 0 && shortcuts < contract, "asked {shortcuts} times, not {contract}");
 }
 
 /// A selection is executed only by the assessment it was made from.

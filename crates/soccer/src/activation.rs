@@ -5,7 +5,9 @@
 use std::sync::Arc;
 
 use strata_robot::control::active_vision::GazeCandidate;
-use strata_robot::control::reactive::{ActivationPolicy, GoalNotes, ReactiveInput, Stability};
+use strata_robot::control::reactive::{
+    ActivationPolicy, ActivationShortcuts, GoalNotes, ReactiveInput, Stability,
+};
 use strata_robot::control::scores::GoalScore;
 use strata_robot::platform::FallDirection;
 use strata_robot::world::{ObjectEstimate, WorldState};
@@ -99,7 +101,9 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         let Some(world) = input.world else { return &[names::SEARCH_OBJECT_ELLIPSE] };
         head_primitives(goal, world, || head_goal_objects(world, goal))
     }
+}
 
+impl ActivationShortcuts<HeadGoal, WorldState> for HeadActivation {
     /// Both answers from one look-up of the goal's objects.
     fn assess(
         &self,
@@ -321,7 +325,9 @@ impl ActivationPolicy<BodyGoal, WorldState> for BodyActivation {
             BodyGoal::Stand => &[names::STAND],
         }
     }
+}
 
+impl ActivationShortcuts<BodyGoal, WorldState> for BodyActivation {
     /// Every answer reads the world state alone (the ball, the obstacles).
     fn reuse_key(&self, _: &Input<'_>) -> Option<u64> {
         Some(0)
@@ -388,7 +394,9 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
             _ => &[],
         }
     }
+}
 
+impl ActivationShortcuts<WholeBodyGoal, WorldState> for WholeBodyActivation {
     /// The answers read the world state, the stability and whether the head is busy.
     fn reuse_key(&self, input: &Input<'_>) -> Option<u64> {
         let direction = |d: FallDirection| match d {

@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 use strata_robot::actuation::ActuationConfig;
+use strata_robot::application::Application;
 use strata_robot::assembly::{RobotModules, RobotParts, RobotTiming, add_robot};
 use strata_robot::command::ResourceGroup;
 use strata_robot::control::active_vision::ActiveVisionConfig;
@@ -324,7 +325,7 @@ pub fn reactive_layer(
 ) -> SoccerReactiveLayer {
     let model = Arc::new(config.motion.clone());
     let mux = config.multiplexer.clone();
-    let head = Multiplexer::new(
+    let head = Multiplexer::with_shortcuts(
         ResourceGroup::Head,
         mux.clone(),
         Box::new(HeadActivation { fov: info.camera_fov }),
@@ -332,7 +333,7 @@ pub fn reactive_layer(
     .with_primitive(Box::new(SearchObjectEllipse::new(Arc::clone(&model))))
     .with_primitive(Box::new(ObjectTracking::new(Arc::clone(&model))))
     .with_primitive(Box::new(LookAtTarget::new(Arc::clone(&model), Arc::clone(field))));
-    let body = Multiplexer::new(
+    let body = Multiplexer::with_shortcuts(
         ResourceGroup::Body,
         mux.clone(),
         Box::new(BodyActivation { model: Arc::clone(&model) }),
@@ -347,7 +348,7 @@ pub fn reactive_layer(
     let reflexes = ScoreVector::default()
         .with(GoalScore::new(WholeBodyGoal::Fall { sequence: 0 }, 1.0))
         .with(GoalScore::new(WholeBodyGoal::StandUp { sequence: 0 }, 1.0));
-    let whole = Multiplexer::new(
+    let whole = Multiplexer::with_shortcuts(
         ResourceGroup::HeadAndBody,
         mux,
         Box::new(WholeBodyActivation {
@@ -428,6 +429,17 @@ pub fn shared_objects() -> Vec<String> {
     vec![BALL.to_owned(), OBSTACLE.to_owned()]
 }
 
+/// Robot soccer as an application of the architecture: Tables 1-4 of the paper.
+#[derive(Clone, Copy, Debug)]
+pub struct Soccer;
+
+impl Application for Soccer {
+    type Planning = SoccerPlanning;
+    type Device = GameControllerReferee;
+    type Codec = SoccerCodec;
+    type Deliberative = SoccerBehavior;
+}
+
 /// Adds one soccer robot (all four modules, all three layers) to `graph`.
 pub fn add_soccer_robot(
     graph: &mut GraphBuilder,
@@ -440,7 +452,7 @@ pub fn add_soccer_robot(
     let deliberative = deliberative_behavior(config, &info, &field, spec.player)?;
     let (planner, referee) =
         planning_parts(config, &field, spec.player, spec.team_number, spec.half_duration);
-    let parts = RobotParts {
+    let parts = RobotParts::<Soccer> {
         name: spec.name,
         player: spec.player,
         platform: spec.platform,

@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use strata_robot::command::{ActuationMessage, Resource};
 use strata_robot::control::reactive::{
-    ActivationPolicy, ActuationStatus, GoalNotes, ReactiveInput, Stability,
+    ActivationPolicy, ActivationShortcuts, ActuationStatus, GoalNotes, ReactiveInput, Stability,
 };
 use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::geometry::{Point, Pose, Velocity};

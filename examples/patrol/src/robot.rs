@@ -7,6 +7,7 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 use strata_robot::actuation::ActuationConfig;
+use strata_robot::application::Application;
 use strata_robot::assembly::{LayerTiming, RobotModules, RobotParts, RobotTiming, add_robot};
 use strata_robot::command::ResourceGroup;
 use strata_robot::control::active_vision::ActiveVisionConfig;
@@ -30,6 +31,17 @@ use crate::primitives::{
     Fall, GoToWaypoint, LookAtTarget, MotionModel, ObjectTracking, Scan, Stand, StandUp,
 };
 use crate::world_config::{INTRUDER, perception_config, world_config};
+
+/// The patrol as an application of the architecture.
+#[derive(Clone, Copy, Debug)]
+pub struct Patrol;
+
+impl Application for Patrol {
+    type Planning = PatrolPlanning;
+    type Device = OperatorConsole;
+    type Codec = PatrolCodec;
+    type Deliberative = PatrolBehavior;
+}
 
 /// Everything that makes a patrol robot behave the way it does.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -133,7 +145,7 @@ pub fn add_patrol_robot(
         PatrolPlanning::new(Arc::clone(&plan), board.clone()),
         config.planning.clone(),
     );
-    let parts = RobotParts {
+    let parts = RobotParts::<Patrol> {
         name: spec.name,
         player: spec.player,
         platform: RobotPlatform::Shared(spec.platform),

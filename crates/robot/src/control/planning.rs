@@ -253,6 +253,60 @@ pub trait PlanningPolicy: Send {
     }
 }
 
+/// The one mission and the one role of a robot that works alone.
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize,
+)]
+pub enum Solo {
+    #[default]
+    Alone,
+}
+
+/// The planning policy of a robot without teammates: one mission, one role, always its own
+/// (MAMS and ARS have nothing to choose between).
+#[derive(Clone, Debug)]
+pub struct Alone {
+    catalog: MissionCatalog<Solo, Solo>,
+}
+
+impl Default for Alone {
+    fn default() -> Alone {
+        let solo = MissionSpec {
+            mission: Solo::Alone,
+            roles: vec![RoleSpec { role: Solo::Alone, max_robots: Some(1), designated: None }],
+        };
+        Alone {
+            catalog: MissionCatalog {
+                missions: vec![solo],
+                default_mission: Solo::Alone,
+                default_role: Solo::Alone,
+            },
+        }
+    }
+}
+
+impl PlanningPolicy for Alone {
+    type Mission = Solo;
+    type Role = Solo;
+
+    fn catalog(&self) -> &MissionCatalog<Solo, Solo> {
+        &self.catalog
+    }
+
+    fn select_mission(
+        &self,
+        _own: &OwnState,
+        _held: Option<(Solo, Solo)>,
+        _teammates: &[&TeammateRecord<Solo, Solo>],
+    ) -> Solo {
+        Solo::Alone
+    }
+
+    fn role_utility(&self, _candidate: &Candidate<'_>, _role: Solo, _mission: Solo) -> f64 {
+        0.0
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlanningConfig {

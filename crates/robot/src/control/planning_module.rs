@@ -23,6 +23,21 @@ pub trait TeamCodec<M: Label, R: Label>: Send {
     fn decode(&self, bytes: &[u8]) -> Result<TeamMessage<M, R>, String>;
 }
 
+/// The codec of a robot without teammates: every message encodes to nothing (the robot has no
+/// one to tell; its links carry no team link to send it on) and no bytes decode.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoCodec;
+
+impl<M: Label, R: Label> TeamCodec<M, R> for NoCodec {
+    fn encode(&self, _message: &TeamMessage<M, R>) -> Result<Vec<u8>, String> {
+        Ok(Vec::new())
+    }
+
+    fn decode(&self, bytes: &[u8]) -> Result<TeamMessage<M, R>, String> {
+        Err(format!("a team message of {} bytes for a robot without teammates", bytes.len()))
+    }
+}
+
 /// The application's side of an external device that directs the robot (paper 3.3: the
 /// planning layer uses "information coming from other robots and eventually external devices";
 /// in soccer the GameController, in `examples/patrol` an operator's console). Only `receive`

@@ -9,7 +9,7 @@
 //!    goal's reactive score S_r from the newest percepts and combines it with the deliberative
 //!    score S_d (the average, by default). S_d is never changed here: the reactive layer only
 //!    rescales, it never changes the goals. A policy whose answers read the world state and
-//!    little else ([`ActivationPolicy::reuse_key`]) is asked again only when a new world state
+//!    little else ([`ActivationShortcuts::reuse_key`]) is asked again only when a new world state
 //!    or score vector has arrived or that little else changed; in between its answers could not
 //!    change, and are reused.
 //! 3. The goal with the highest final score among those some primitive behavior can pursue now
@@ -46,7 +46,9 @@ pub use actuation_status::ActuationStatus;
 pub use fall::{FallDetector, FallDetectorConfig};
 pub use layer::ReactiveLayer;
 pub use multiplexer::{Multiplexer, MultiplexerConfig, Selection};
-pub use policy::{ActivationPolicy, GoalNotes, PrimitiveBehavior, ReactiveInput};
+pub use policy::{
+    ActivationPolicy, ActivationShortcuts, GoalNotes, PrimitiveBehavior, ReactiveInput,
+};
 pub use report::{GoalReport, GoalReports, MuxReport};
 
 // The types below are defined here rather than beside their parts (`fall.rs`, `report.rs`):

@@ -8,9 +8,10 @@ use serde::{Deserialize, Serialize};
 use strata_runtime::Time;
 
 use super::activation::Assessment;
+use super::policy::Policy;
 use super::{
-    ActivationPolicy, GoalNotes, GoalReport, GoalReports, MuxReport, PrimitiveBehavior,
-    ReactiveInput,
+    ActivationPolicy, ActivationShortcuts, GoalNotes, GoalReport, GoalReports, MuxReport,
+    PrimitiveBehavior, ReactiveInput,
 };
 use crate::command::ResourceGroup;
 use crate::control::scores::{Goal, GoalScore, ScoreCombination, ScoreVector};
@@ -55,7 +56,7 @@ pub struct Selection {
 pub struct Multiplexer<G, Cmd, W> {
     pub(super) group: ResourceGroup,
     pub(super) config: MultiplexerConfig,
-    pub(super) policy: Box<dyn ActivationPolicy<G, W>>,
+    pub(super) policy: Policy<G, W>,
     pub(super) primitives: Vec<Box<dyn PrimitiveBehavior<G, Cmd, W>>>,
     pub(super) scores: ScoreVector<G>,
     /// Goals the reactive layer always offers this multiplexer (reflexes such as the fall
@@ -89,10 +90,29 @@ impl<G: Goal, Cmd, W> Debug for Multiplexer<G, Cmd, W> {
 }
 
 impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
+    /// A multiplexer for `group` that asks `policy` its contract every cycle.
     pub fn new(
         group: ResourceGroup,
         config: MultiplexerConfig,
         policy: Box<dyn ActivationPolicy<G, W>>,
+    ) -> Multiplexer<G, Cmd, W> {
+        Self::with_policy(group, config, Policy::Contract(policy))
+    }
+
+    /// A multiplexer for `group` that takes `policy`'s shortcuts ([`ActivationShortcuts`]):
+    /// the same selections as [`Multiplexer::new`], found with less work.
+    pub fn with_shortcuts(
+        group: ResourceGroup,
+        config: MultiplexerConfig,
+        policy: Box<dyn ActivationShortcuts<G, W>>,
+    ) -> Multiplexer<G, Cmd, W> {
+        Self::with_policy(group, config, Policy::Shortcuts(policy))
+    }
+
+    fn with_policy(
+        group: ResourceGroup,
+        config: MultiplexerConfig,
+        policy: Policy<G, W>,
     ) -> Multiplexer<G, Cmd, W> {
         Multiplexer {
             group,

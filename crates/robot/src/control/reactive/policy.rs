@@ -57,7 +57,17 @@ pub trait ActivationPolicy<G, W>: Send {
     /// first. Empty: the goal cannot be pursued now (e.g. a fall goal while stable). A static
     /// list: the choice among a fixed catalogue, made every cycle without allocating.
     fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> &'static [&'static str];
+}
 
+/// Shortcuts an activation policy may take to the answers of its [`ActivationPolicy`]: never
+/// other answers, the same ones sooner (a reactive cycle has a few hundred microseconds). A
+/// multiplexer built with [`Multiplexer::with_shortcuts`] asks these; one built with
+/// [`Multiplexer::new`] asks the contract only. Every method has a default in terms of the
+/// contract, so a policy overrides only the shortcuts it takes.
+///
+/// [`Multiplexer::with_shortcuts`]: super::Multiplexer::with_shortcuts
+/// [`Multiplexer::new`]: super::Multiplexer::new
+pub trait ActivationShortcuts<G, W>: ActivationPolicy<G, W> {
     /// Stage 2 and the choice of primitives at once: what the multiplexer asks of every goal
     /// each cycle. The default asks [`ActivationPolicy::reactive_score`] and
     /// [`ActivationPolicy::primitives_for`]; a policy whose two answers read the same percepts
@@ -95,7 +105,7 @@ pub trait ActivationPolicy<G, W>: Send {
         self.split(goal, input)
     }
 
-    /// [`ActivationPolicy::assess`] with the goal's notes ([`GoalNotes`]). The multiplexer
+    /// [`ActivationShortcuts::assess`] with the goal's notes ([`GoalNotes`]). The multiplexer
     /// asks this; the default ignores the notes.
     fn assess_noted(
         &self,
@@ -134,5 +144,46 @@ impl GoalNotes {
 impl Debug for GoalNotes {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_tuple("GoalNotes").field(&self.0.is_some()).finish()
+    }
+}
+
+/// A multiplexer's policy: the contract alone, or with its shortcuts.
+pub(super) enum Policy<G, W> {
+    Contract(Box<dyn ActivationPolicy<G, W>>),
+    Shortcuts(Box<dyn ActivationShortcuts<G, W>>),
+}
+
+impl<G, W> Policy<G, W> {
+    pub(super) fn reuse_key(&self, input: &ReactiveInput<'_, W>) -> Option<u64> {
+        match self {
+            Policy::Contract(_) => None,
+            Policy::Shortcuts(policy) => policy.reuse_key(input),
+        }
+    }
+
+    pub(super) fn split_noted(
+        &self,
+        goal: &GoalScore<G>,
+        notes: &mut GoalNotes,
+        input: &ReactiveInput<'_, W>,
+    ) -> Option<Vec<GoalScore<G>>> {
+        match self {
+            Policy::Contract(policy) => policy.split(goal, input),
+            Policy::Shortcuts(policy) => policy.split_noted(goal, notes, input),
+        }
+    }
+
+    pub(super) fn assess_noted(
+        &self,
+        goal: &GoalScore<G>,
+        notes: &mut GoalNotes,
+        input: &ReactiveInput<'_, W>,
+    ) -> (f64, &'static [&'static str]) {
+        match self {
+            Policy::Contract(policy) => {
+                (policy.reactive_score(goal, input), policy.primitives_for(&goal.goal, input))
+            }
+            Policy::Shortcuts(policy) => policy.assess_noted(goal, notes, input),
+        }
     }
 }
