@@ -912,6 +912,8 @@ fn flag_name(flag: &str) -> &'static str {
         .unwrap_or_else(|| panic!("unknown flag {flag:?}"))
 }
 
+// One table, over 150 lines: each row is a rule of docs/tick-semantics.md, and the rules read
+// in the document's order.
 #[test]
 fn state_machine_transitions() {
     run_machines(&[

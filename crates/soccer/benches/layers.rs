@@ -131,11 +131,45 @@ fn main() {
     let (batch, rounds) = if quick { (10, 3) } else { (2000, 15) };
     let field = Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
     let world = world(&field);
-    let percepts = Percepts { stamp: Time::from_secs_f64(1.0), ..Percepts::default() };
+    let (reactive, reactive_base) = reactive_cycle(&field, &world, batch, rounds);
+    let (evaluation, update_base) = active_vision(&field, &world, batch, rounds);
+    let (planning, decode_base) = planning_evaluation(&field, batch, rounds);
 
-    // Reactive cycle.
+    if quick {
+        println!("layers: smoke run ok");
+        return;
+    }
+    println!("Hybrid control layers on the soccer application (median per call)");
+    println!(
+        "  reactive cycle (3 multiplexers, 12 primitives): {:>8.2} us   target <= 10 us   {:.1}x the bare multiplexer machinery ({:.2} us)",
+        reactive / 1e3,
+        reactive / reactive_base,
+        reactive_base / 1e3
+    );
+    println!(
+        "  active vision, 8 candidates:                     {:>8.2} us   target <= 100 us  {:.1}x one expected update ({:.2} us)",
+        evaluation / 1e3,
+        evaluation / update_base,
+        update_base / 1e3
+    );
+    println!(
+        "  planning evaluation, 6 teammates:                {:>8.2} us   target <= 20 us   {:.1}x decoding their 6 messages ({:.2} us)",
+        planning / 1e3,
+        planning / decode_base,
+        decode_base / 1e3
+    );
+}
+
+/// The soccer reactive cycle, and the bare multiplexer machinery under the same goals (ns).
+fn reactive_cycle(
+    field: &Arc<TeamField>,
+    world: &WorldState,
+    batch: u32,
+    rounds: usize,
+) -> (f64, f64) {
+    let percepts = Percepts { stamp: Time::from_secs_f64(1.0), ..Percepts::default() };
     let config = TeamConfig::default();
-    let mut soccer = reactive_layer(&config, &info(), &field);
+    let mut soccer = reactive_layer(&config, &info(), field);
     let head_goals = ScoreVector::default()
         .with(GoalScore::new(HeadGoal::ObserveBall, 0.8).about(BALL))
         .with(
@@ -160,7 +194,7 @@ fn main() {
     let reactive = measure(
         || {
             t += 12_000_000;
-            black_box(soccer.step(Time::from_nanos(t), &percepts, Some(&world)));
+            black_box(soccer.step(Time::from_nanos(t), &percepts, Some(world)));
         },
         batch,
         rounds,
@@ -179,15 +213,24 @@ fn main() {
     null.body.set_scores(body_goals, &Default::default(), Time::ZERO);
     let reactive_base = measure(
         || {
-            black_box(null.step(Time::ZERO, &percepts, Some(&world)));
+            black_box(null.step(Time::ZERO, &percepts, Some(world)));
         },
         batch,
         rounds,
     );
 
-    // Active vision over 8 candidates.
+    (reactive, reactive_base)
+}
+
+/// Active vision over 8 candidates, and one expected update (ns).
+fn active_vision(
+    field: &Arc<TeamField>,
+    world: &WorldState,
+    batch: u32,
+    rounds: usize,
+) -> (f64, f64) {
     let ball = world.object(BALL).expect("ball").id;
-    let value = GoalCoveringValue { field: Arc::clone(&field), ball, reach: 0.3 };
+    let value = GoalCoveringValue { field: Arc::clone(field), ball, reach: 0.3 };
     let mut vision = ActiveVision::new(ActiveVisionConfig::default());
     let candidates: Vec<GazeCandidate> = (0..8)
         .map(|i| GazeCandidate {
@@ -198,7 +241,7 @@ fn main() {
         .collect();
     let evaluation = measure(
         || {
-            black_box(vision.evaluate(&world, &value, &candidates));
+            black_box(vision.evaluate(world, &value, &candidates));
         },
         batch / 10 + 1,
         rounds,
@@ -213,9 +256,13 @@ fn main() {
         rounds,
     );
 
-    // Planning with 6 teammates.
+    (evaluation, update_base)
+}
+
+/// Planning with 6 teammates, and decoding their messages (ns).
+fn planning_evaluation(field: &Arc<TeamField>, batch: u32, rounds: usize) -> (f64, f64) {
     let mut planner = Planner::new(
-        SoccerPlanning::new((*field).clone(), SoccerPlanningConfig::default()),
+        SoccerPlanning::new((**field).clone(), SoccerPlanningConfig::default()),
         PlanningConfig::default(),
     );
     let ball_at = |x: f64| {
@@ -280,27 +327,5 @@ fn main() {
         rounds,
     );
 
-    if quick {
-        println!("layers: smoke run ok");
-        return;
-    }
-    println!("Hybrid control layers on the soccer application (median per call)");
-    println!(
-        "  reactive cycle (3 multiplexers, 12 primitives): {:>8.2} us   target <= 10 us   {:.1}x the bare multiplexer machinery ({:.2} us)",
-        reactive / 1e3,
-        reactive / reactive_base,
-        reactive_base / 1e3
-    );
-    println!(
-        "  active vision, 8 candidates:                     {:>8.2} us   target <= 100 us  {:.1}x one expected update ({:.2} us)",
-        evaluation / 1e3,
-        evaluation / update_base,
-        update_base / 1e3
-    );
-    println!(
-        "  planning evaluation, 6 teammates:                {:>8.2} us   target <= 20 us   {:.1}x decoding their 6 messages ({:.2} us)",
-        planning / 1e3,
-        planning / decode_base,
-        decode_base / 1e3
-    );
+    (planning, decode_base)
 }

@@ -155,6 +155,16 @@ fn seconds(value: Option<f64>) -> String {
 /// The chaos run's targets, each with what was measured.
 pub fn checks(r: &Report) -> Vec<Check> {
     let mut checks = Vec::new();
+    pace_checks(r, &mut checks);
+    fault_checks(r, &mut checks);
+    network_checks(r, &mut checks);
+    log_checks(r, &mut checks);
+    process_checks(r, &mut checks);
+    checks
+}
+
+/// The server's real-time factor and the robots' reactive rates, phase by phase.
+fn pace_checks(r: &Report, checks: &mut Vec<Check>) {
     let rtf: Vec<String> = r
         .phases
         .iter()
@@ -192,6 +202,10 @@ pub fn checks(r: &Report) -> Vec<Check> {
         rates.join("; "),
         Some(r.phases.iter().skip(1).all(|p| p.lowest_other.is_some_and(|(_, s)| s >= RATE_KEPT))),
     ));
+}
+
+/// The killed robot's role taken over, its restart, the stopped robot, the slow client.
+fn fault_checks(r: &Report, checks: &mut Vec<Check>) {
     let t = &r.takeover;
     checks.push(check(
         "kill -9: a teammate takes over the dead robot's role",
@@ -242,6 +256,10 @@ pub fn checks(r: &Report) -> Vec<Check> {
         ),
         Some(c.admitted),
     ));
+}
+
+/// Connection attempts over the cap and garbage datagrams.
+fn network_checks(r: &Report, checks: &mut Vec<Check>) {
     let n = &r.connections;
     checks.push(check(
         "connection attempts: every refusal clean",
@@ -292,6 +310,10 @@ pub fn checks(r: &Report) -> Vec<Check> {
         },
         None,
     ));
+}
+
+/// The nearly full log file and the game's own log.
+fn log_checks(r: &Report, checks: &mut Vec<Check>) {
     let l = &r.log_full;
     checks.push(check(
         "log into a nearly full file: failure reported, robot plays on",
@@ -324,6 +346,10 @@ pub fn checks(r: &Report) -> Vec<Check> {
         },
         Some(g.error.is_none() && g.finished && g.lost == Some(0)),
     ));
+}
+
+/// Memory, panics and processes alive at the end.
+fn process_checks(r: &Report, checks: &mut Vec<Check>) {
     let memory: Vec<String> = r
         .memory
         .iter()
@@ -363,7 +389,6 @@ pub fn checks(r: &Report) -> Vec<Check> {
         },
         Some(ended_early.is_empty()),
     ));
-    checks
 }
 
 fn bytes(n: u64) -> String {

@@ -589,6 +589,46 @@ fn write_outputs(
     ctx: &mut Ctx<'_>,
     runs: usize,
 ) -> Result<()> {
+    write_runs_csv(summary, ctx)?;
+    let image = ctx.plot(&ball_unknown_figure(scenario, summary), "ball-unknown")?;
+    let mut md = Markdown::new("Goal covering in physics: a T1 keeper's ball perception");
+    ctx.report_head(
+        "a Booster T1 goalkeeper in rcssservermj, the ball moved by the monitor port",
+        "Paper 4.2, Table 5: the goalkeeper covers its goal while the ball moves; the \
+         deliberative layer runs at several rates. Here the keeper is a `strata robot` process \
+         on a T1 in the RoboCup simulation league's MuJoCo server, one server and one keeper \
+         per run, the 2D trajectories scaled by 4 about the goal and the ball's speed with them.",
+        &mut md,
+        runs,
+    );
+    md.paragraph(&format!(
+        "Ball speed {} m/s; deliberative layer at {} Hz; ball placed and sampled every {} s of \
+         simulated time from the ball's start to {} s after it stops; keeper beamed at {:?}, \
+         {} s of Ready, kick-off, {} s before the ball starts. Trajectories: {}.",
+        scenario.ball_speed,
+        scenario.deliberative_hz.iter().map(|h| h.to_string()).collect::<Vec<_>>().join(", "),
+        scenario.placement_period,
+        scenario.settle,
+        scenario.keeper_beam,
+        scenario.ready,
+        scenario.warmup,
+        scenario
+            .trajectories
+            .iter()
+            .map(|t| format!("`{}` ({:.1} m)", t.name, t.length()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    report_tables(&mut md, scenario, summary);
+    md.image("ball unknown", &image);
+    ctx.finish_report(
+        md,
+        &["`goal-covering.csv`: one row per run (method, rate, trajectory, seed)"],
+    )
+}
+
+/// `goal-covering.csv`: one row per run.
+fn write_runs_csv(summary: &Summary, ctx: &mut Ctx<'_>) -> Result<()> {
     let rows: Vec<Vec<String>> = summary
         .runs
         .iter()
@@ -629,11 +669,15 @@ fn write_outputs(
             "real_time_factor",
         ],
         &rows,
-    )?;
+    )
+}
+
+/// The fraction of time the ball is unknown, per method and rate, beside the paper's.
+fn ball_unknown_figure(scenario: &Scenario, summary: &Summary) -> Bars {
     let condition = |method: &str, hz: f64| {
         summary.conditions.iter().find(|c| c.method == method && same_hz(c.deliberative_hz, hz))
     };
-    let figure = Bars {
+    Bars {
         title: format!(
             "Ball unknown while in the camera's range, T1 keeper in rcssservermj, ball at {} m/s \
              (mean, 95 % CI)",
@@ -664,37 +708,11 @@ fn write_outputs(
                 .collect(),
         )),
         targets: None,
-    };
-    let image = ctx.plot(&figure, "ball-unknown")?;
+    }
+}
 
-    let mut md = Markdown::new("Goal covering in physics: a T1 keeper's ball perception");
-    ctx.report_head(
-        "a Booster T1 goalkeeper in rcssservermj, the ball moved by the monitor port",
-        "Paper 4.2, Table 5: the goalkeeper covers its goal while the ball moves; the \
-         deliberative layer runs at several rates. Here the keeper is a `strata robot` process \
-         on a T1 in the RoboCup simulation league's MuJoCo server, one server and one keeper \
-         per run, the 2D trajectories scaled by 4 about the goal and the ball's speed with them.",
-        &mut md,
-        runs,
-    );
-    md.paragraph(&format!(
-        "Ball speed {} m/s; deliberative layer at {} Hz; ball placed and sampled every {} s of \
-         simulated time from the ball's start to {} s after it stops; keeper beamed at {:?}, \
-         {} s of Ready, kick-off, {} s before the ball starts. Trajectories: {}.",
-        scenario.ball_speed,
-        scenario.deliberative_hz.iter().map(|h| h.to_string()).collect::<Vec<_>>().join(", "),
-        scenario.placement_period,
-        scenario.settle,
-        scenario.keeper_beam,
-        scenario.ready,
-        scenario.warmup,
-        scenario
-            .trajectories
-            .iter()
-            .map(|t| format!("`{}` ({:.1} m)", t.name, t.length()))
-            .collect::<Vec<_>>()
-            .join(", ")
-    ));
+/// The targets and Table 5 in physics, beside the paper and the 2D simulator.
+fn report_tables(md: &mut Markdown, scenario: &Scenario, summary: &Summary) {
     md.heading("Targets");
     md.table(
         &[
@@ -771,11 +789,6 @@ fn write_outputs(
          carry the head multiplexer's goal. A run does not repeat exactly for a seed: MuJoCo \
          steps in the server's process, the robot runs in real time on threads.",
     );
-    md.image("ball unknown", &image);
-    ctx.finish_report(
-        md,
-        &["`goal-covering.csv`: one row per run (method, rate, trajectory, seed)"],
-    )
 }
 
 #[cfg(test)]

@@ -263,6 +263,25 @@ fn game_of(
 }
 
 fn write_outputs(summary: &Summary, ctx: &mut Ctx<'_>, runs: usize) -> Result<()> {
+    write_games_csv(summary, ctx)?;
+    let image = ctx.plot(&goal_difference_figure(summary), "goal-difference")?;
+    let mut md = Markdown::new("Team play in physics: the full architecture against a baseline");
+    ctx.report_head(
+        "games of T1s in rcssservermj, the same seeds on the 2D simulator beside",
+        "Paper 4.4: complete games. Here on Booster T1s in the RoboCup simulation league's \
+         MuJoCo server, each robot a `strata robot` process with the full architecture, the \
+         server's referee ruling; the sides alternate from game to game.",
+        &mut md,
+        runs,
+    );
+    targets_table(&mut md, summary);
+    games_table(&mut md, summary);
+    md.image("goal difference", &image);
+    ctx.finish_report(md, &["`games.csv`: one row per game, the reference team's side first"])
+}
+
+/// `games.csv`: one row per game.
+fn write_games_csv(summary: &Summary, ctx: &mut Ctx<'_>) -> Result<()> {
     let rows: Vec<Vec<String>> = summary
         .games
         .iter()
@@ -309,8 +328,12 @@ fn write_outputs(summary: &Summary, ctx: &mut Ctx<'_>, runs: usize) -> Result<()
             "goals_against_2d",
         ],
         &rows,
-    )?;
-    let figure = Bars {
+    )
+}
+
+/// The goal difference per game, in physics and on the 2D simulator.
+fn goal_difference_figure(summary: &Summary) -> Bars {
+    Bars {
         title: format!(
             "{} against {}: goal difference per game ({} vs {}, {:.0} s halves)",
             summary.reference, summary.baseline, summary.players, summary.players, summary.half_s
@@ -323,18 +346,11 @@ fn write_outputs(summary: &Summary, ctx: &mut Ctx<'_>, runs: usize) -> Result<()
         )],
         reference: None,
         targets: Some(("above 0: the full team wins".to_owned(), vec![Some(0.0), Some(0.0)])),
-    };
-    let image = ctx.plot(&figure, "goal-difference")?;
+    }
+}
 
-    let mut md = Markdown::new("Team play in physics: the full architecture against a baseline");
-    ctx.report_head(
-        "games of T1s in rcssservermj, the same seeds on the 2D simulator beside",
-        "Paper 4.4: complete games. Here on Booster T1s in the RoboCup simulation league's \
-         MuJoCo server, each robot a `strata robot` process with the full architecture, the \
-         server's referee ruling; the sides alternate from game to game.",
-        &mut md,
-        runs,
-    );
+/// The targets, and whether they were met.
+fn targets_table(md: &mut Markdown, summary: &Summary) {
     md.heading("Targets");
     let t = &summary.targets;
     md.table(
@@ -395,6 +411,10 @@ fn write_outputs(summary: &Summary, ctx: &mut Ctx<'_>, runs: usize) -> Result<()
             ],
         ],
     );
+}
+
+/// Every game, physics beside 2D.
+fn games_table(md: &mut Markdown, summary: &Summary) {
     md.heading("Games");
     let games: Vec<Vec<String>> = summary
         .games
@@ -436,6 +456,4 @@ fn write_outputs(summary: &Summary, ctx: &mut Ctx<'_>, runs: usize) -> Result<()
         summary.goal_difference_2d.show(1.0, 2),
         summary.field_2d
     ));
-    md.image("goal difference", &image);
-    ctx.finish_report(md, &["`games.csv`: one row per game, the reference team's side first"])
 }

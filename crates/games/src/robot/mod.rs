@@ -45,6 +45,7 @@ use strata_robot::assembly::RobotModules;
 use strata_robot::control::reactive::FallDetectorConfig;
 use strata_robot::edge::RobotPlatform;
 use strata_robot::geometry::Pose;
+use strata_robot::platform::{ExternalLink, TeamLink};
 use strata_robot::world::PosePrior;
 use strata_runtime::{
     Encoding, GraphBuilder, HostConfig, HostError, HostStats, MonotonicClock, Tap, ThreadedHost,
@@ -240,35 +241,8 @@ pub fn run(opts: &RobotOptions, out: &Arc<dyn RobotOutput>) -> Result<()> {
         learn_attack_sign(gc_link, opts.team, opts.attack_sign, opts.gc_wait, &early_clock);
     let team_field = Arc::new(TeamField::new(field, attack_sign));
 
-    // A robot that beams itself knows where it starts, as the league's agents do.
-    let initial_pose = match opts.platform {
-        PlatformKind::Rcssservermj => opts.beam.map(|beam| beam_prior(beam, attack_sign)),
-        _ => None,
-    };
-    // rcssservermj's referee moves robots to the side line without a word; a GameController
-    // announces each penalty.
-    let relocations = match opts.platform {
-        PlatformKind::Rcssservermj => penalty_spots(team_field.field.dimensions()),
-        _ => Vec::new(),
-    };
-    // The robot: all four modules, all three layers.
-    let mut graph = GraphBuilder::new();
-    let spec = SoccerRobotSpec {
-        // Module names: `t10/3/planning`...
-        name: format!("t{}/{}", opts.team, opts.player),
-        team_number: opts.team,
-        player: opts.player,
-        field: Arc::clone(&team_field),
-        platform: RobotPlatform::Shared(Arc::clone(&platform.shared)),
-        team_link,
-        game_controller: Some(gc_link),
-        half_duration: opts.half_duration,
-        initial_pose,
-        relocations: relocations.clone(),
-    };
-    let modules = add_soccer_robot(&mut graph, spec, &config)
-        .map_err(|e| anyhow::anyhow!("building robot {}/{}: {e}", opts.team, opts.player))?;
-    let graph = graph.build().context("wiring the robot's modules")?;
+    let RobotGraph { graph, modules, initial_pose, relocations } =
+        robot_graph(opts, &config, &team_field, &platform, team_link, gc_link)?;
     let watch = Arc::new(Watch::new(&modules.planning));
     let seed = opts.seed.unwrap_or(100 * u64::from(opts.team) + u64::from(opts.player));
     let host_config = HostConfig {
@@ -306,22 +280,7 @@ pub fn run(opts: &RobotOptions, out: &Arc<dyn RobotOutput>) -> Result<()> {
         host.add_tap(Arc::clone(log) as Arc<dyn Tap>);
     }
 
-    out.start(&StartInfo {
-        team: opts.team,
-        player: opts.player,
-        platform: opts.platform,
-        platform_name: info.name.clone(),
-        source: platform.source.clone(),
-        sensor_period_ms: info.sensor_period.as_secs_f64() * 1e3,
-        can_walk: info.can_walk,
-        controller: "soccer",
-        team_config: config.name.clone(),
-        coordination: config.coordination,
-        game_controller: endpoints.game_controller,
-        team_messages: endpoints.team,
-        attack_sign,
-        attack_source,
-    });
+    out.start(&start_info(opts, &platform, &config, endpoints, attack_sign, attack_source));
 
     let running = host.start().context("starting the robot's module threads")?;
     if let Some(t1) = &platform.t1 {
@@ -402,6 +361,82 @@ pub fn run(opts: &RobotOptions, out: &Arc<dyn RobotOutput>) -> Result<()> {
         },
         (team_counters.snapshot(), gc_counters.snapshot()),
     )
+}
+
+/// One soccer robot's graph, and where it believes it starts.
+struct RobotGraph {
+    graph: strata_runtime::Graph,
+    modules: RobotModules,
+    initial_pose: Option<PosePrior>,
+    relocations: Vec<PosePrior>,
+}
+
+/// The robot: all four modules, all three layers, between its platform and its links.
+fn robot_graph(
+    opts: &RobotOptions,
+    config: &TeamConfig,
+    team_field: &Arc<TeamField>,
+    platform: &OpenPlatform,
+    team_link: Option<Box<dyn TeamLink>>,
+    gc_link: Box<dyn ExternalLink>,
+) -> Result<RobotGraph> {
+    let attack_sign = team_field.attack_sign;
+    // A robot that beams itself knows where it starts, as the league's agents do.
+    let initial_pose = match opts.platform {
+        PlatformKind::Rcssservermj => opts.beam.map(|beam| beam_prior(beam, attack_sign)),
+        _ => None,
+    };
+    // rcssservermj's referee moves robots to the side line without a word; a GameController
+    // announces each penalty.
+    let relocations = match opts.platform {
+        PlatformKind::Rcssservermj => penalty_spots(team_field.field.dimensions()),
+        _ => Vec::new(),
+    };
+    let mut graph = GraphBuilder::new();
+    let spec = SoccerRobotSpec {
+        // Module names: `t10/3/planning`...
+        name: format!("t{}/{}", opts.team, opts.player),
+        team_number: opts.team,
+        player: opts.player,
+        field: Arc::clone(team_field),
+        platform: RobotPlatform::Shared(Arc::clone(&platform.shared)),
+        team_link,
+        game_controller: Some(gc_link),
+        half_duration: opts.half_duration,
+        initial_pose,
+        relocations: relocations.clone(),
+    };
+    let modules = add_soccer_robot(&mut graph, spec, config)
+        .map_err(|e| anyhow::anyhow!("building robot {}/{}: {e}", opts.team, opts.player))?;
+    let graph = graph.build().context("wiring the robot's modules")?;
+    Ok(RobotGraph { graph, modules, initial_pose, relocations })
+}
+
+/// What the start line says: the platform, the team and where its links lead.
+fn start_info(
+    opts: &RobotOptions,
+    platform: &OpenPlatform,
+    config: &TeamConfig,
+    endpoints: report::Endpoints,
+    attack_sign: f64,
+    attack_source: String,
+) -> StartInfo {
+    StartInfo {
+        team: opts.team,
+        player: opts.player,
+        platform: opts.platform,
+        platform_name: platform.info.name.clone(),
+        source: platform.source.clone(),
+        sensor_period_ms: platform.info.sensor_period.as_secs_f64() * 1e3,
+        can_walk: platform.info.can_walk,
+        controller: "soccer",
+        team_config: config.name.clone(),
+        coordination: config.coordination,
+        game_controller: endpoints.game_controller,
+        team_messages: endpoints.team,
+        attack_sign,
+        attack_source,
+    }
 }
 
 /// Creates the robot's log and writes what a reader needs besides the packages: the run (seed,

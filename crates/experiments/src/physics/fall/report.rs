@@ -216,10 +216,31 @@ fn by_how_much(t: &Target, unit: &str) -> String {
 }
 
 fn write_report(scenario: &Scenario, ctx: &mut Ctx<'_>, s: &Summary, plots: &Plots) -> Result<()> {
-    let p = &scenario.pushes;
-    let w = &scenario.walking;
     let mut md =
         Markdown::new("Fall detection and recovery of T1s in rcssservermj (paper 4.3, Fig. 6)");
+    what_was_run(&mut md, scenario, ctx, s);
+    definitions(&mut md);
+    targets(&mut md, s);
+    beside_2d(&mut md, s);
+    counts(&mut md, s);
+    md.heading("Figures");
+    md.image("Onset to Fall command, histogram", &plots.histogram);
+    md.image("Fall detection latency, cumulative", &plots.cdf);
+    ctx.finish_report(
+        md,
+        &[
+            "`falls.csv`: every fall (run, robot, cause, onset, interpolated crossing, order, onset to command, percept to command, onset to standing)",
+            "`pushes.csv`: every push (time, direction, whether the robot fell, whether it was helped up)",
+            "`runs.csv`: every run (time played, robot-seconds walking and upright, falls, false positives and their times, reactive rate)",
+            "`2d/`: the 2D simulator's fall experiment on the lockstep host, when the scenario runs it",
+        ],
+    )
+}
+
+/// The setting and the command that reproduces the report.
+fn what_was_run(md: &mut Markdown, scenario: &Scenario, ctx: &Ctx<'_>, s: &Summary) {
+    let p = &scenario.pushes;
+    let w = &scenario.walking;
     md.paragraph(
         "Booster T1s in rcssservermj (MuJoCo), each a `strata robot --platform rcssservermj` \
          process under the full architecture, walking with the learned policy every 20 ms. \
@@ -275,6 +296,10 @@ fn write_report(scenario: &Scenario, ctx: &mut Ctx<'_>, s: &Summary, plots: &Plo
         format!("Machine load: {}", describe_load(&s.machine_load_1min)),
         format!("strata {}", env!("CARGO_PKG_VERSION")),
     ]);
+}
+
+/// What each measured figure means.
+fn definitions(md: &mut Markdown) {
     md.heading("Definitions");
     md.bullets(&[
         format!(
@@ -308,6 +333,10 @@ fn write_report(scenario: &Scenario, ctx: &mut Ctx<'_>, s: &Summary, plots: &Plo
             FALL_ONSET_TILT.to_degrees()
         ),
     ]);
+}
+
+/// The paper's targets, and whether they were met.
+fn targets(md: &mut Markdown, s: &Summary) {
     md.heading("Targets");
     let fp = &s.target_false_positives;
     md.table(
@@ -357,6 +386,10 @@ fn write_report(scenario: &Scenario, ctx: &mut Ctx<'_>, s: &Summary, plots: &Plo
             ],
         ],
     );
+}
+
+/// The T1's figures beside the 2D simulator's.
+fn beside_2d(md: &mut Markdown, s: &Summary) {
     md.heading("Results beside the 2D simulator");
     let d = |x: &Distribution, f: &dyn Fn(f64) -> String| {
         vec![f(x.median), f(x.p95), f(x.min), f(x.max), x.n.to_string()]
@@ -418,6 +451,10 @@ fn write_report(scenario: &Scenario, ctx: &mut Ctx<'_>, s: &Summary, plots: &Plo
          caught itself: a fast fall can be ordered before its onset, a robot placed tilted at rest \
          (the tilt push) at its first percept.",
     );
+}
+
+/// What happened, counted.
+fn counts(md: &mut Markdown, s: &Summary) {
     md.heading("Counts");
     md.table(
         &["measure", "value"],
@@ -455,16 +492,4 @@ fn write_report(scenario: &Scenario, ctx: &mut Ctx<'_>, s: &Summary, plots: &Plo
             s.pushes
         ));
     }
-    md.heading("Figures");
-    md.image("Onset to Fall command, histogram", &plots.histogram);
-    md.image("Fall detection latency, cumulative", &plots.cdf);
-    ctx.finish_report(
-        md,
-        &[
-            "`falls.csv`: every fall (run, robot, cause, onset, interpolated crossing, order, onset to command, percept to command, onset to standing)",
-            "`pushes.csv`: every push (time, direction, whether the robot fell, whether it was helped up)",
-            "`runs.csv`: every run (time played, robot-seconds walking and upright, falls, false positives and their times, reactive rate)",
-            "`2d/`: the 2D simulator's fall experiment on the lockstep host, when the scenario runs it",
-        ],
-    )
 }
