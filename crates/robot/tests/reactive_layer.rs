@@ -10,7 +10,7 @@ use strata_robot::control::reactive::{
     ActivationPolicy, ActivationShortcuts, FallDetectorConfig, Multiplexer, MultiplexerConfig,
     PrimitiveBehavior, ReactiveInput, ReactiveLayer, Stability,
 };
-use strata_robot::control::scores::{Goal, GoalScore, ScoreCombination, ScoreVector};
+use strata_robot::control::scores::{Goal, GoalScore, NoGoal, ScoreCombination, ScoreVector};
 use strata_robot::geometry::Velocity;
 use strata_robot::percept::Percepts;
 use strata_robot::platform::{HeadAngles, SpecialMotion};
@@ -679,4 +679,35 @@ fn a_selection_from_an_earlier_assessment_executes_nothing() {
     assert!(layer.head.selected(&old).is_none());
     assert!(layer.head.execute(&old, &input).is_none());
     assert!(layer.head.execute(&new, &input).is_some());
+}
+
+/// A robot that drives its body only: its head and head+body multiplexers are unused (goal
+/// type `NoGoal`, no policy, no primitives), never select and never command; the body's does.
+#[test]
+fn a_layer_runs_only_the_multiplexers_an_application_uses() {
+    let config = MultiplexerConfig { combination: ScoreCombination::Average, hysteresis: 0.0 };
+    let mut layer: ReactiveLayer<NoGoal, BodyGoal, NoGoal, World> =
+        ReactiveLayer::empty(FallDetectorConfig::default()).with_body(
+            Multiplexer::new(ResourceGroup::Body, config, Box::new(BodyPolicy))
+                .with_primitive(Box::new(Walk))
+                .with_primitive(Box::new(Kick)),
+        );
+    layer.body.set_scores(
+        ScoreVector::single(BodyGoal::GoToAndKick),
+        &Default::default(),
+        Time::ZERO,
+    );
+    let world = World { confidence: vec![("ball", 0.5, 0.0)], target_close: false };
+    for step in 0..3u64 {
+        let percepts = if step == 2 { tipping() } else { upright() };
+        let report = layer.step(Time::from_nanos(step), &percepts, Some(&world));
+        assert!(report.head.selected_goal.is_none() && report.head.primitive.is_none());
+        assert!(report.whole_body.selected_goal.is_none());
+        assert_eq!(report.body.primitive.as_deref(), Some("walk"), "cycle {step}");
+        assert!(
+            matches!(report.commands, MotionCommands::PerResource { head: None, body: Some(_) }),
+            "cycle {step}: {:?}",
+            report.commands
+        );
+    }
 }

@@ -15,6 +15,18 @@ pub trait Goal:
     fn label(&self) -> String;
 }
 
+/// The goal type of a resource group an application does not use (a robot without a head, or
+/// one whose head and body are never driven together): there is no such goal, so its
+/// multiplexer, [`crate::control::reactive::Multiplexer::unused`], never selects one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NoGoal {}
+
+impl Goal for NoGoal {
+    fn label(&self) -> String {
+        match *self {}
+    }
+}
+
 /// One entry of a score vector: a goal, its deliberative score S_d, and the objects of interest
 /// it concerns (Fig. 3). The objects are world-model object names.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -51,6 +51,33 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
         }
     }
 
+    /// A layer whose three multiplexers are unused ([`Multiplexer::unused`]): an application adds
+    /// those it uses with [`ReactiveLayer::with_head`], [`ReactiveLayer::with_body`] and
+    /// [`ReactiveLayer::with_whole_body`]; the others never select a goal.
+    pub fn empty(fall_detector: FallDetectorConfig) -> ReactiveLayer<H, B, X, W> {
+        ReactiveLayer::new(
+            Multiplexer::unused(ResourceGroup::Head),
+            Multiplexer::unused(ResourceGroup::Body),
+            Multiplexer::unused(ResourceGroup::HeadAndBody),
+            fall_detector,
+        )
+    }
+
+    pub fn with_head(mut self, head: Multiplexer<H, HeadCommand, W>) -> Self {
+        self.head = head;
+        self
+    }
+
+    pub fn with_body(mut self, body: Multiplexer<B, BodyCommand, W>) -> Self {
+        self.body = body;
+        self
+    }
+
+    pub fn with_whole_body(mut self, whole_body: Multiplexer<X, WholeBodyCommand, W>) -> Self {
+        self.whole_body = whole_body;
+        self
+    }
+
     pub fn actuation_message(&mut self, message: &ActuationMessage) {
         self.actuation.apply(message);
     }

@@ -47,7 +47,8 @@ pub use fall::{FallDetector, FallDetectorConfig};
 pub use layer::ReactiveLayer;
 pub use multiplexer::{Multiplexer, MultiplexerConfig, Selection};
 pub use policy::{
-    ActivationPolicy, ActivationShortcuts, GoalNotes, PrimitiveBehavior, ReactiveInput,
+    ActivationPolicy, ActivationShortcuts, GoalNotes, NoActivation, PrimitiveBehavior,
+    ReactiveInput,
 };
 pub use report::{GoalReport, GoalReports, MuxReport};
 

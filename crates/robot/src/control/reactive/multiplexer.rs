@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use strata_runtime::Time;
 
 use super::activation::Assessment;
-use super::policy::Policy;
+use super::policy::{NoActivation, Policy};
 use super::{
     ActivationPolicy, ActivationShortcuts, GoalNotes, GoalReport, GoalReports, MuxReport,
     PrimitiveBehavior, ReactiveInput,
@@ -90,6 +90,13 @@ impl<G: Goal, Cmd, W> Debug for Multiplexer<G, Cmd, W> {
 }
 
 impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
+    /// A multiplexer for a resource group the application does not drive: no policy, no
+    /// primitives, it never selects a goal and never commands its resources (goal type
+    /// [`crate::control::scores::NoGoal`], or any goal the application never offers it).
+    pub fn unused(group: ResourceGroup) -> Multiplexer<G, Cmd, W> {
+        Self::new(group, MultiplexerConfig::default(), Box::new(NoActivation))
+    }
+
     /// A multiplexer for `group` that asks `policy` its contract every cycle.
     pub fn new(
         group: ResourceGroup,

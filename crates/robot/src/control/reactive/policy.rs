@@ -59,6 +59,20 @@ pub trait ActivationPolicy<G, W>: Send {
     fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> &'static [&'static str];
 }
 
+/// The activation policy of an idle multiplexer: no goal applies, no primitive is named.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoActivation;
+
+impl<G, W> ActivationPolicy<G, W> for NoActivation {
+    fn reactive_score(&self, _goal: &GoalScore<G>, _input: &ReactiveInput<'_, W>) -> f64 {
+        0.0
+    }
+
+    fn primitives_for(&self, _goal: &G, _input: &ReactiveInput<'_, W>) -> &'static [&'static str] {
+        &[]
+    }
+}
+
 /// Shortcuts an activation policy may take to the answers of its [`ActivationPolicy`]: never
 /// other answers, the same ones sooner (a reactive cycle has a few hundred microseconds). A
 /// multiplexer built with [`Multiplexer::with_shortcuts`] asks these; one built with
