@@ -27,4 +27,4 @@ pub use controller::{CYCLE, MotionConfig, MotionController};
 pub use gait::{GaitEngine, GaitError, GaitStep, NoGait};
 pub use joints::{JOINT_COUNT, Joint, JointArray};
 pub use keyframe::{KeyFrameSequence, MotionError, MotionLibrary, Player};
-pub use platform::{LolaConfig, LolaError, LolaPlatform, LolaStats, sensor_frame};
+pub use platform::{LolaConfig, LolaError, LolaPlatform, LolaStats, buttons, sensor_frame};

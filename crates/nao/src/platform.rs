@@ -29,6 +29,14 @@ use crate::gait::{GaitEngine, NoGait};
 use crate::joints::{Joint, head_pitch_limits};
 use crate::keyframe::{MotionError, MotionLibrary};
 
+/// The NAO's bits in [`Buttons::pressed`].
+pub mod buttons {
+    /// The chest button.
+    pub const CHEST: u32 = 1;
+    /// Any of the three head touch sensors.
+    pub const HEAD: u32 = 1 << 1;
+}
+
 /// The NAO v6 camera's horizontal field of view (56.3°), rad.
 pub const NAO_CAMERA_FOV: f64 = 0.9826;
 
@@ -382,7 +390,8 @@ impl Platform for LolaPlatform {
 ///   (x forward, y left, z up), with pitch positive leaning forward, as Strata's.
 /// - Head: LoLA's `HeadYaw` is left-positive and `HeadPitch` down-positive, as [`HeadAngles`].
 /// - Foot contact: the four FSRs of each foot summed (kg); a non-finite cell counts zero.
-/// - Buttons: the chest button, and any of the three head touch sensors.
+/// - Buttons: the chest button ([`buttons::CHEST`]), and any of the three head touch sensors
+///   ([`buttons::HEAD`]).
 ///
 /// A non-finite inertial value or head angle makes the frame malformed: a filter fed a NaN
 /// is lost for good.
@@ -418,10 +427,18 @@ pub fn sensor_frame(packet: &SensorPacket, stamp: Time) -> Result<SensorFrame, P
             right: pressure(&packet.fsr[4..]),
         },
         buttons: Buttons {
-            chest: pressed(touch::CHEST_BUTTON),
-            head: pressed(touch::HEAD_FRONT)
-                || pressed(touch::HEAD_MIDDLE)
-                || pressed(touch::HEAD_REAR),
+            pressed: [
+                (buttons::CHEST, pressed(touch::CHEST_BUTTON)),
+                (
+                    buttons::HEAD,
+                    pressed(touch::HEAD_FRONT)
+                        || pressed(touch::HEAD_MIDDLE)
+                        || pressed(touch::HEAD_REAR),
+                ),
+            ]
+            .into_iter()
+            .filter(|(_, down)| *down)
+            .fold(0, |mask, (bit, _)| mask | bit),
         },
         battery: charge.is_finite().then(|| f64::from(charge).clamp(0.0, 1.0)),
         camera: None,

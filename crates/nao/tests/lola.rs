@@ -64,7 +64,7 @@ fn sensors_arrive_in_strata_conventions() {
     assert_eq!(frame.inertial.body_angles[1], f64::from(packet.angles[1]));
     assert!((frame.foot_contact.left - 2.16).abs() < 1e-5);
     assert!((frame.foot_contact.right - 2.14).abs() < 1e-5);
-    assert!(frame.buttons.chest && frame.buttons.head);
+    assert!(frame.buttons.all(strata_nao::buttons::CHEST | strata_nao::buttons::HEAD));
     assert!((frame.head.yaw - 0.25).abs() < 1e-6 && (frame.head.pitch + 0.1).abs() < 1e-6);
     assert!((frame.battery.expect("battery") - 0.9).abs() < 1e-3);
     assert!(frame.camera.is_none());

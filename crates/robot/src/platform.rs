@@ -53,10 +53,24 @@ impl FootContact {
     }
 }
 
+/// The robot's buttons and touch sensors, pressed or not: bit `i` is the platform's button `i`,
+/// which the platform names (`strata_nao::buttons::CHEST`); the robot crate knows no body's
+/// buttons.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Buttons {
-    pub chest: bool,
-    pub head: bool,
+    pub pressed: u32,
+}
+
+impl Buttons {
+    /// Whether every button of `mask` is pressed.
+    pub fn all(self, mask: u32) -> bool {
+        self.pressed & mask == mask
+    }
+
+    /// Whether any button of `mask` is pressed.
+    pub fn any(self, mask: u32) -> bool {
+        self.pressed & mask != 0
+    }
 }
 
 /// One object reported by the camera.
