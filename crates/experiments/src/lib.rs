@@ -666,6 +666,13 @@ impl Scene {
         config.noise.preset = noise;
         config.referee.auto = false;
         config.referee.players_per_team = players;
+        // Perception runs on every frame its platform sends: robots that ask for another sensor
+        // rate than the simulator's (goal covering: the paper's 57 Hz) get a simulator that
+        // sends frames at it (the first robot's; its physics keeps steps of at most
+        // `max_substep`).
+        if let Some(hz) = robots.iter().find_map(|r| r.team.timing.perception.rate_hz) {
+            config.timing.sensor_period = 1.0 / hz;
+        }
         config.validate("experiment scene").context("simulator configuration")?;
         let mut simulation = Simulation::new(config).context("building the simulated world")?;
         let keep: Vec<RobotId> = robots.iter().map(|r| RobotId::new(0, r.player)).collect();

@@ -116,7 +116,9 @@ impl RobotPlatform {
     }
 
     /// The platform's ports, adding the robot's own edge modules (named after `prefix`,
-    /// reading every `period`) for a platform object.
+    /// reading every `period`) for a platform object. A platform module sends frames at its
+    /// own rate, which `period` does not change: the robot's perception runs on each of them
+    /// (the simulator's rate is `strata_sim::config::TimingConfig::sensor_period`).
     pub fn into_ports(
         self,
         graph: &mut GraphBuilder,

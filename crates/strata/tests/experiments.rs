@@ -109,6 +109,11 @@ fn goal_covering_smoke_through_the_command_line() {
         ],
     );
     assert_eq!(json["conditions"].as_array().map(Vec::len), Some(2), "two methods x one rate");
+    // The reactive layer runs on every percept, at the sensor rate the scenario asks for.
+    for condition in json["conditions"].as_array().into_iter().flatten() {
+        let hz = condition["reactive_hz"]["mean"].as_f64().expect("a measured reactive rate");
+        assert!((hz - 57.0).abs() < 0.5, "reactive layer at {hz} Hz, not the scenario's 57");
+    }
     let report = std::fs::read_to_string(out.join("report.md")).expect("report.md");
     assert_contains_all(
         "report.md",
