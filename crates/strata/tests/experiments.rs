@@ -504,7 +504,9 @@ fn every_built_in_scenario_loads() {
         ("referee", experiments::referee::DEFAULT_SCENARIO),
     ] {
         let on_disk = std::fs::read_to_string(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios").join(format!("{name}.toml")),
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../experiments/scenarios")
+                .join(format!("{name}.toml")),
         )
         .expect("shipped");
         assert_eq!(on_disk, text, "{name}: the embedded scenario is the shipped file");
