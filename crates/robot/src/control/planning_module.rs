@@ -93,9 +93,9 @@ pub trait ExternalDevice: Send {
         false
     }
 
-    /// Called every planning cycle before [`ExternalDevice::directive`], with the newest world state:
-    /// beliefs that expire with time (a whistle the packets never confirmed) or read the
-    /// world (where the ball went before a goal's whistle).
+    /// Called every planning cycle before [`ExternalDevice::directive`], with the newest world
+    /// state: beliefs that expire with time (a whistle the packets never confirmed) or read
+    /// the world (where the ball went before a goal's whistle).
     fn update(&mut self, _now: Time, _world: Option<&WorldState>) {}
 }
 

@@ -99,11 +99,11 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
     /// One reactive cycle on the newest percepts, for a caller that numbers the world states
     /// it receives: `world` is the one numbered `revision`. A cycle on the revision of the
     /// previous cycle reuses the answers of activation policies with a reuse key
-    /// ([`ActivationPolicy::reuse_key`]) if their key is the same too: they are the answers
+    /// ([`ActivationShortcuts::reuse_key`]) if their key is the same too: they are the answers
     /// the policies would give again. The fall detector, the ranking with its hysteresis and
     /// the primitives run every cycle.
     ///
-    /// [`ActivationPolicy::reuse_key`]: super::ActivationPolicy::reuse_key
+    /// [`ActivationShortcuts::reuse_key`]: super::ActivationShortcuts::reuse_key
     pub fn step_on_revision(
         &mut self,
         now: Time,
