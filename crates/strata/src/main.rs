@@ -180,7 +180,7 @@ mod tests {
             .expect("parses");
         let Command::Robot(args) = cli.command else { panic!("not the robot command") };
         assert_eq!(
-            args.options(),
+            args.options,
             strata_games::robot::RobotOptions::new(3, 2, strata_games::robot::PlatformKind::Sim)
         );
     }

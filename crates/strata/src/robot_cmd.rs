@@ -3,8 +3,6 @@
 //! simulator's test controller. This file parses the options and prints what the robot tells:
 //! text for people, JSON lines for programs. `docs/robot.md` has the commands.
 
-use std::net::Ipv4Addr;
-use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::{Result, bail};
@@ -13,10 +11,7 @@ use serde::Serialize;
 use strata_games::robot::{
     self, GameEvent, PlatformKind, Report, RobotOptions, RobotOutput, StartInfo, Status,
 };
-use strata_log::LogCompression;
-use strata_nao::DEFAULT_SOCKET_PATH;
 use strata_rcssmj::platform::FALL_ONSET_TILT;
-use strata_runtime::Encoding;
 
 use crate::sim_cmd;
 
@@ -33,204 +28,40 @@ pub enum ControllerKind {
 /// `strata robot`.
 #[derive(Debug, Args)]
 pub struct RobotArgs {
-    /// Team number, as in GameController packets (the simulator's default teams: 10 and 20).
-    #[arg(long)]
-    pub team: u8,
-    /// Player number (1 is the goalkeeper in the built-in formations).
-    #[arg(long)]
-    pub player: u8,
-    #[arg(long, value_enum, default_value = "sim")]
-    pub platform: PlatformKind,
+    /// Everything the library runs a robot with.
+    #[command(flatten)]
+    pub options: RobotOptions,
     #[arg(long, value_enum, default_value = "soccer")]
     pub controller: ControllerKind,
-    /// A built-in team (full, no-coordination, no-active-vision, always-ball, fixed-scan,
-    /// entropy) or a team TOML file.
-    #[arg(long, default_value = "full")]
-    pub team_config: String,
-    /// The simulator server (platform sim) [default: 127.0.0.1:7500], or rcssservermj's agent
-    /// port (platform rcssservermj) [default: 127.0.0.1:60000].
-    #[arg(long, value_name = "ADDR")]
-    pub server: Option<String>,
-    /// LoLA's socket (platform nao).
-    #[arg(long, value_name = "PATH", default_value = DEFAULT_SOCKET_PATH)]
-    pub socket: PathBuf,
-    /// LoLA platform configuration (TOML, docs/nao.md), platform nao.
-    #[arg(long, value_name = "FILE")]
-    pub lola_config: Option<PathBuf>,
-    /// The team's name in rcssservermj (platform rcssservermj) [default: Strata<team>].
-    #[arg(long, value_name = "NAME")]
-    pub team_name: Option<String>,
-    /// rcssservermj platform configuration (TOML, docs/rcssservermj.md): camera model, walk
-    /// limits, pacing.
-    #[arg(long, value_name = "FILE")]
-    pub rcss_config: Option<PathBuf>,
-    /// Where the server places the robot before kick-off (platform rcssservermj): x, y in
-    /// metres in the team's frame and a heading in degrees, e.g. `--beam=-3,0,0`.
-    #[arg(long, value_name = "X,Y,DEG", value_parser = parse_beam, allow_hyphen_values = true)]
-    pub beam: Option<[f64; 3]>,
-    /// Field preset (spl, paper2010, rcssservermj) or field TOML file; must be the
-    /// simulator's [default: rcssservermj on that platform, spl elsewhere].
-    #[arg(long)]
-    pub field: Option<String>,
-    /// Length of a half, s (paces team messages within the budget).
-    #[arg(long, default_value_t = 600.0)]
-    pub half_duration: f64,
-    /// The field direction this team attacks, +1 or -1 [default: from the first GameController
-    /// packet — the team listed first attacks +x in the first half — or +1 without one].
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_sign)]
-    pub attack_sign: Option<f64>,
-    /// Seconds to wait for a first GameController packet at start (to learn the attack
-    /// direction); 0 to start at once.
-    #[arg(long, value_name = "SECS", default_value_t = 2.0)]
-    pub gc_wait: f64,
-
-    /// Game state and team messages over UDP, as on a real field (implied on a NAO).
-    #[arg(long)]
-    pub net: bool,
-    /// Team messages over UDP while the platform keeps the game state (rcssservermj: its
-    /// referee): the server carries no message of Strata's size. `--team-port`, `--broadcast`
-    /// and `--interface` apply.
-    #[arg(long, conflicts_with = "net")]
-    pub team_udp: bool,
-    /// The robot's field interface as ADDRESS/PREFIX (e.g. 10.0.18.15/16): team messages go to
-    /// its directed broadcast address instead of 255.255.255.255.
-    #[arg(long, value_name = "ADDR/PREFIX", conflicts_with = "broadcast")]
-    pub interface: Option<String>,
-    /// Where team messages are broadcast (127.255.255.255: several robots on one machine).
-    #[arg(long, value_name = "ADDR")]
-    pub broadcast: Option<Ipv4Addr>,
-    /// UDP port of GameController control packets [default: 3838].
-    #[arg(long, value_name = "PORT")]
-    pub gc_port: Option<u16>,
-    /// UDP port the GameController receives return packets on [default: 3939].
-    #[arg(long, value_name = "PORT")]
-    pub gc_return_port: Option<u16>,
-    /// UDP port of the team's messages [default: 10000 + team].
-    #[arg(long, value_name = "PORT")]
-    pub team_port: Option<u16>,
-
-    /// Stop after this many seconds (default: until Ctrl-C or the platform goes away).
-    #[arg(long, value_name = "SECS")]
-    pub duration: Option<f64>,
-    /// Seconds between status lines.
-    #[arg(long, value_name = "SECS", default_value_t = 2.0)]
-    pub status_interval: f64,
-    /// Seeds the modules' random numbers [default: 100 x team + player].
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Real-time priority (SCHED_FIFO, 1-99) of the sensor path's threads (perception, world
-    /// modeling, reactive layer, actuation), so that a long deliberative cycle cannot delay
-    /// them when no core is free; 0: the operating system's default policy for every thread.
-    /// Without the permission (root or CAP_SYS_NICE) the robot says so and runs with the
-    /// default policy.
-    #[arg(long, value_name = "PRIORITY", default_value_t = 10,
-          value_parser = clap::value_parser!(u8).range(0..=99))]
-    pub real_time_priority: u8,
     /// Print JSON lines (start, game-state changes, status, final report) instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Record every package of this robot into this MCAP file, with its graph, seed and team
-    /// configuration (docs/logging.md). A module never waits for the disk: what the writer
-    /// cannot keep up with is dropped, counted and reported.
-    #[arg(long, value_name = "FILE.mcap")]
-    pub log: Option<PathBuf>,
-    /// How the log's chunks are compressed: zstd, lz4 or none.
-    #[arg(long, value_name = "zstd|lz4|none", default_value = "zstd", requires = "log")]
-    pub log_compression: LogCompression,
-    /// How package values are encoded: cdr (compact), msgpack or json.
-    #[arg(long, value_name = "cdr|msgpack|json", default_value = "cdr", requires = "log")]
-    pub log_encoding: Encoding,
-    /// Do not sync each chunk of the log to the disk once written. Synced (the default), a
-    /// power cut or a crash of the machine loses at most the chunk being gathered (half a
-    /// second); unsynced, whatever the operating system had not yet written.
-    #[arg(long, requires = "log")]
-    pub log_no_sync: bool,
-    /// Split the log into files of about this many megabytes: past it, at the end of a chunk,
-    /// the file is finished and the log goes on in FILE-1.mcap, FILE-2.mcap..., each file a
-    /// whole log (its graph, run and configuration included).
-    #[arg(long, value_name = "MB", requires = "log",
-          value_parser = clap::value_parser!(u64).range(1..))]
-    pub log_max_size: Option<u64>,
-}
-
-impl RobotArgs {
-    /// The library's options: the same fields, without the command line's own.
-    pub fn options(&self) -> RobotOptions {
-        RobotOptions {
-            team: self.team,
-            player: self.player,
-            platform: self.platform,
-            team_config: self.team_config.clone(),
-            server: self.server.clone(),
-            socket: self.socket.clone(),
-            lola_config: self.lola_config.clone(),
-            team_name: self.team_name.clone(),
-            rcss_config: self.rcss_config.clone(),
-            beam: self.beam,
-            field: self.field.clone(),
-            half_duration: self.half_duration,
-            attack_sign: self.attack_sign,
-            gc_wait: self.gc_wait,
-            net: self.net,
-            team_udp: self.team_udp,
-            interface: self.interface.clone(),
-            broadcast: self.broadcast,
-            gc_port: self.gc_port,
-            gc_return_port: self.gc_return_port,
-            team_port: self.team_port,
-            duration: self.duration,
-            status_interval: self.status_interval,
-            seed: self.seed,
-            real_time_priority: self.real_time_priority,
-            log: self.log.clone(),
-            log_compression: self.log_compression,
-            log_encoding: self.log_encoding,
-            log_no_sync: self.log_no_sync,
-            log_max_size: self.log_max_size,
-        }
-    }
-}
-
-fn parse_beam(text: &str) -> Result<[f64; 3], String> {
-    let values: Vec<f64> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("`{v}` is not a number")))
-        .collect::<Result<_, _>>()?;
-    match values[..] {
-        [x, y, degrees] if values.iter().all(|v| v.is_finite()) => Ok([x, y, degrees.to_radians()]),
-        _ => Err(format!("expected X,Y,DEG (three numbers), got `{text}`")),
-    }
-}
-
-fn parse_sign(text: &str) -> Result<f64, String> {
-    match text.trim() {
-        "1" | "+1" | "+" => Ok(1.0),
-        "-1" | "-" => Ok(-1.0),
-        other => Err(format!("expected +1 or -1, got `{other}`")),
-    }
 }
 
 /// Runs one robot until Ctrl-C, `--duration` or the end of its platform.
 pub fn run(args: RobotArgs) -> Result<()> {
-    let options = args.options();
-    robot::validate(&options)?;
+    let options = &args.options;
+    robot::validate(options)?;
     if args.controller == ControllerKind::Test {
         return run_test_controller(&args);
     }
-    let out: Arc<dyn RobotOutput> =
-        Arc::new(Output { json: args.json, name: format!("robot {}/{}", args.team, args.player) });
-    robot::run(&options, &out)
+    let out: Arc<dyn RobotOutput> = Arc::new(Output {
+        json: args.json,
+        name: format!("robot {}/{}", options.team, options.player),
+    });
+    robot::run(options, &out)
 }
 
 /// The simulator's test controller, through the simulator server.
 fn run_test_controller(args: &RobotArgs) -> Result<()> {
-    if args.platform != PlatformKind::Sim {
+    let options = &args.options;
+    if options.platform != PlatformKind::Sim {
         bail!("--controller test runs against the simulator server only");
     }
-    if args.log.is_some() {
+    if options.log.is_some() {
         bail!("--log records the modules of the full architecture: not with --controller test");
     }
-    if args.net {
+    if options.net {
         bail!(
             "--controller test reads the game state from the simulator server; run it without --net"
         );
@@ -239,11 +70,11 @@ fn run_test_controller(args: &RobotArgs) -> Result<()> {
         bail!("--json is not available with --controller test");
     }
     sim_cmd::run_robot_test_controller(sim_cmd::RobotArgs {
-        server: args.server.clone().unwrap_or_else(|| sim_cmd::DEFAULT_ADDR.to_owned()),
-        team: args.team,
-        player: args.player,
-        duration: args.duration,
-        status_interval: args.status_interval,
+        server: options.server.clone().unwrap_or_else(|| sim_cmd::DEFAULT_ADDR.to_owned()),
+        team: options.team,
+        player: options.player,
+        duration: options.duration,
+        status_interval: options.status_interval,
     })
 }
 

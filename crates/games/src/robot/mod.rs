@@ -94,71 +94,123 @@ pub enum PlatformKind {
     Rcssservermj,
 }
 
-/// How one robot runs: what `strata robot`'s options say, field for field (`--team-config`
-/// is `team_config`), with the same defaults ([`RobotOptions::new`]).
-#[derive(Clone, Debug, PartialEq)]
+/// How one robot runs: `strata robot`'s options, which the command line parses into this
+/// struct (its help is these fields' documentation). A program fills it in from
+/// [`RobotOptions::new`], which has the same defaults.
+#[derive(Clone, Debug, PartialEq, clap::Args)]
 pub struct RobotOptions {
-    /// Team number, as in GameController packets.
+    /// Team number, as in GameController packets (the simulator's default teams: 10 and 20).
+    #[arg(long)]
     pub team: u8,
     /// Player number (1 is the goalkeeper in the built-in formations).
+    #[arg(long)]
     pub player: u8,
+    #[arg(long, value_enum, default_value = "sim")]
     pub platform: PlatformKind,
-    /// A built-in team (full, no-coordination, ...) or a team TOML file.
+    /// A built-in team (full, no-coordination, no-active-vision, always-ball, fixed-scan,
+    /// entropy) or a team TOML file.
+    #[arg(long, default_value = "full")]
     pub team_config: String,
     /// The simulator server (platform sim) [default: 127.0.0.1:7500], or rcssservermj's agent
     /// port (platform rcssservermj) [default: 127.0.0.1:60000].
+    #[arg(long, value_name = "ADDR")]
     pub server: Option<String>,
     /// LoLA's socket (platform nao).
+    #[arg(long, value_name = "PATH", default_value = strata_nao::DEFAULT_SOCKET_PATH)]
     pub socket: PathBuf,
-    /// LoLA platform configuration (TOML), platform nao.
+    /// LoLA platform configuration (TOML, docs/nao.md), platform nao.
+    #[arg(long, value_name = "FILE")]
     pub lola_config: Option<PathBuf>,
-    /// The team's name in rcssservermj [default: Strata<team>].
+    /// The team's name in rcssservermj (platform rcssservermj) [default: Strata<team>].
+    #[arg(long, value_name = "NAME")]
     pub team_name: Option<String>,
-    /// rcssservermj platform configuration (TOML).
+    /// rcssservermj platform configuration (TOML, docs/rcssservermj.md): camera model, walk
+    /// limits, pacing.
+    #[arg(long, value_name = "FILE")]
     pub rcss_config: Option<PathBuf>,
     /// Where the server places the robot before kick-off (platform rcssservermj): x, y in
-    /// metres in the team's frame and a heading in radians.
+    /// metres in the team's frame and a heading in degrees, e.g. `--beam=-3,0,0`.
+    #[arg(long, value_name = "X,Y,DEG", value_parser = parse_beam, allow_hyphen_values = true)]
     pub beam: Option<[f64; 3]>,
-    /// Field preset or field TOML file [default: rcssservermj on that platform, spl elsewhere].
+    /// Field preset (spl, paper2010, rcssservermj) or field TOML file; must be the
+    /// simulator's [default: rcssservermj on that platform, spl elsewhere].
+    #[arg(long)]
     pub field: Option<String>,
     /// Length of a half, s (paces team messages within the budget).
+    #[arg(long, default_value_t = 600.0)]
     pub half_duration: f64,
-    /// The field direction this team attacks, +1 or -1 [default: from the first
-    /// GameController packet, or +1 without one].
+    /// The field direction this team attacks, +1 or -1 [default: from the first GameController
+    /// packet — the team listed first attacks +x in the first half — or +1 without one].
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_sign)]
     pub attack_sign: Option<f64>,
-    /// Seconds to wait for a first GameController packet at start; 0 to start at once.
+    /// Seconds to wait for a first GameController packet at start (to learn the attack
+    /// direction); 0 to start at once.
+    #[arg(long, value_name = "SECS", default_value_t = 2.0)]
     pub gc_wait: f64,
+
     /// Game state and team messages over UDP, as on a real field (implied on a NAO).
+    #[arg(long)]
     pub net: bool,
-    /// Team messages over UDP while the platform keeps the game state (rcssservermj).
+    /// Team messages over UDP while the platform keeps the game state (rcssservermj: its
+    /// referee): the server carries no message of Strata's size. `--team-port`, `--broadcast`
+    /// and `--interface` apply.
+    #[arg(long, conflicts_with = "net")]
     pub team_udp: bool,
-    /// The robot's field interface as ADDRESS/PREFIX: team messages go to its directed
-    /// broadcast address.
+    /// The robot's field interface as ADDRESS/PREFIX (e.g. 10.0.18.15/16): team messages go to
+    /// its directed broadcast address instead of 255.255.255.255.
+    #[arg(long, value_name = "ADDR/PREFIX", conflicts_with = "broadcast")]
     pub interface: Option<String>,
-    /// Where team messages are broadcast [default: 255.255.255.255].
+    /// Where team messages are broadcast (127.255.255.255: several robots on one machine).
+    #[arg(long, value_name = "ADDR")]
     pub broadcast: Option<Ipv4Addr>,
     /// UDP port of GameController control packets [default: 3838].
+    #[arg(long, value_name = "PORT")]
     pub gc_port: Option<u16>,
     /// UDP port the GameController receives return packets on [default: 3939].
+    #[arg(long, value_name = "PORT")]
     pub gc_return_port: Option<u16>,
     /// UDP port of the team's messages [default: 10000 + team].
+    #[arg(long, value_name = "PORT")]
     pub team_port: Option<u16>,
-    /// Stop after this many seconds [default: until Ctrl-C or the platform goes away].
+
+    /// Stop after this many seconds (default: until Ctrl-C or the platform goes away).
+    #[arg(long, value_name = "SECS")]
     pub duration: Option<f64>,
     /// Seconds between status lines.
+    #[arg(long, value_name = "SECS", default_value_t = 2.0)]
     pub status_interval: f64,
     /// Seeds the modules' random numbers [default: 100 x team + player].
+    #[arg(long)]
     pub seed: Option<u64>,
-    /// Real-time priority (SCHED_FIFO, 1-99) of the sensor path's threads; 0: the operating
-    /// system's default policy.
+    /// Real-time priority (SCHED_FIFO, 1-99) of the sensor path's threads (perception, world
+    /// modeling, reactive layer, actuation), so that a long deliberative cycle cannot delay
+    /// them when no core is free; 0: the operating system's default policy for every thread.
+    /// Without the permission (root or CAP_SYS_NICE) the robot says so and runs with the
+    /// default policy.
+    #[arg(long, value_name = "PRIORITY", default_value_t = 10,
+          value_parser = clap::value_parser!(u8).range(0..=99))]
     pub real_time_priority: u8,
-    /// Record every package of this robot into this MCAP file.
+    /// Record every package of this robot into this MCAP file, with its graph, seed and team
+    /// configuration (docs/logging.md). A module never waits for the disk: what the writer
+    /// cannot keep up with is dropped, counted and reported.
+    #[arg(long, value_name = "FILE.mcap")]
     pub log: Option<PathBuf>,
+    /// How the log's chunks are compressed: zstd, lz4 or none.
+    #[arg(long, value_name = "zstd|lz4|none", default_value = "zstd", requires = "log")]
     pub log_compression: LogCompression,
+    /// How package values are encoded: cdr (compact), msgpack or json.
+    #[arg(long, value_name = "cdr|msgpack|json", default_value = "cdr", requires = "log")]
     pub log_encoding: Encoding,
-    /// Do not sync each chunk of the log to the disk once written.
+    /// Do not sync each chunk of the log to the disk once written. Synced (the default), a
+    /// power cut or a crash of the machine loses at most the chunk being gathered (half a
+    /// second); unsynced, whatever the operating system had not yet written.
+    #[arg(long, requires = "log")]
     pub log_no_sync: bool,
-    /// Split the log into files of about this many megabytes.
+    /// Split the log into files of about this many megabytes: past it, at the end of a chunk,
+    /// the file is finished and the log goes on in FILE-1.mcap, FILE-2.mcap..., each file a
+    /// whole log (its graph, run and configuration included).
+    #[arg(long, value_name = "MB", requires = "log",
+          value_parser = clap::value_parser!(u64).range(1..))]
     pub log_max_size: Option<u64>,
 }
 
@@ -482,6 +534,25 @@ fn log_note(summary: &LogSummary) -> String {
         ),
         [only] => format!("log: {} ({counts})", only.display()),
         [] => format!("log: ({counts})"),
+    }
+}
+
+fn parse_beam(text: &str) -> Result<[f64; 3], String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>().map_err(|_| format!("`{v}` is not a number")))
+        .collect::<Result<_, _>>()?;
+    match values[..] {
+        [x, y, degrees] if values.iter().all(|v| v.is_finite()) => Ok([x, y, degrees.to_radians()]),
+        _ => Err(format!("expected X,Y,DEG (three numbers), got `{text}`")),
+    }
+}
+
+fn parse_sign(text: &str) -> Result<f64, String> {
+    match text.trim() {
+        "1" | "+1" | "+" => Ok(1.0),
+        "-1" | "-" => Ok(-1.0),
+        other => Err(format!("expected +1 or -1, got `{other}`")),
     }
 }
 
