@@ -20,7 +20,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use strata_robot::command::{MotionCommands, WholeBodyCommand};
 use strata_robot::control::reactive::ReactiveReport;
-use strata_robot::geometry::{Field as FieldFrame, Point, Pose, normalize_angle};
+use strata_robot::geometry::{Global as FieldFrame, Point, Pose, normalize_angle};
 use strata_robot::platform::{BodyMotionState, SpecialMotion};
 use strata_runtime::{Package, Tap, TapRecord};
 use strata_sim::{BallScript, EventKind, FallDirection, NoiseLevel, RobotId};

@@ -21,7 +21,7 @@ use anyhow::{Result, anyhow};
 use serde::{Deserialize, Serialize};
 use strata_robot::control::reactive::ReactiveReport;
 use strata_robot::control::scores::Goal as _;
-use strata_robot::geometry::{Field as FieldFrame, Point, Pose};
+use strata_robot::geometry::{Global as FieldFrame, Point, Pose};
 use strata_robot::world::WorldState;
 use strata_runtime::{Package, Tap, TapRecord};
 use strata_sim::{BallScript, NoiseLevel};
@@ -354,7 +354,7 @@ impl Tap for KeeperTap {
             let mut latest = self.latest.lock().unwrap_or_else(|e| e.into_inner());
             latest.ball_known = ball.is_some_and(|b| b.known);
             latest.ball_confidence = ball.map_or(0.0, |b| b.confidence);
-            latest.ball_estimate = ball.filter(|b| b.known).map(|b| b.field_position);
+            latest.ball_estimate = ball.filter(|b| b.known).map(|b| b.global_position);
             latest.pose = Some(p.value.pose.pose);
         }
     }

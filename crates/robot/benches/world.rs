@@ -10,7 +10,7 @@ use criterion::Criterion;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use strata_robot::geometry::{Field, Odometry, Point, Pose};
+use strata_robot::geometry::{Global, Odometry, Point, Pose};
 use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use strata_robot::platform::ObjectClass;
 use strata_robot::world::{
@@ -22,7 +22,7 @@ use strata_runtime::Time;
 const BALL: ObjectClass = ObjectClass(1);
 const DT: f64 = 1.0 / 30.0;
 
-fn landmarks() -> Vec<(&'static str, ObjectClass, Vec<Point<Field>>)> {
+fn landmarks() -> Vec<(&'static str, ObjectClass, Vec<Point<Global>>)> {
     let p = |x: f64, y: f64| Point::new(x, y);
     vec![
         (
@@ -68,7 +68,7 @@ fn config() -> WorldModelConfig {
 fn frames(n: usize) -> Vec<Percepts> {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let pose = Pose::new(0.5, 0.3, 0.1);
-    let all: Vec<(ObjectClass, Point<Field>)> = landmarks()
+    let all: Vec<(ObjectClass, Point<Global>)> = landmarks()
         .into_iter()
         .flat_map(|(_, class, positions)| positions.into_iter().map(move |p| (class, p)))
         .chain([(BALL, Point::new(1.5, -0.4))])

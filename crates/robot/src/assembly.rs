@@ -137,7 +137,7 @@ impl RobotTiming {
 pub struct RobotParts<A: Application> {
     /// Prefix of the module names (`"blue/3"` gives `"blue/3/reactive"`...).
     pub name: String,
-    pub player: u8,
+    pub member: u8,
     pub platform: RobotPlatform,
     pub perception: PerceptionConfig,
     pub world: WorldModelConfig,
@@ -160,7 +160,7 @@ impl<A: Application> std::fmt::Debug for RobotParts<A> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RobotParts")
             .field("name", &self.name)
-            .field("player", &self.player)
+            .field("member", &self.member)
             .finish_non_exhaustive()
     }
 }
@@ -337,10 +337,10 @@ pub fn add_robot<A: Application>(
     let links = Links { team: parts.team_link, external: parts.external_link };
     let (links_in, links_out) =
         add_link_edge(graph, &parts.name, links, timing.planning.period(10.0));
-    let (player, planner, codec, device, shared) =
-        (parts.player, parts.planner, parts.codec, parts.device, parts.shared_objects);
+    let (member, planner, codec, device, shared) =
+        (parts.member, parts.planner, parts.codec, parts.device, parts.shared_objects);
     let planning = add_planning(graph, &names.planning, &timing.planning, |ports| {
-        PlanningModule::new(player, planner, codec, device, ports, shared)
+        PlanningModule::new(member, planner, codec, device, ports, shared)
     });
 
     graph.connect(links_in.inbox, planning.inbox);

@@ -1,7 +1,8 @@
-//! Plane geometry with frames in the type: a point in the field frame cannot be mistaken for
+//! Plane geometry with frames in the type: a point in the global frame cannot be mistaken for
 //! one relative to the robot. SI units throughout: metres, radians, seconds.
 //!
-//! - `Field`: origin at the centre of the field, x towards the opponent goal, y to the left.
+//! - `Global`: the frame of the map the robot localizes in; the application places it (soccer:
+//!   the centre of the field, x towards the opponent goal, y to the left).
 //! - `Robot`: origin between the robot's feet, x forward, y to the left.
 
 use std::f64::consts::PI;
@@ -11,9 +12,9 @@ use std::ops::{Add, Mul, Neg, Sub};
 
 use serde::{Deserialize, Serialize};
 
-/// The field frame.
+/// The global frame: the map's.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Field;
+pub struct Global;
 
 /// The robot's own frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -213,12 +214,12 @@ impl Pose {
         Pose { x, y, theta: normalize_angle(theta) }
     }
 
-    pub fn position(&self) -> Point<Field> {
+    pub fn position(&self) -> Point<Global> {
         Point::new(self.x, self.y)
     }
 
     /// Where a field point appears relative to this robot.
-    pub fn to_robot(&self, point: Point<Field>) -> Point<Robot> {
+    pub fn to_robot(&self, point: Point<Global>) -> Point<Robot> {
         let (s, c) = self.theta.sin_cos();
         let dx = point.x - self.x;
         let dy = point.y - self.y;
@@ -226,24 +227,24 @@ impl Pose {
     }
 
     /// Where a point seen by this robot lies on the field.
-    pub fn to_field(&self, point: Point<Robot>) -> Point<Field> {
+    pub fn to_global(&self, point: Point<Robot>) -> Point<Global> {
         let (s, c) = self.theta.sin_cos();
         Point::new(self.x + c * point.x - s * point.y, self.y + s * point.x + c * point.y)
     }
 
-    pub fn vector_to_field(&self, v: Vector<Robot>) -> Vector<Field> {
+    pub fn vector_to_global(&self, v: Vector<Robot>) -> Vector<Global> {
         let r = v.rotated(self.theta);
         Vector::new(r.x, r.y)
     }
 
-    pub fn vector_to_robot(&self, v: Vector<Field>) -> Vector<Robot> {
+    pub fn vector_to_robot(&self, v: Vector<Global>) -> Vector<Robot> {
         let r = v.rotated(-self.theta);
         Vector::new(r.x, r.y)
     }
 
     /// The pose after moving by `step`, expressed in this pose's own frame (odometry).
     pub fn moved(&self, step: Odometry) -> Pose {
-        let p = self.to_field(Point::new(step.dx, step.dy));
+        let p = self.to_global(Point::new(step.dx, step.dy));
         Pose::new(p.x, p.y, self.theta + step.dtheta)
     }
 
@@ -399,8 +400,8 @@ mod tests {
     #[test]
     fn field_and_robot_frames_are_inverse() {
         let pose = Pose::new(1.0, -2.0, 0.7);
-        let p = Point::<Field>::new(3.0, 0.5);
-        let back = pose.to_field(pose.to_robot(p));
+        let p = Point::<Global>::new(3.0, 0.5);
+        let back = pose.to_global(pose.to_robot(p));
         assert_relative_eq!(back.x, p.x, epsilon = 1e-12);
         assert_relative_eq!(back.y, p.y, epsilon = 1e-12);
         // A robot at the origin facing +y sees a point at (0, 1) straight ahead.
@@ -438,8 +439,8 @@ mod tests {
 
     #[test]
     fn segments_intersect_and_project() {
-        let a = Segment::<Field>::new(Point::new(0.0, 0.0), Point::new(2.0, 0.0));
-        let b = Segment::<Field>::new(Point::new(1.0, -1.0), Point::new(1.0, 1.0));
+        let a = Segment::<Global>::new(Point::new(0.0, 0.0), Point::new(2.0, 0.0));
+        let b = Segment::<Global>::new(Point::new(1.0, -1.0), Point::new(1.0, 1.0));
         let x = a.intersection(&b).map(|p| (p.x, p.y));
         assert_eq!(x, Some((1.0, 0.0)));
         assert_relative_eq!(a.distance_to(Point::new(3.0, 1.0)), 2f64.sqrt());

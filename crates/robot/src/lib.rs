@@ -17,4 +17,4 @@ pub mod perception;
 pub mod platform;
 pub mod world;
 
-pub use geometry::{Field, Odometry, Point, Pose, Robot, Vector, Velocity, normalize_angle};
+pub use geometry::{Global, Odometry, Point, Pose, Robot, Vector, Velocity, normalize_angle};

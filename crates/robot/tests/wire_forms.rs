@@ -157,11 +157,11 @@ fn commands_and_platform_states_are_tagged_in_text_and_positional_in_cdr() {
 
 #[test]
 fn symmetry_hints_are_tagged_in_text_and_positional_in_cdr() {
-    use strata_robot::world::{FieldRegion, PosePrior, SymmetryHint, WorldCommand};
+    use strata_robot::world::{PosePrior, Region, SymmetryHint, WorldCommand};
     let prior = PosePrior { pose: strata_robot::Pose::new(-3.0, 0.0, 0.0), sigma: [0.2, 0.2, 0.1] };
     let hints = vec![
         SymmetryHint::Region {
-            region: FieldRegion { min_x: -4.5, max_x: 0.0, min_y: -3.0, max_y: 3.0 },
+            region: Region { min_x: -4.5, max_x: 0.0, min_y: -3.0, max_y: 3.0 },
         },
         SymmetryHint::Heading { theta: 0.0, sigma: 0.5 },
         SymmetryHint::NearPoses { poses: vec![prior] },

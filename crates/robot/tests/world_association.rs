@@ -48,10 +48,10 @@ fn patrol_with_clutter(seed: u64, false_positive_rate: f64) -> Outcome {
         let map = post.map_position.expect("a landmark");
         let age = post.last_seen.map_or(f64::INFINITY, |t| (state.stamp - t).as_secs_f64());
         assert!(
-            age > 2.0 || post.field_position.distance(map) < 0.5,
+            age > 2.0 || post.global_position.distance(map) < 0.5,
             "seed {seed}: {} at {:?}, map {:?}",
             post.name,
-            post.field_position,
+            post.global_position,
             map
         );
     }
@@ -97,7 +97,7 @@ fn false_positives_do_not_corrupt_the_landmarks_the_pose_or_the_ball() {
 fn observation(
     class: strata_robot::platform::ObjectClass,
     pose: &Pose,
-    at: Point<strata_robot::geometry::Field>,
+    at: Point<strata_robot::geometry::Global>,
 ) -> Observation {
     let p = pose.to_robot(at);
     Observation {
@@ -142,8 +142,8 @@ fn identical_goal_posts_are_told_apart_by_the_pose_and_the_map() {
     let p0 = state.object("goal_post#0").expect("configured");
     let p1 = state.object("goal_post#1").expect("configured");
     assert!(p0.known && p1.known);
-    assert!(p0.field_position.distance(Point::new(4.5, 0.8)) < 0.15, "{:?}", p0.field_position);
-    assert!(p1.field_position.distance(Point::new(4.5, -0.8)) < 0.15, "{:?}", p1.field_position);
+    assert!(p0.global_position.distance(Point::new(4.5, 0.8)) < 0.15, "{:?}", p0.global_position);
+    assert!(p1.global_position.distance(Point::new(4.5, -0.8)) < 0.15, "{:?}", p1.global_position);
     assert!(!state.object("goal_post#2").expect("configured").tracked);
     assert!(!state.object("goal_post#3").expect("configured").tracked);
     let e = pose_error(&state.pose.pose, &truth);
@@ -193,14 +193,14 @@ fn variants_tell_coloured_goals_apart() {
     let cfg = WorldModelConfig {
         objects: vec![goal("yellow_post", 1, 3.0), goal("blue_post", 2, -3.0)],
         pose: strata_robot::world::PoseConfig {
-            field_bounds: Some(world_support::bounds()),
+            bounds: Some(world_support::bounds()),
             ..Default::default()
         },
         ..WorldModelConfig::default()
     };
     let mut world = WorldModel::new(cfg).expect("valid config");
     let pose = Pose::new(1.0, 0.0, std::f64::consts::PI);
-    let seen = |variant: u16, at: Point<strata_robot::geometry::Field>| Observation {
+    let seen = |variant: u16, at: Point<strata_robot::geometry::Global>| Observation {
         variant: Some(variant),
         ..observation(POST, &pose, at)
     };

@@ -2,7 +2,7 @@
 //! list published before when no reader holds it any more and shares per-publication work
 //! between objects (the heading's trigonometry, the estimate of objects nothing locates). It
 //! must give [`WorldModel::state`]'s world state bit for bit, never change a list a reader
-//! still holds, and place velocities on the field as [`Pose::vector_to_field`] does.
+//! still holds, and place velocities on the field as [`Pose::vector_to_global`] does.
 
 mod world_support;
 
@@ -15,11 +15,11 @@ use world_support::{kidnapped_patrol, state_text};
 
 fn check_velocities_on_the_field(state: &WorldState) {
     for o in state.objects.iter() {
-        let expected = o.velocity.map(|v| state.pose.pose.vector_to_field(v));
-        let bits = |v: Option<strata_robot::geometry::Vector<strata_robot::geometry::Field>>| {
+        let expected = o.velocity.map(|v| state.pose.pose.vector_to_global(v));
+        let bits = |v: Option<strata_robot::geometry::Vector<strata_robot::geometry::Global>>| {
             v.map(|v| (v.x.to_bits(), v.y.to_bits()))
         };
-        assert_eq!(bits(o.field_velocity), bits(expected), "{}", o.name);
+        assert_eq!(bits(o.global_velocity), bits(expected), "{}", o.name);
     }
 }
 

@@ -5,9 +5,7 @@ mod world_support;
 
 use strata_robot::geometry::{Odometry, Pose};
 use strata_robot::platform::FootContact;
-use strata_robot::world::{
-    FieldRegion, LostReason, PosePrior, SymmetryHint, WorldCommand, WorldModel,
-};
+use strata_robot::world::{LostReason, PosePrior, Region, SymmetryHint, WorldCommand, WorldModel};
 use world_support::{DT, Sim, config, nees3, own_half, patrol_step, pose_error};
 
 /// A normalized pose error (3 dof) that a consistent filter exceeds with probability below
@@ -147,7 +145,7 @@ fn a_hint_localizes_a_robot_that_starts_anywhere() {
                 .objects
                 .iter()
                 .filter(|o| o.known)
-                .map(|o| (&o.name, o.field_position, o.last_seen))
+                .map(|o| (&o.name, o.global_position, o.last_seen))
                 .collect::<Vec<_>>()
         );
         worst = worst.max(frame as f64 * DT);
@@ -249,7 +247,7 @@ fn commands_set_the_pose_and_reset_the_model() {
     assert_eq!(error.field, "command.prior.sigma[1]");
     let bad = WorldCommand::SetHints {
         hints: vec![SymmetryHint::Region {
-            region: FieldRegion { min_x: 1.0, max_x: 0.0, min_y: 0.0, max_y: 1.0 },
+            region: Region { min_x: 1.0, max_x: 0.0, min_y: 0.0, max_y: 1.0 },
         }],
     };
     assert_eq!(world.command(bad).expect_err("an empty region").field, "command.hints[0].region");

@@ -4,7 +4,7 @@
 mod world_support;
 
 use nalgebra::{Matrix2, Matrix3};
-use strata_robot::geometry::{Field, Odometry, Point, Pose};
+use strata_robot::geometry::{Global, Odometry, Point, Pose};
 use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use strata_robot::world::{PosePrior, SharedObject, TeammateEstimate, WorldModel};
 use strata_runtime::Time;
@@ -12,7 +12,7 @@ use world_support::{BALL, config};
 
 const POSE: Pose = Pose { x: -1.0, y: 0.0, theta: 0.0 };
 
-fn ball_percepts(t: f64, ball: Point<Field>) -> Percepts {
+fn ball_percepts(t: f64, ball: Point<Global>) -> Percepts {
     let p = POSE.to_robot(ball);
     let stamp = Time::from_secs_f64(t);
     Percepts {
@@ -42,7 +42,7 @@ fn teammate(
     pose_confidence: f64,
 ) -> TeammateEstimate {
     TeammateEstimate {
-        player,
+        member: player,
         stamp: Time::from_secs_f64(t),
         pose: Pose::new(0.0, 0.0, 0.0),
         pose_covariance: Matrix3::identity() * 0.01,
@@ -59,7 +59,7 @@ fn teammate(
     }
 }
 
-fn world_seeing_ball(ball: Point<Field>) -> WorldModel {
+fn world_seeing_ball(ball: Point<Global>) -> WorldModel {
     let prior = PosePrior { pose: POSE, sigma: [0.05, 0.05, 0.02] };
     let mut world = WorldModel::new(config(Some(prior))).expect("valid config");
     for k in 0..10 {
@@ -84,7 +84,7 @@ fn an_outlier_teammate_cannot_pull_the_team_ball() {
     assert_eq!(team.teammates, vec![2, 3]);
     assert_eq!(team.rejected, vec![4]);
     let own = state.object("ball").expect("configured");
-    assert!(team.covariance.trace() < own.field_covariance.trace(), "fusion adds information");
+    assert!(team.covariance.trace() < own.global_covariance.trace(), "fusion adds information");
 }
 
 #[test]

@@ -107,7 +107,7 @@ pub(crate) struct Body {
     /// Per-step execution error of the legs (multiplies each velocity component).
     slip: [f64; 3],
     /// Velocity given by pushes, field frame; decays.
-    pub push: Vector<strata_robot::Field>,
+    pub push: Vector<strata_robot::Global>,
     pub head: HeadAngles,
     /// Sine and cosine of the head yaw.
     pub head_yaw: Rotating,
@@ -234,7 +234,7 @@ impl Body {
     }
 
     /// A vector of the robot frame in the field frame.
-    pub fn to_field(&self, x: f64, y: f64) -> (f64, f64) {
+    pub fn to_global(&self, x: f64, y: f64) -> (f64, f64) {
         let (s, c) = (self.heading.sin, self.heading.cos);
         (c * x - s * y, s * x + c * y)
     }
@@ -523,7 +523,7 @@ impl Body {
             dtheta: v.omega * (1.0 + self.slip[2]) * dt,
         };
         if walked != Odometry::ZERO {
-            let (dx, dy) = self.to_field(walked.dx, walked.dy);
+            let (dx, dy) = self.to_global(walked.dx, walked.dy);
             self.pose.x += dx;
             self.pose.y += dy;
             if walked.dtheta != 0.0 {
@@ -922,7 +922,7 @@ pub(crate) fn random_direction(rng: &mut Stream) -> FallDirection {
 }
 
 /// The direction a robot falls when pushed along `push` (field frame).
-pub(crate) fn push_direction(pose: &Pose, push: Vector<strata_robot::Field>) -> FallDirection {
+pub(crate) fn push_direction(pose: &Pose, push: Vector<strata_robot::Global>) -> FallDirection {
     let local = pose.vector_to_robot(push);
     if local.x.abs() >= local.y.abs() {
         if local.x >= 0.0 { FallDirection::Front } else { FallDirection::Back }

@@ -8,7 +8,7 @@
 //! `bearing` the angle from the optical axis (the head yaw), left positive.
 
 use strata_robot::platform::{Detection, HeadAngles, ObjectClass};
-use strata_robot::{Field as FieldFrame, Point, Pose};
+use strata_robot::{Global as FieldFrame, Point, Pose};
 use strata_spl::field::{Colour, Landmark, Side};
 use strata_spl::{Field, ObjectKind};
 

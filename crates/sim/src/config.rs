@@ -24,7 +24,7 @@ pub enum ConfigError {
         source: std::io::Error,
     },
     #[error("{source_name}: field `{field}`: {message}")]
-    Field { source_name: String, field: String, message: String },
+    Global { source_name: String, field: String, message: String },
 }
 
 /// Everything the simulator needs to build a world.

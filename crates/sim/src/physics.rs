@@ -7,7 +7,7 @@
 
 use serde::{Deserialize, Serialize};
 use strata_robot::geometry::Segment;
-use strata_robot::{Field as FieldFrame, Point, Vector};
+use strata_robot::{Global as FieldFrame, Point, Vector};
 use strata_spl::Field;
 use strata_spl::field::Side;
 

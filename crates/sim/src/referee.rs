@@ -12,7 +12,7 @@
 //! keep showing the game as it was. The world always acts on the true game.
 
 use serde::{Deserialize, Serialize};
-use strata_robot::{Field as FieldFrame, Point};
+use strata_robot::{Global as FieldFrame, Point};
 use strata_spl::Field;
 use strata_spl::field::{BallStatus, Side};
 use strata_spl::gamecontroller::{

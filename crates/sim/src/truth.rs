@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 use strata_robot::platform::{BodyMotionState, FallDirection, HeadAngles, SpecialMotion};
-use strata_robot::{Field as FieldFrame, Point, Pose, Vector};
+use strata_robot::{Global as FieldFrame, Point, Pose, Vector};
 use strata_runtime::Time;
 use strata_spl::field::BallStatus;
 use strata_spl::gamecontroller::{GameState, Penalty, SetPlay};

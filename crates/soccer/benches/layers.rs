@@ -57,7 +57,7 @@ fn world(field: &TeamField) -> WorldState {
     let pose = Pose::new(-4.0, 0.3, 0.2);
     let _ =
         model.command(WorldCommand::SetPose { prior: PosePrior { pose, sigma: [0.1, 0.1, 0.05] } });
-    let observe = |class: ObjectKind, p: Point<strata_robot::Field>| {
+    let observe = |class: ObjectKind, p: Point<strata_robot::Global>| {
         let r = pose.to_robot(p);
         Observation {
             class: ObjectClass(class.code()),

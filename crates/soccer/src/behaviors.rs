@@ -30,7 +30,7 @@ use strata_robot::control::hsm::{BuildError, Builder, State, StateMachine};
 use strata_robot::control::planning_module::PlanningDecision;
 use strata_robot::control::reactive::Stability;
 use strata_robot::control::scores::{GoalScore, ScoreVector};
-use strata_robot::geometry::{Field as FieldFrame, Point, Pose};
+use strata_robot::geometry::{Global as FieldFrame, Point, Pose};
 use strata_robot::world::{ObjectCategory, WorldState};
 use strata_runtime::Time;
 use strata_spl::gamecontroller::{GameState, SetPlay};
@@ -681,7 +681,7 @@ fn localizing(ctx: &mut Ctx) -> Status {
     match lost_for % LOCALIZE_CYCLE {
         t if t < LOCALIZE_STAND => ctx.set_body(BodyGoal::Stand),
         t if t < LOCALIZE_STAND + LOCALIZE_TURN => {
-            let left = pose.to_field(Point::new(0.0, 1.0));
+            let left = pose.to_global(Point::new(0.0, 1.0));
             ctx.set_body(BodyGoal::ObserveTarget { target: left });
         }
         _ => {
@@ -732,7 +732,7 @@ fn searching_for_object(ctx: &mut Ctx) -> Status {
             });
         } else {
             // Turn on the spot: a target to the left keeps the robot rotating.
-            let left = pose.to_field(Point::new(0.0, 1.0));
+            let left = pose.to_global(Point::new(0.0, 1.0));
             ctx.set_body(BodyGoal::ObserveTarget { target: left });
         }
     }
@@ -751,7 +751,7 @@ fn avoiding_obstacle(ctx: &mut Ctx) -> Status {
     let Some(obstacle) = obstacle_ahead(world, 0.8, 0.5) else { return Status::Success };
     let side = if obstacle.y > 0.0 { -0.5 } else { 0.5 };
     let pose = world.pose.pose;
-    let waypoint = pose.to_field(Point::new(obstacle.x, obstacle.y + side));
+    let waypoint = pose.to_global(Point::new(obstacle.x, obstacle.y + side));
     ctx.set_body(BodyGoal::GoToPosition { pose: facing(pose.position(), waypoint) });
     gaze(ctx, None);
     Status::Running
@@ -775,7 +775,7 @@ fn shot_target(ctx: &Ctx) -> Point<FieldFrame> {
     let aim = ctx.field.goal_half_width * 0.5;
     let keeper = ctx.world.as_ref().and_then(|w| {
         crate::situation::obstacles(w)
-            .map(|o| o.field_position)
+            .map(|o| o.global_position)
             .filter(|p| p.distance(goal) < 1.2)
             .min_by(|a, b| a.distance(goal).total_cmp(&b.distance(goal)))
     });
@@ -872,7 +872,7 @@ fn partner_following(ctx: &mut Ctx) -> Status {
         .decision
         .as_ref()
         .and_then(|d| d.teammates.iter().find(|t| t.role == Role::Striker && t.available))
-        .map(|t| (t.player, t.pose.position()));
+        .map(|t| (t.member, t.pose.position()));
     let anchor = striker.map_or(ball_field, |(_, p)| p);
     let back = (ctx.field.own_goal() - ball_field).normalized() * 1.2;
     let lateral = if anchor.y > 0.0 { -0.8 } else { 0.8 };

@@ -1,7 +1,7 @@
 //! The field as one team sees it: the team frame has its own goal at negative x, whichever end
 //! of the field the team defends, so every behavior is written once.
 
-use strata_robot::geometry::{Field as FieldFrame, Point, Pose};
+use strata_robot::geometry::{Global as FieldFrame, Point, Pose};
 use strata_spl::Field;
 use strata_spl::field::{Landmark, Side};
 

@@ -8,7 +8,7 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 use strata_robot::control::planning::{MessageBudget, OwnState, SharedSignal, StandingStatus};
 use strata_robot::control::planning_module::ExternalDevice;
-use strata_robot::geometry::{Field, Point, Pose};
+use strata_robot::geometry::{Global as FieldFrame, Point, Pose};
 use strata_robot::percept::{Signal, SignalKind};
 use strata_robot::platform::ObjectClass;
 use strata_robot::world::{PosePrior, SymmetryHint, WorldCommand, WorldState};
@@ -212,7 +212,7 @@ pub struct GameControllerReferee {
     /// When the ball was last seen and where on the field: the world model forgets a ball it
     /// has not seen for a while, but the return packet's ball age is the time since it was
     /// last seen, whatever the world model still holds.
-    ball_seen: Option<(Time, Point<Field>)>,
+    ball_seen: Option<(Time, Point<FieldFrame>)>,
     status_interval: f64,
     signals: SignalConfig,
     followed: Option<Followed>,
@@ -336,7 +336,7 @@ impl GameControllerReferee {
             && let Some(seen) = b.last_seen
             && self.ball_seen.is_none_or(|(t, _)| seen >= t)
         {
-            self.ball_seen = Some((seen, b.field_position));
+            self.ball_seen = Some((seen, b.global_position));
         }
     }
 
@@ -658,8 +658,8 @@ mod tests {
         let ball = objects.iter_mut().find(|o| o.name.as_str() == BALL).expect("a ball");
         ball.known = seen.is_some();
         ball.last_seen = seen.map(Time::from_secs_f64);
-        ball.field_position = Point::new(3.0, 1.0);
-        ball.position = world.pose.pose.to_robot(ball.field_position);
+        ball.global_position = Point::new(3.0, 1.0);
+        ball.position = world.pose.pose.to_robot(ball.global_position);
         world.objects = objects.into();
         world
     }

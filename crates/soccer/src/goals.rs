@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 use strata_robot::control::scores::Goal;
-use strata_robot::geometry::{Field, Point, Pose};
+use strata_robot::geometry::{Global, Point, Pose};
 
 /// Which goal, from this team's point of view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -27,7 +27,7 @@ pub enum HeadGoal {
     /// The deliberative layer passes where the partner last reported itself.
     ObservePartner {
         player: u8,
-        position: Point<Field>,
+        position: Point<Global>,
     },
     ObserveRival {
         player: u8,
@@ -42,7 +42,7 @@ pub enum HeadGoal {
     /// The head referee, where the rules put it (team frame): in Standby robots watch it for
     /// the Ready gesture.
     ObserveReferee {
-        position: Point<Field>,
+        position: Point<Global>,
     },
     /// Several objects in one gaze; split by the multiplexer when they do not fit (stage 1).
     ObserveTogether {
@@ -106,7 +106,7 @@ impl Kick {
 pub enum BodyGoal {
     /// Turn to face a target while standing.
     ObserveTarget {
-        target: Point<Field>,
+        target: Point<Global>,
     },
     GoToPosition {
         pose: Pose,
@@ -114,7 +114,7 @@ pub enum BodyGoal {
     /// Go to the ball and kick it toward `target` with `kick`.
     GoToBallAndKick {
         kick: Kick,
-        target: Point<Field>,
+        target: Point<Global>,
     },
     /// Stand still (Initial, Set, penalized).
     Stand,
@@ -137,7 +137,7 @@ impl Goal for BodyGoal {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum WholeBodyGoal {
-    GoToBallAndDribble { target: Point<Field> },
+    GoToBallAndDribble { target: Point<Global> },
     StandUp { sequence: u8 },
     Fall { sequence: u8 },
     Dive { sequence: u8 },

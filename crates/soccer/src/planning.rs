@@ -5,7 +5,7 @@ use strata_robot::control::planning::{
     Candidate, MissionCatalog, OwnState, PlanningPolicy, TeamMessage, TeammateRecord,
 };
 use strata_robot::control::planning_module::TeamCodec;
-use strata_robot::geometry::{Field as FieldFrame, Point};
+use strata_robot::geometry::{Global as FieldFrame, Point};
 use strata_runtime::Time;
 
 use crate::catalog::{Mission, Role, catalog};

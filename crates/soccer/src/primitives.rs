@@ -447,7 +447,7 @@ pub fn approach_pose(
     model: &MotionModel,
     world: &WorldState,
     kick: Kick,
-    target: Point<strata_robot::Field>,
+    target: Point<strata_robot::Global>,
 ) -> Option<(Point<Robot>, f64)> {
     let ball = ball(world)?;
     let pose = world.pose.pose;
@@ -472,7 +472,7 @@ pub fn kickable(
     model: &MotionModel,
     world: &WorldState,
     kick: Kick,
-    target: Point<strata_robot::Field>,
+    target: Point<strata_robot::Global>,
 ) -> bool {
     let Some(ball) = ball(world).filter(|b| b.known && !b.from_team) else { return false };
     let in_reach = (model.kick_reach_x[0]..=model.kick_reach_x[1]).contains(&ball.robot.x)
@@ -809,7 +809,7 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dive {
 }
 
 /// Pose helper for behaviors: facing a point from a position.
-pub fn facing(from: Point<strata_robot::Field>, toward: Point<strata_robot::Field>) -> Pose {
+pub fn facing(from: Point<strata_robot::Global>, toward: Point<strata_robot::Global>) -> Pose {
     Pose::new(from.x, from.y, (toward - from).angle())
 }
 
@@ -865,7 +865,7 @@ mod tests {
     fn the_approach_ends_with_the_ball_within_reach() {
         for model in [MotionModel::default(), MotionModel::booster_t1()] {
             let world = world_with_ball(Point::new(1.0, 0.0));
-            let target = world.pose.pose.to_field(Point::new(5.0, 0.0));
+            let target = world.pose.pose.to_global(Point::new(5.0, 0.0));
             let Some((stand, heading)) = approach_pose(&model, &world, Kick::Forward, target)
             else {
                 panic!("the ball is known")
@@ -895,7 +895,7 @@ mod tests {
         let estimate = objects.iter_mut().find(|o| o.name.as_str() == BALL).expect("a ball");
         estimate.known = true;
         estimate.position = ball;
-        estimate.field_position = world.pose.pose.to_field(ball);
+        estimate.global_position = world.pose.pose.to_global(ball);
         world.objects = objects.into();
         world
     }

@@ -1,6 +1,6 @@
 //! Reading the world state the way soccer behaviors need it.
 
-use strata_robot::geometry::{Field as FieldFrame, Point, Robot, Vector};
+use strata_robot::geometry::{Global as FieldFrame, Point, Robot, Vector};
 use strata_robot::world::{ObjectCategory, ObjectEstimate, WorldState};
 use strata_spl::field::Side;
 
@@ -27,7 +27,7 @@ pub fn ball(world: &WorldState) -> Option<BallView> {
     if let Some(b) = own.filter(|b| b.known) {
         return Some(BallView {
             robot: b.position,
-            field: b.field_position,
+            field: b.global_position,
             velocity: b.velocity,
             confidence: b.confidence,
             known: true,
@@ -46,7 +46,7 @@ pub fn ball(world: &WorldState) -> Option<BallView> {
     }
     own.map(|b| BallView {
         robot: b.position,
-        field: b.field_position,
+        field: b.global_position,
         velocity: b.velocity,
         confidence: b.confidence,
         known: false,

@@ -454,7 +454,7 @@ pub fn add_soccer_robot(
         planning_parts(config, &field, spec.player, spec.team_number, spec.half_duration);
     let parts = RobotParts::<Soccer> {
         name: spec.name,
-        player: spec.player,
+        member: spec.player,
         platform: spec.platform,
         perception: perception_config(config),
         world: robot_world_config(&field, spec.initial_pose, &spec.relocations),

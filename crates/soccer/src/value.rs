@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use strata_robot::control::active_vision::{ValueFunction, ValueState};
-use strata_robot::geometry::{Field as FieldFrame, Point, normalize_angle};
+use strata_robot::geometry::{Global as FieldFrame, Point, normalize_angle};
 use strata_robot::world::ObjectId;
 
 use crate::field::TeamField;

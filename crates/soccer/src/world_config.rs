@@ -3,7 +3,7 @@
 
 use strata_robot::platform::ObjectClass;
 use strata_robot::world::{
-    FieldRegion, ObjectKind as WorldObjectKind, ObjectOfInterest, PoseConfig, SymmetryHint,
+    ObjectKind as WorldObjectKind, ObjectOfInterest, PoseConfig, Region, SymmetryHint,
     WorldModelConfig,
 };
 use strata_spl::field::{Colour, Landmark, Side};
@@ -148,7 +148,7 @@ pub fn world_config(field: &TeamField) -> WorldModelConfig {
         confidence: None,
     });
     let margin = field.field.dimensions().border_strip_width;
-    let own_half = FieldRegion {
+    let own_half = Region {
         min_x: -field.half_length - margin,
         max_x: 0.0,
         min_y: -field.half_width - margin,
@@ -157,7 +157,7 @@ pub fn world_config(field: &TeamField) -> WorldModelConfig {
     WorldModelConfig {
         objects,
         pose: PoseConfig {
-            field_bounds: Some(FieldRegion {
+            bounds: Some(Region {
                 min_x: -field.half_length - margin,
                 max_x: field.half_length + margin,
                 min_y: -field.half_width - margin,

@@ -50,7 +50,7 @@ fn states(field: &TeamField) -> Vec<WorldState> {
         model.command(WorldCommand::SetPose { prior: PosePrior { pose, sigma: [0.1, 0.1, 0.05] } });
     let mut states = Vec::new();
     for frame in 0..60u64 {
-        let observe = |class: ObjectKind, p: Point<strata_robot::Field>| {
+        let observe = |class: ObjectKind, p: Point<strata_robot::Global>| {
             let r = pose.to_robot(p);
             Observation {
                 class: ObjectClass(class.code()),

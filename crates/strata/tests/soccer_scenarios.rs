@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use strata_experiments::{Host, HostKind, Scene, SceneRobot};
 use strata_games::matches::{Match, MatchConfig};
-use strata_robot::geometry::{Field as FieldFrame, Point, Pose, Vector};
+use strata_robot::geometry::{Global as FieldFrame, Point, Pose, Vector};
 use strata_runtime::{Package, Tap, TapRecord};
 use strata_sim::{BallScript, EventKind, FallDirection, GameState, NoiseLevel, RobotId, SimHandle};
 use strata_soccer::behaviors::Decision;
@@ -71,7 +71,7 @@ impl Tap for Assignments {
             return;
         };
         let d = &package.value;
-        let views = d.teammates.iter().map(|t| (t.player, t.unavailable.clone())).collect();
+        let views = d.teammates.iter().map(|t| (t.member, t.unavailable.clone())).collect();
         self.latest
             .lock()
             .unwrap_or_else(PoisonError::into_inner)

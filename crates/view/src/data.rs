@@ -206,7 +206,7 @@ struct ObjectIn {
     group: String,
     known: bool,
     confidence: f64,
-    field_position: Xy,
+    global_position: Xy,
 }
 
 #[derive(Deserialize)]
@@ -715,7 +715,7 @@ impl ViewData {
                 let sign = truth.map_or(1.0, |s| {
                     if series.team == 0 { s.game.attack_sign[0] } else { s.game.attack_sign[1] }
                 });
-                let to_field = |p: Xy| to_field(p, sign);
+                let to_global = |p: Xy| to_global(p, sign);
                 let world = latest(&series.world, t, |s| s.t);
                 let report = latest(&series.reports, t, |s| s.t);
                 let planning = latest(&series.planning, t, |s| s.t);
@@ -733,12 +733,12 @@ impl ViewData {
                     pose_confidence: world.map(|w| w.confidence),
                     lost: world.is_some_and(|w| w.lost),
                     ball: world.and_then(|w| w.ball).map(|(p, confidence, known)| {
-                        let p = to_field(p);
+                        let p = to_global(p);
                         BallEstimate { x: p.x, y: p.y, confidence, known }
                     }),
-                    team_ball: world.and_then(|w| w.team_ball).map(to_field),
+                    team_ball: world.and_then(|w| w.team_ball).map(to_global),
                     gaze: report
-                        .map(|r| r.gaze.iter().map(|p| to_field(*p)).collect())
+                        .map(|r| r.gaze.iter().map(|p| to_global(*p)).collect())
                         .unwrap_or_default(),
                     head_goal: report.and_then(|r| r.head_goal.as_deref().map(str::to_owned)),
                     mission: planning.map(|p| p.mission.clone()),
@@ -818,7 +818,7 @@ fn latest<S>(samples: &[S], t: f64, time: impl Fn(&S) -> f64) -> Option<&S> {
 
 /// A point of a robot's team frame (own goal at -x) in the field frame: the frames agree for
 /// the team attacking +x, and are turned by half a turn for the other.
-fn to_field(p: Xy, attack_sign: f64) -> Xy {
+fn to_global(p: Xy, attack_sign: f64) -> Xy {
     if attack_sign < 0.0 { Xy { x: -p.x, y: -p.y } } else { p }
 }
 
@@ -848,7 +848,7 @@ impl WorldIn {
                     group: o.group.to_string(),
                     known: o.known,
                     confidence: o.confidence,
-                    field_position: Xy { x: o.field_position.x, y: o.field_position.y },
+                    global_position: Xy { x: o.global_position.x, y: o.global_position.y },
                 })
                 .collect(),
             team: state
@@ -910,9 +910,9 @@ fn ingest_world(series: &mut RobotSeries, t: f64, value: Incoming<'_>) -> bool {
         .objects
         .iter()
         .find(|o| o.group == "ball" || o.name == "ball")
-        .map(|o| (o.field_position, o.confidence, o.known));
+        .map(|o| (o.global_position, o.confidence, o.known));
     let team_ball = world.team.iter().find(|o| o.name == "ball").map(|o| o.position);
-    series.objects = world.objects.iter().map(|o| (o.name.clone(), o.field_position)).collect();
+    series.objects = world.objects.iter().map(|o| (o.name.clone(), o.global_position)).collect();
     series.last_world = Some(t);
     series.world.push(WorldSample {
         t,
@@ -1005,7 +1005,7 @@ mod tests {
         for (t, x) in [(2.0, -1.0), (3.5, 0.5)] {
             let world = serde_json::json!({
                 "pose": { "pose": { "x": x, "y": 1.0, "theta": 0.0 }, "confidence": 0.8, "lost": false },
-                "objects": [{ "name": "ball", "group": "ball", "field_position": { "x": 2.0, "y": 0.0 },
+                "objects": [{ "name": "ball", "group": "ball", "global_position": { "x": 2.0, "y": 0.0 },
                               "confidence": 0.9, "known": true }],
                 "team": [],
             });
@@ -1031,7 +1031,7 @@ mod tests {
         let p = pose_to_field(Pose { x: -3.0, y: 2.0, theta: 0.5 }, -1.0);
         assert!((p.x - 3.0).abs() < 1e-12 && (p.y + 2.0).abs() < 1e-12);
         assert!((p.theta - (0.5 - std::f64::consts::PI)).abs() < 1e-12);
-        assert_eq!(to_field(Xy { x: 1.0, y: 2.0 }, 1.0), Xy { x: 1.0, y: 2.0 });
+        assert_eq!(to_global(Xy { x: 1.0, y: 2.0 }, 1.0), Xy { x: 1.0, y: 2.0 });
     }
 
     #[test]

@@ -31,7 +31,7 @@ use strata_robot::control::hsm::{BuildError, State, StateMachine};
 use strata_robot::control::planning_module::PlanningDecision;
 use strata_robot::control::reactive::Stability;
 use strata_robot::control::scores::{GoalScore, ScoreVector};
-use strata_robot::geometry::{Field, Point, Pose};
+use strata_robot::geometry::{Global, Point, Pose};
 use strata_robot::world::{ObjectId, WorldState};
 use strata_runtime::Time;
 
@@ -119,7 +119,7 @@ impl Ctx {
         self.world.as_ref().is_some_and(|w| w.pose.lost)
     }
 
-    fn alarm_point(&self) -> Option<Point<Field>> {
+    fn alarm_point(&self) -> Option<Point<Global>> {
         self.decision.as_ref()?.directive.alarm.map(|a| a.point)
     }
 
@@ -140,13 +140,13 @@ impl Ctx {
         self.world.as_ref()?.object(name).map(|o| o.id)
     }
 
-    fn arrived(&self, target: Point<Field>) -> bool {
+    fn arrived(&self, target: Point<Global>) -> bool {
         self.pose().is_some_and(|p| p.position().distance(target) < self.config.arrival)
     }
 
     /// Walks toward `target` along the roadmap: the body's goal is the next point of the path.
     /// `heading` is the final heading when `stop`.
-    fn go_to(&mut self, target: Point<Field>, heading: Option<f64>, stop: bool) {
+    fn go_to(&mut self, target: Point<Global>, heading: Option<f64>, stop: bool) {
         let Some(pose) = self.pose() else {
             self.set_body(BodyGoal::Stand);
             return;
@@ -202,7 +202,7 @@ impl Ctx {
             let here = world.pose.pose.position();
             for group in &self.landmark_groups {
                 for o in world.group(group) {
-                    let at = o.map_position.unwrap_or(o.field_position);
+                    let at = o.map_position.unwrap_or(o.global_position);
                     // Only what the camera could see from here: in range, not behind a wall,
                     // within the neck's reach.
                     if here.distance(at) > self.config.gaze_range
@@ -240,7 +240,7 @@ impl Ctx {
         self.world = Some(world);
     }
 
-    fn route_gaze(&mut self, target: Point<Field>) {
+    fn route_gaze(&mut self, target: Point<Global>) {
         let value = RouteValue { target };
         self.gaze(&value, Criterion::MinExpectedValueVariance, &[]);
     }
@@ -318,7 +318,7 @@ fn observe(ctx: &mut Ctx, now: Time) -> Status {
             && w.object(&poi_name(k)).is_some_and(|o| {
                 o.known
                     && o.last_seen.is_some_and(|t| (w.stamp - t).as_secs_f64() < 1.0)
-                    && max_sigma(&o.field_covariance) < ctx.config.inspection_sigma
+                    && max_sigma(&o.global_covariance) < ctx.config.inspection_sigma
             })
     });
     if long_enough && sharp { Status::Success } else { Status::Running }
@@ -375,7 +375,7 @@ fn watch(ctx: &mut Ctx) -> Status {
         .as_ref()
         .and_then(|w| w.object(INTRUDER))
         .filter(|o| o.known)
-        .map(|o| o.field_position);
+        .map(|o| o.global_position);
     match (intruder, ctx.pose()) {
         (Some(person), Some(pose)) => {
             let here = pose.position();

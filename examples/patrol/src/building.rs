@@ -7,15 +7,15 @@
 //! same walls and landmarks, but its points of interest may stand elsewhere than the plan says:
 //! finding out where they really are is what an inspection is for.
 
-use strata_robot::geometry::{Field, Point, Pose, Segment};
-use strata_robot::world::FieldRegion;
+use strata_robot::geometry::{Global, Point, Pose, Segment};
+use strata_robot::world::Region;
 
 /// A point of interest: something a patrol inspects (an extinguisher, a panel, a door).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointOfInterest {
     pub name: String,
     /// Where the floor plan puts it.
-    pub nominal: Point<Field>,
+    pub nominal: Point<Global>,
     /// Where to stand to inspect it, facing it.
     pub viewpoint: Pose,
 }
@@ -24,33 +24,33 @@ pub struct PointOfInterest {
 /// the point's viewpoint and back (patrol → inspect → return).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Waypoint {
-    pub position: Point<Field>,
+    pub position: Point<Global>,
     pub inspect: Option<usize>,
 }
 
 /// The operator's floor plan.
 #[derive(Clone, Debug)]
 pub struct FloorPlan {
-    pub bounds: FieldRegion,
+    pub bounds: Region,
     /// Walls, as zero-thickness segments.
-    pub walls: Vec<Segment<Field>>,
+    pub walls: Vec<Segment<Global>>,
     /// Fiducial markers on the walls, each uniquely identifiable (its index is its code).
-    pub markers: Vec<Point<Field>>,
+    pub markers: Vec<Point<Global>>,
     /// Wall corners: identical features, told apart only by where they are.
-    pub corners: Vec<Point<Field>>,
+    pub corners: Vec<Point<Global>>,
     pub points_of_interest: Vec<PointOfInterest>,
     /// One closed route per robot (player `p` walks `beats[p - 1]`).
     pub beats: Vec<Vec<Waypoint>>,
     /// Extra roadmap nodes (doorways, junctions).
-    pub junctions: Vec<Point<Field>>,
+    pub junctions: Vec<Point<Global>>,
     /// Distance a planned path keeps from the walls, m.
     pub clearance: f64,
-    nodes: Vec<Point<Field>>,
+    nodes: Vec<Point<Global>>,
     /// Roadmap edges between `nodes`, with their lengths.
     edges: Vec<Vec<(usize, f64)>>,
 }
 
-fn p(x: f64, y: f64) -> Point<Field> {
+fn p(x: f64, y: f64) -> Point<Global> {
     Point::new(x, y)
 }
 
@@ -58,7 +58,7 @@ impl FloorPlan {
     /// A 14 m x 8 m office floor split by a wall into a north and a south wing, joined at the
     /// east end: a U-shaped corridor with two beats and four points of interest.
     pub fn office() -> FloorPlan {
-        let wall = |a: Point<Field>, b: Point<Field>| Segment::new(a, b);
+        let wall = |a: Point<Global>, b: Point<Global>| Segment::new(a, b);
         let walls = vec![
             wall(p(-7.0, -4.0), p(7.0, -4.0)),
             wall(p(7.0, -4.0), p(7.0, 4.0)),
@@ -89,7 +89,7 @@ impl FloorPlan {
             p(-6.98, -2.0),
         ];
         let corners = vec![p(-7.0, 4.0), p(7.0, 4.0), p(7.0, -4.0), p(-7.0, -4.0), p(3.0, 0.0)];
-        let poi = |name: &str, nominal: Point<Field>, viewpoint: Point<Field>| PointOfInterest {
+        let poi = |name: &str, nominal: Point<Global>, viewpoint: Point<Global>| PointOfInterest {
             name: name.to_owned(),
             nominal,
             viewpoint: Pose::new(viewpoint.x, viewpoint.y, (nominal - viewpoint).angle()),
@@ -120,19 +120,19 @@ impl FloorPlan {
             ],
         ];
         let junctions = vec![p(5.0, 0.0), p(4.5, 1.0), p(4.5, -1.0)];
-        let bounds = FieldRegion { min_x: -7.0, max_x: 7.0, min_y: -4.0, max_y: 4.0 };
+        let bounds = Region { min_x: -7.0, max_x: 7.0, min_y: -4.0, max_y: 4.0 };
         FloorPlan::new(bounds, walls, markers, corners, points_of_interest, beats, junctions, 0.3)
     }
 
     #[allow(clippy::too_many_arguments)]
     pub fn new(
-        bounds: FieldRegion,
-        walls: Vec<Segment<Field>>,
-        markers: Vec<Point<Field>>,
-        corners: Vec<Point<Field>>,
+        bounds: Region,
+        walls: Vec<Segment<Global>>,
+        markers: Vec<Point<Global>>,
+        corners: Vec<Point<Global>>,
         points_of_interest: Vec<PointOfInterest>,
         beats: Vec<Vec<Waypoint>>,
-        junctions: Vec<Point<Field>>,
+        junctions: Vec<Point<Global>>,
         clearance: f64,
     ) -> FloorPlan {
         let mut plan = FloorPlan {
@@ -149,7 +149,7 @@ impl FloorPlan {
         };
         // The roadmap: every waypoint, viewpoint and junction, joined where the straight line
         // keeps clear of the walls. Built once; queries add only their two ends.
-        let mut nodes: Vec<Point<Field>> =
+        let mut nodes: Vec<Point<Global>> =
             plan.beats.iter().flatten().map(|w| w.position).collect();
         nodes.extend(plan.points_of_interest.iter().map(|p| p.viewpoint.position()));
         nodes.extend(plan.junctions.iter().copied());
@@ -167,14 +167,14 @@ impl FloorPlan {
     }
 
     /// Distance from a point to the nearest wall.
-    pub fn wall_distance(&self, point: Point<Field>) -> f64 {
+    pub fn wall_distance(&self, point: Point<Global>) -> f64 {
         self.walls.iter().map(|w| w.distance_to(point)).fold(f64::INFINITY, f64::min)
     }
 
     /// Whether a camera at `from` sees `to`: no wall in between. A feature on a wall (a marker,
     /// a corner) touches its own wall, so a crossing within 5 mm of the target does not count;
     /// a marker 2 cm in front of its wall is still hidden from the wall's other side.
-    pub fn line_of_sight(&self, from: Point<Field>, to: Point<Field>) -> bool {
+    pub fn line_of_sight(&self, from: Point<Global>, to: Point<Global>) -> bool {
         let ray = Segment::new(from, to);
         let length = ray.length();
         self.walls
@@ -183,7 +183,7 @@ impl FloorPlan {
     }
 
     /// Whether walking straight from `a` to `b` keeps `clearance` from every wall.
-    pub fn clear(&self, a: Point<Field>, b: Point<Field>, clearance: f64) -> bool {
+    pub fn clear(&self, a: Point<Global>, b: Point<Global>, clearance: f64) -> bool {
         let path = Segment::new(a, b);
         self.walls.iter().all(|w| {
             let distance = if path.intersection(w).is_some() {
@@ -204,11 +204,11 @@ impl FloorPlan {
 
     /// The shortest path on the roadmap from `from` to `to`: the points to walk through, `to`
     /// last (empty if `from` is `to`). `None` when the roadmap does not connect them.
-    pub fn route(&self, from: Point<Field>, to: Point<Field>) -> Option<Vec<Point<Field>>> {
+    pub fn route(&self, from: Point<Global>, to: Point<Global>) -> Option<Vec<Point<Global>>> {
         // A robot that ended up close to a wall (a fall, a bump) may leave it at less than the
         // usual clearance: the first and last legs accept what the ends allow.
         let end_clearance =
-            |q: Point<Field>| self.clearance.min((self.wall_distance(q) - 0.05).max(0.0));
+            |q: Point<Global>| self.clearance.min((self.wall_distance(q) - 0.05).max(0.0));
         let (cf, ct) = (end_clearance(from), end_clearance(to));
         if self.clear(from, to, cf.min(ct)) {
             return Some(vec![to]);
@@ -261,7 +261,7 @@ impl FloorPlan {
     }
 
     /// Length of the shortest roadmap path (infinite if there is none).
-    pub fn path_length(&self, from: Point<Field>, to: Point<Field>) -> f64 {
+    pub fn path_length(&self, from: Point<Global>, to: Point<Global>) -> f64 {
         match self.route(from, to) {
             Some(path) => {
                 let mut length = 0.0;

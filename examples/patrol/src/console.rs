@@ -17,7 +17,7 @@ use std::sync::{Arc, Mutex};
 use serde::{Deserialize, Serialize};
 use strata_robot::control::planning::{OwnState, StandingStatus};
 use strata_robot::control::planning_module::ExternalDevice;
-use strata_robot::geometry::{Field, Point};
+use strata_robot::geometry::{Global, Point};
 use strata_robot::world::WorldState;
 use strata_runtime::Time;
 
@@ -28,7 +28,7 @@ use crate::world_config::{INTRUDER, POINT_OF_INTEREST};
 pub struct Alarm {
     pub id: u16,
     /// Where to go.
-    pub point: Point<Field>,
+    pub point: Point<Global>,
 }
 
 /// What the console tells the deliberative layer (the planning layer passes it on).
@@ -113,7 +113,7 @@ impl AlarmPacket {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PoiReport {
     pub poi: u8,
-    pub position: Point<Field>,
+    pub position: Point<Global>,
     /// Standard deviation of the position (the larger axis), m.
     pub sigma: f64,
 }
@@ -125,7 +125,7 @@ pub struct StatusPacket {
     pub stable: bool,
     pub localized: bool,
     pub intruder_sighted: bool,
-    pub position: Point<Field>,
+    pub position: Point<Global>,
     pub reports: Vec<PoiReport>,
 }
 
@@ -215,10 +215,10 @@ impl OperatorConsole {
                 o.known && o.last_seen.is_some_and(|t| (world.stamp - t).as_secs_f64() < 2.0)
             })
             .filter_map(|o| {
-                let sigma = max_sigma(&o.field_covariance);
+                let sigma = max_sigma(&o.global_covariance);
                 (sigma < self.report_sigma && !world.pose.lost).then_some(PoiReport {
                     poi: u8::try_from(o.variant?).ok()?,
-                    position: o.field_position,
+                    position: o.global_position,
                     sigma,
                 })
             })

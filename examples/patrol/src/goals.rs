@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 use strata_robot::control::scores::Goal;
-use strata_robot::geometry::{Field, Point, Pose};
+use strata_robot::geometry::{Global, Point, Pose};
 
 /// Goals of the head: the sensing primitives active vision chooses among.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -20,7 +20,7 @@ pub enum HeadGoal {
     ObserveIntruder,
     /// Look at a place on the floor (the alarm's location before anything is seen there).
     LookAt {
-        target: Point<Field>,
+        target: Point<Global>,
     },
     /// A fixed head sweep, whatever the situation.
     Scan,

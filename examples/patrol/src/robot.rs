@@ -147,7 +147,7 @@ pub fn add_patrol_robot(
     );
     let parts = RobotParts::<Patrol> {
         name: spec.name,
-        player: spec.player,
+        member: spec.player,
         platform: RobotPlatform::Shared(spec.platform),
         perception: perception_config(),
         world: world_config(&plan, spec.start),

@@ -167,7 +167,7 @@ pub struct Visit {
     pub time: f64,
     pub waypoint: usize,
     /// Where the robot really was then, and how far that is from the waypoint.
-    pub true_position: Point<strata_robot::Field>,
+    pub true_position: Point<strata_robot::Global>,
     pub miss: f64,
 }
 

@@ -17,7 +17,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
-use strata_robot::geometry::{Field, Odometry, Point, Pose, Velocity, normalize_angle};
+use strata_robot::geometry::{Global, Odometry, Point, Pose, Velocity, normalize_angle};
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CameraFrame, CycleStage, Detection, ExternalLink,
     FallDirection, FootContact, HeadAngles, InertialData, LinkError, MotionFeedback, MotionSpec,
@@ -94,8 +94,8 @@ impl Default for BuildingConfig {
 pub struct AlarmEvent {
     pub at: f64,
     pub id: u16,
-    pub point: Point<Field>,
-    pub intruder: Point<Field>,
+    pub point: Point<Global>,
+    pub intruder: Point<Global>,
     pub hold: f64,
 }
 
@@ -113,7 +113,7 @@ pub struct Scenario {
     /// Where each robot starts (player `i + 1`).
     pub robots: Vec<Pose>,
     /// Where the points of interest really are (the plan may be wrong).
-    pub points_of_interest: Vec<Point<Field>>,
+    pub points_of_interest: Vec<Point<Global>>,
     pub alarms: Vec<AlarmEvent>,
     pub slips: Vec<Slip>,
 }
@@ -139,7 +139,7 @@ pub struct GroundTruth {
     pub alarms: Vec<AlarmRecord>,
     /// Every point-of-interest report the console received.
     pub reports: Vec<ReportRecord>,
-    pub points_of_interest: Vec<Point<Field>>,
+    pub points_of_interest: Vec<Point<Global>>,
     /// Steps in which a robot walked into a wall.
     pub bumps: u64,
 }
@@ -147,7 +147,7 @@ pub struct GroundTruth {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AlarmRecord {
     pub id: u16,
-    pub point: Point<Field>,
+    pub point: Point<Global>,
     pub raised: f64,
     /// The first robot (player) that reported from the spot, and when.
     pub on_site: Option<(u8, f64)>,
@@ -263,7 +263,7 @@ pub struct Building {
     time: Time,
     steps: u64,
     robots: Vec<SimRobot>,
-    intruder: Option<Point<Field>>,
+    intruder: Option<Point<Global>>,
     radio: Vec<(Time, u64, usize, Vec<u8>)>,
     radio_seq: u64,
     alarm: Option<LiveAlarm>,
@@ -611,7 +611,7 @@ impl Building {
         let pose = self.robots[i].pose;
         let yaw = self.robots[i].head.yaw;
         let plan = Arc::clone(&self.plan);
-        let mut targets: Vec<(Point<Field>, strata_robot::platform::ObjectClass, Option<u16>)> =
+        let mut targets: Vec<(Point<Global>, strata_robot::platform::ObjectClass, Option<u16>)> =
             Vec::new();
         targets.extend(
             plan.markers.iter().enumerate().map(|(k, p)| (*p, MARKER, u16::try_from(k).ok())),

@@ -3,7 +3,7 @@
 //! numerically, so they are smooth.
 
 use strata_robot::control::active_vision::{ValueFunction, ValueState};
-use strata_robot::geometry::{Field, Point};
+use strata_robot::geometry::{Global, Point};
 use strata_robot::world::ObjectId;
 
 /// V of an inspection: how well the point of interest is placed on the floor plan.
@@ -18,7 +18,7 @@ use strata_robot::world::ObjectId;
 #[derive(Debug, Clone)]
 pub struct InspectionQuality {
     pub poi: ObjectId,
-    pub nominal: Point<Field>,
+    pub nominal: Point<Global>,
     /// Length scale, m.
     pub scale: f64,
 }
@@ -44,7 +44,7 @@ impl ValueFunction for InspectionQuality {
 /// along the way wins the head).
 #[derive(Debug, Clone)]
 pub struct RouteValue {
-    pub target: Point<Field>,
+    pub target: Point<Global>,
 }
 
 impl ValueFunction for RouteValue {

@@ -102,7 +102,7 @@ pub fn world_config(plan: &FloorPlan, start: Pose) -> WorldModelConfig {
         pose: PoseConfig {
             // Robots are switched on at their docks: the building has no symmetry to break.
             initial: Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.05] }),
-            field_bounds: Some(plan.bounds),
+            bounds: Some(plan.bounds),
             ..PoseConfig::default()
         },
         ..WorldModelConfig::default()

@@ -224,7 +224,7 @@ impl Status {
             messages_received: planning.received,
             gc_packets: gc.snapshot().received,
             available_teammates: decision.as_ref().map_or_else(Vec::new, |d| {
-                d.teammates.iter().filter(|t| t.available).map(|t| t.player).collect()
+                d.teammates.iter().filter(|t| t.available).map(|t| t.member).collect()
             }),
             layers,
             pose: accuracy.map(|a| PoseStatus {

@@ -130,7 +130,7 @@ impl Tap for Accuracy {
         accuracy.last_ball = package.value.object(BALL).map(|b| BallStatus {
             known: b.known,
             confidence: b.confidence,
-            estimate: b.known.then_some([b.field_position.x, b.field_position.y]),
+            estimate: b.known.then_some([b.global_position.x, b.global_position.y]),
         });
         accuracy.last_headings_deg =
             [pose.theta.to_degrees(), normalize_angle(heading).to_degrees()];

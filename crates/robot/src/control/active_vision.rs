@@ -27,7 +27,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
+use crate::geometry::{Global, Point, Pose, Robot, normalize_angle};
 use crate::percept::ViewCone;
 use crate::platform::Footprint;
 use crate::world::{ExpectedBelief, ObjectId, ObservationPrior, SensingCandidate, WorldState};
@@ -67,8 +67,8 @@ impl<'a> ValueState<'a> {
     }
 
     /// An object's field position, through the (possibly perturbed) pose.
-    pub fn object_field(&self, id: ObjectId) -> Option<Point<Field>> {
-        self.object(id).map(|p| self.pose.to_field(p))
+    pub fn object_field(&self, id: ObjectId) -> Option<Point<Global>> {
+        self.object(id).map(|p| self.pose.to_global(p))
     }
 
     fn set_object(&mut self, id: ObjectId, position: Point<Robot>) {

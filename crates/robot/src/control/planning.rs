@@ -32,7 +32,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use strata_runtime::Time;
 
-use crate::geometry::{Field, Point, Pose};
+use crate::geometry::{Global, Point, Pose};
 
 /// A mission or role name of the application (an enum, typically).
 pub trait Label:
@@ -108,7 +108,7 @@ pub enum StandingStatus {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SharedObject {
     pub name: String,
-    pub position: Point<Field>,
+    pub position: Point<Global>,
     /// Position standard deviation, m.
     pub sigma: f64,
     pub confidence: f64,

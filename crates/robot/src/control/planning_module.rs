@@ -117,7 +117,8 @@ impl ExternalDevice for NoDevice {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(bound = "M: Label, R: Label")]
 pub struct TeammateView<M, R> {
-    pub player: u8,
+    #[serde(alias = "player")]
+    pub member: u8,
     pub mission: M,
     pub role: R,
     pub pose: Pose,
@@ -195,7 +196,7 @@ where
 
 /// Runs the planner on the robot's links.
 pub struct PlanningModule<P: PlanningPolicy, C, F: ExternalDevice> {
-    player: u8,
+    member: u8,
     planner: Planner<P>,
     codec: C,
     device: F,
@@ -214,7 +215,7 @@ pub struct PlanningModule<P: PlanningPolicy, C, F: ExternalDevice> {
 impl<P: PlanningPolicy, C, F: ExternalDevice> std::fmt::Debug for PlanningModule<P, C, F> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PlanningModule")
-            .field("player", &self.player)
+            .field("member", &self.member)
             .field("assignment", self.planner.assignment())
             .finish_non_exhaustive()
     }
@@ -227,7 +228,7 @@ where
     F: ExternalDevice,
 {
     pub fn new(
-        player: u8,
+        member: u8,
         planner: Planner<P>,
         codec: C,
         device: F,
@@ -235,7 +236,7 @@ where
         shared_objects: Vec<String>,
     ) -> Self {
         PlanningModule {
-            player,
+            member,
             planner,
             codec,
             device,
@@ -257,7 +258,7 @@ where
         let penalized = self.device.penalized();
         match &self.world {
             None => OwnState {
-                id: self.player,
+                id: self.member,
                 status,
                 penalized,
                 localized: false,
@@ -266,7 +267,7 @@ where
                 objects: Vec::new(),
             },
             Some(world) => OwnState {
-                id: self.player,
+                id: self.member,
                 status,
                 penalized,
                 localized: !world.pose.lost,
@@ -285,8 +286,8 @@ where
                         let seen = o.last_seen.or(*remembered)?;
                         (o.category != ObjectCategory::Landmark).then(|| SharedObject {
                             name: o.name.to_string(),
-                            position: o.field_position,
-                            sigma: o.field_covariance.trace().max(0.0).sqrt(),
+                            position: o.global_position,
+                            sigma: o.global_covariance.trace().max(0.0).sqrt(),
                             confidence: o.confidence,
                             age: (world.stamp - seen).as_secs_f64().max(0.0),
                         })
@@ -324,7 +325,7 @@ where
             })
             .collect();
         Some(TeammateEstimate {
-            player: message.sender,
+            member: message.sender,
             stamp: now,
             pose: message.pose,
             pose_covariance: nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(
@@ -384,7 +385,7 @@ where
         // Teammates: evaluation is asynchronous, on every message received.
         for packet in inbox.team {
             match self.codec.decode(&packet.bytes) {
-                Ok(message) if message.sender == self.player => {}
+                Ok(message) if message.sender == self.member => {}
                 Ok(message) => {
                     if let Some(estimate) = self.estimate_of(packet.received, &message) {
                         ctx.send(self.ports.team_estimates, estimate);
@@ -416,7 +417,7 @@ where
                 .planner
                 .teammates()
                 .map(|t| TeammateView {
-                    player: t.message.sender,
+                    member: t.message.sender,
                     mission: t.message.mission,
                     role: t.message.role,
                     pose: t.message.pose,
@@ -433,7 +434,7 @@ where
                 || last.directive != decision.directive
                 || last.teammates.len() != decision.teammates.len()
                 || last.teammates.iter().zip(&decision.teammates).any(|(a, b)| {
-                    a.player != b.player
+                    a.member != b.member
                         || a.role != b.role
                         || a.available != b.available
                         || a.pose != b.pose

@@ -5,7 +5,7 @@
 use nalgebra::Matrix3;
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::{Field, Odometry, Point, Pose};
+use crate::geometry::{Global, Odometry, Point, Pose};
 use crate::platform::ObjectClass;
 
 /// A configuration value world modeling cannot work with.
@@ -61,7 +61,7 @@ pub enum ObjectKind {
     /// indistinguishable instances (four identical goal posts, several L crossings): one filter
     /// each, and observations are associated to instances by Mahalanobis gating.
     Landmark {
-        positions: Vec<Point<Field>>,
+        positions: Vec<Point<Global>>,
         /// Random-walk noise on the landmark's estimate, m^2/s: absorbs what the odometry
         /// model misses (slipping feet) so that a long-tracked landmark can still move.
         #[serde(default = "default_landmark_noise")]
@@ -275,15 +275,15 @@ impl PosePrior {
 /// An axis-aligned region of the field frame.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct FieldRegion {
+pub struct Region {
     pub min_x: f64,
     pub max_x: f64,
     pub min_y: f64,
     pub max_y: f64,
 }
 
-impl FieldRegion {
-    pub fn contains(&self, p: Point<Field>, margin: f64) -> bool {
+impl Region {
+    pub fn contains(&self, p: Point<Global>, margin: f64) -> bool {
         p.x >= self.min_x - margin
             && p.x <= self.max_x + margin
             && p.y >= self.min_y - margin
@@ -291,7 +291,7 @@ impl FieldRegion {
     }
 
     /// How far `p` lies outside the region (0 inside).
-    pub fn distance_outside(&self, p: Point<Field>) -> f64 {
+    pub fn distance_outside(&self, p: Point<Global>) -> f64 {
         let dx = (self.min_x - p.x).max(p.x - self.max_x).max(0.0);
         let dy = (self.min_y - p.y).max(p.y - self.max_y).max(0.0);
         dx.hypot(dy)
@@ -306,7 +306,7 @@ strata_runtime::text_and_binary_enum! {
     #[derive(Clone, Debug, PartialEq)]
     pub enum SymmetryHint {
         /// The robot is inside this region.
-        Region { region: FieldRegion },
+        Region { region: Region },
         /// The robot faces roughly this direction.
         Heading { theta: f64, sigma: f64 },
         /// The robot is near one of these poses.
@@ -329,7 +329,8 @@ pub struct PoseConfig {
     /// Where the robot starts; without it the pose is lost until landmarks fix it.
     pub initial: Option<PosePrior>,
     /// Where the robot can be (the carpet): recovery hypotheses outside are discarded.
-    pub field_bounds: Option<FieldRegion>,
+    #[serde(alias = "field_bounds")]
+    pub bounds: Option<Region>,
     /// Standing symmetry hints (the application can change them with commands).
     pub hints: Vec<SymmetryHint>,
     /// The pose is lost when its position sigma (major axis) exceeds this, m.
@@ -376,7 +377,7 @@ impl Default for PoseConfig {
     fn default() -> Self {
         PoseConfig {
             initial: None,
-            field_bounds: None,
+            bounds: None,
             hints: Vec::new(),
             lost_position_sigma: 1.0,
             lost_heading_sigma: 0.6,
@@ -443,7 +444,7 @@ fn probability(field: &str, v: f64) -> Result<(), ConfigError> {
     }
 }
 
-fn region(field: &str, r: &FieldRegion) -> Result<(), ConfigError> {
+fn region(field: &str, r: &Region) -> Result<(), ConfigError> {
     let finite = [r.min_x, r.max_x, r.min_y, r.max_y].iter().all(|v| v.is_finite());
     if finite && r.min_x <= r.max_x && r.min_y <= r.max_y {
         Ok(())
@@ -579,8 +580,8 @@ impl WorldModelConfig {
         if let Some(initial) = &p.initial {
             validate_pose_prior("pose.initial", initial)?;
         }
-        if let Some(bounds) = &p.field_bounds {
-            region("pose.field_bounds", bounds)?;
+        if let Some(bounds) = &p.bounds {
+            region("pose.bounds", bounds)?;
         }
         for (i, hint) in p.hints.iter().enumerate() {
             validate_hint(&format!("pose.hints[{i}]"), hint)?;

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use super::math::{MIN_RANGE, RangeBearing, polar, posterior_covariance, symmetrize2};
 use super::pose::landmark_measurement;
 use super::state::{ObjectId, WorldState};
-use crate::geometry::{Field, Point, Pose, Robot, normalize_angle};
+use crate::geometry::{Global, Point, Pose, Robot, normalize_angle};
 use crate::percept::ViewCone;
 
 /// One observation a sensing action would produce.
@@ -220,7 +220,7 @@ pub(crate) struct ObjectPrior {
     pub tracked: bool,
     pub position: Vector2<f64>,
     pub covariance: Matrix2<f64>,
-    pub map_position: Option<Point<Field>>,
+    pub map_position: Option<Point<Global>>,
 }
 
 /// The read-only belief an expected update runs on: the world model itself or a published

@@ -27,13 +27,13 @@ use super::math::{chi2_2dof_quantile, major_sigma};
 use super::object::{GainedInformation, MotionModel, ObjectFilter, innovation_at};
 use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
 use super::pose::PoseFilter;
-use super::published::{UNKNOWN_VARIANCE, field_estimate_with, map_prediction_from};
+use super::published::{UNKNOWN_VARIANCE, global_estimate_with, map_prediction_from};
 use super::state::{
     LostReason, ObjectCategory, ObjectEstimate, ObjectId, ObjectInfo, ObjectName, WorldDiagnostics,
     WorldLayout,
 };
 use super::team::{FusionCandidate, TeamFusion, TeamObject};
-use crate::geometry::{Field, Odometry, Point, Pose};
+use crate::geometry::{Global, Odometry, Point, Pose};
 use crate::percept::{CameraPercepts, Observation, Percepts};
 use crate::platform::ObjectClass;
 
@@ -78,7 +78,7 @@ impl Group {
 struct Slot {
     name: ObjectName,
     group: usize,
-    map_position: Option<Point<Field>>,
+    map_position: Option<Point<Global>>,
     track: Option<Track>,
 }
 
@@ -685,13 +685,13 @@ impl BeliefView for WorldModel {
 }
 
 /// A robot-frame estimate placed on the field, with the pose's uncertainty added.
-fn field_estimate(
+fn global_estimate(
     pose: &Pose,
     pose_cov: &Matrix3<f64>,
     l: Vector2<f64>,
     cov: &Matrix2<f64>,
 ) -> (Vector2<f64>, Matrix2<f64>) {
-    field_estimate_with(pose, pose.theta.sin_cos(), pose_cov, l, cov)
+    global_estimate_with(pose, pose.theta.sin_cos(), pose_cov, l, cov)
 }
 
 /// Where the pose and the map put the landmark instance at `map` (robot frame), with
@@ -699,7 +699,7 @@ fn field_estimate(
 fn map_prediction_at(
     pose: &PoseFilter,
     heading: (f64, f64),
-    map: Point<Field>,
+    map: Point<Global>,
 ) -> (Vector2<f64>, Matrix2<f64>) {
     map_prediction_from(&pose.state(), &pose.covariance(), heading, map)
 }
@@ -753,7 +753,7 @@ mod tests {
     /// Every published estimate against the plain computations: field estimates with their
     /// own trigonometry (the publication shares the heading's, and one estimate among the
     /// objects nothing locates), untracked landmarks where [`WorldModel::map_prediction`] puts
-    /// them, field velocities as [`Pose::vector_to_field`] turns them.
+    /// them, field velocities as [`Pose::vector_to_global`] turns them.
     fn check_against_plain(world: &WorldModel, when: &str) {
         let state = world.state();
         let usable = world.pose_usable().is_some();
@@ -761,19 +761,19 @@ mod tests {
             let position = Vector2::new(o.position.x, o.position.y);
             let bits2 = |m: &Matrix2<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
             if o.tracked || !usable {
-                let (f, c) = field_estimate(
+                let (f, c) = global_estimate(
                     &state.pose.pose,
                     &state.pose.covariance,
                     position,
                     &o.covariance,
                 );
                 assert_eq!(
-                    (o.field_position.x.to_bits(), o.field_position.y.to_bits()),
+                    (o.global_position.x.to_bits(), o.global_position.y.to_bits()),
                     (f.x.to_bits(), f.y.to_bits()),
                     "{} {when}",
                     o.name
                 );
-                assert_eq!(bits2(&o.field_covariance), bits2(&c), "{} {when}", o.name);
+                assert_eq!(bits2(&o.global_covariance), bits2(&c), "{} {when}", o.name);
             }
             if !o.tracked
                 && let Some((l, cov)) = world.map_prediction(i)
@@ -784,9 +784,9 @@ mod tests {
                 );
                 assert_eq!(bits2(&o.covariance), bits2(&cov), "{} {when}", o.name);
             }
-            let v = o.velocity.map(|v| state.pose.pose.vector_to_field(v));
+            let v = o.velocity.map(|v| state.pose.pose.vector_to_global(v));
             assert_eq!(
-                o.field_velocity.map(|v| (v.x.to_bits(), v.y.to_bits())),
+                o.global_velocity.map(|v| (v.x.to_bits(), v.y.to_bits())),
                 v.map(|v| (v.x.to_bits(), v.y.to_bits())),
                 "{} {when}",
                 o.name

@@ -5,7 +5,7 @@ use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 
 use super::math::{Innovation, all_finite, joseph_update, nis, posterior_covariance, symmetrize};
 use super::object::GainedInformation;
-use crate::geometry::{Field, Odometry, Point, Pose, normalize_angle};
+use crate::geometry::{Global, Odometry, Point, Pose, normalize_angle};
 
 /// An EKF on the robot's pose in the field frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -56,7 +56,7 @@ impl PoseFilter {
 
     /// Where the landmark at `map` should appear in the robot frame, and the Jacobian of that
     /// with respect to the pose.
-    pub fn expected_landmark(&self, map: Point<Field>) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
+    pub fn expected_landmark(&self, map: Point<Global>) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
         landmark_measurement(&self.x, map)
     }
 
@@ -73,7 +73,7 @@ impl PoseFilter {
     /// The innovation of a landmark estimate `measured` of the landmark at `map`.
     pub fn landmark_innovation(
         &self,
-        map: Point<Field>,
+        map: Point<Global>,
         measured: &GainedInformation,
     ) -> Option<Innovation> {
         let (h, jac) = self.expected_landmark(map);
@@ -86,7 +86,7 @@ impl PoseFilter {
     /// Corrects the pose with a landmark estimate (Joseph form). `None`: nothing changed.
     pub fn update_landmark(
         &mut self,
-        map: Point<Field>,
+        map: Point<Global>,
         measured: &GainedInformation,
     ) -> Option<Innovation> {
         let (h, jac) = self.expected_landmark(map);
@@ -106,7 +106,7 @@ impl PoseFilter {
     /// The covariance after a landmark estimate with covariance `r`, without changing anything.
     pub fn posterior_covariance(
         &self,
-        map: Point<Field>,
+        map: Point<Global>,
         r: &Matrix2<f64>,
     ) -> Option<Matrix3<f64>> {
         let (_, jac) = self.expected_landmark(map);
@@ -117,7 +117,7 @@ impl PoseFilter {
 /// `h(pose) = R(-theta) (m - p)` and its Jacobian with respect to `(x, y, theta)`.
 pub(crate) fn landmark_measurement(
     pose: &Vector3<f64>,
-    map: Point<Field>,
+    map: Point<Global>,
 ) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
     landmark_measurement_with(pose, pose[2].sin_cos(), map)
 }
@@ -126,7 +126,7 @@ pub(crate) fn landmark_measurement(
 pub(crate) fn landmark_measurement_with(
     pose: &Vector3<f64>,
     (s, c): (f64, f64),
-    map: Point<Field>,
+    map: Point<Global>,
 ) -> (Vector2<f64>, SMatrix<f64, 2, 3>) {
     let dx = map.x - pose[0];
     let dy = map.y - pose[1];
@@ -140,7 +140,7 @@ pub(crate) fn landmark_measurement_with(
 pub fn pose_posterior_covariance(
     pose: &Pose,
     p: &Matrix3<f64>,
-    map: Point<Field>,
+    map: Point<Global>,
     r: &Matrix2<f64>,
 ) -> Option<Matrix3<f64>> {
     let (_, jac) = landmark_measurement(&Vector3::new(pose.x, pose.y, pose.theta), map);

@@ -13,7 +13,7 @@ use strata_runtime::Time;
 use super::math::symmetrize2;
 use super::pose::landmark_measurement_with;
 use super::state::{ObjectEstimate, ObjectId, ObjectInfo};
-use crate::geometry::{Field, Point, Pose, Robot, Vector};
+use crate::geometry::{Global, Point, Pose, Robot, Vector};
 
 /// Large but finite: published covariances must survive a JSON log.
 pub(crate) const UNKNOWN_VARIANCE: f64 = 1e4;
@@ -53,11 +53,11 @@ pub(crate) struct Estimate {
     pub known: bool,
     pub position: Point<Robot>,
     pub covariance: Matrix2<f64>,
-    pub field_position: Point<Field>,
-    pub field_covariance: Matrix2<f64>,
+    pub global_position: Point<Global>,
+    pub global_covariance: Matrix2<f64>,
     pub velocity: Option<Vector<Robot>>,
     pub velocity_covariance: Option<Matrix2<f64>>,
-    pub field_velocity: Option<Vector<Field>>,
+    pub global_velocity: Option<Vector<Global>>,
     pub confidence: f64,
     pub last_seen: Option<Time>,
 }
@@ -76,11 +76,11 @@ impl Estimate {
             known: self.known,
             position: self.position,
             covariance: self.covariance,
-            field_position: self.field_position,
-            field_covariance: self.field_covariance,
+            global_position: self.global_position,
+            global_covariance: self.global_covariance,
             velocity: self.velocity,
             velocity_covariance: self.velocity_covariance,
-            field_velocity: self.field_velocity,
+            global_velocity: self.global_velocity,
             confidence: self.confidence,
             last_seen: self.last_seen,
             map_position: info.map_position,
@@ -94,11 +94,11 @@ impl Estimate {
         object.known = self.known;
         object.position = self.position;
         object.covariance = self.covariance;
-        object.field_position = self.field_position;
-        object.field_covariance = self.field_covariance;
+        object.global_position = self.global_position;
+        object.global_covariance = self.global_covariance;
         object.velocity = self.velocity;
         object.velocity_covariance = self.velocity_covariance;
-        object.field_velocity = self.field_velocity;
+        object.global_velocity = self.global_velocity;
         object.confidence = self.confidence;
         object.last_seen = self.last_seen;
     }
@@ -113,14 +113,14 @@ impl Estimate {
 #[inline(always)]
 pub(crate) fn derive(
     frame: &PoseFrame,
-    map_position: Option<Point<Field>>,
+    map_position: Option<Point<Global>>,
     confidence: f64,
     track: Option<Track>,
-    unknown: &mut Option<(Point<Field>, Matrix2<f64>)>,
+    unknown: &mut Option<(Point<Global>, Matrix2<f64>)>,
 ) -> Estimate {
     let field = |position: Vector2<f64>, covariance: &Matrix2<f64>| {
         let (f, c) =
-            field_estimate_with(&frame.pose, frame.heading, &frame.pose_cov, position, covariance);
+            global_estimate_with(&frame.pose, frame.heading, &frame.pose_cov, position, covariance);
         (Point::new(f.x, f.y), c)
     };
     let (tracked, position, covariance, velocity, last_seen, on_field) = match track {
@@ -145,20 +145,20 @@ pub(crate) fn derive(
             (false, position, covariance, None, None, on_field)
         }
     };
-    let (field_position, field_covariance) = on_field;
-    // `Pose::vector_to_field` with the publication's heading trigonometry.
+    let (global_position, global_covariance) = on_field;
+    // `Pose::vector_to_global` with the publication's heading trigonometry.
     let (s, c) = frame.heading;
-    let field_velocity = velocity.map(|(v, _)| Vector::new(c * v.x - s * v.y, s * v.x + c * v.y));
+    let global_velocity = velocity.map(|(v, _)| Vector::new(c * v.x - s * v.y, s * v.x + c * v.y));
     Estimate {
         tracked,
         known: tracked && confidence >= frame.threshold,
         position: Point::new(position.x, position.y),
         covariance,
-        field_position,
-        field_covariance,
+        global_position,
+        global_covariance,
         velocity: velocity.map(|(v, _)| v),
         velocity_covariance: velocity.map(|(_, c)| c),
-        field_velocity,
+        global_velocity,
         confidence,
         last_seen,
     }
@@ -166,7 +166,7 @@ pub(crate) fn derive(
 
 /// A robot-frame estimate placed on the field with the pose (`(s, c)`: sine and cosine of its
 /// heading), the pose's uncertainty added.
-pub(crate) fn field_estimate_with(
+pub(crate) fn global_estimate_with(
     pose: &Pose,
     (s, c): (f64, f64),
     pose_cov: &Matrix3<f64>,
@@ -185,7 +185,7 @@ pub(crate) fn map_prediction_from(
     state: &Vector3<f64>,
     pose_cov: &Matrix3<f64>,
     heading: (f64, f64),
-    map: Point<Field>,
+    map: Point<Global>,
 ) -> (Vector2<f64>, Matrix2<f64>) {
     let (l, jac) = landmark_measurement_with(state, heading, map);
     let cov = jac * pose_cov * jac.transpose() + Matrix2::identity() * MAP_SIGMA * MAP_SIGMA;

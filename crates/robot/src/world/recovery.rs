@@ -6,10 +6,10 @@
 
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
-use super::config::{FieldRegion, SymmetryHint};
+use super::config::{Region, SymmetryHint};
 use super::math::{all_finite, major_sigma, nis, rotation};
 use super::pose::landmark_measurement;
-use crate::geometry::{Field, Point, Pose, normalize_angle};
+use crate::geometry::{Global, Point, Pose, normalize_angle};
 
 /// A recent landmark estimate (robot frame) taking part in recovery.
 #[derive(Clone, Copy, Debug)]
@@ -27,7 +27,7 @@ pub(crate) struct Sighting {
 pub(crate) struct MapInstance {
     pub group: usize,
     pub slot: usize,
-    pub position: Point<Field>,
+    pub position: Point<Global>,
 }
 
 /// A mobile object both this robot and its teammates see: where the teammates put it on the
@@ -50,7 +50,7 @@ pub(crate) struct Relocation {
 pub(crate) struct RecoveryInput<'a> {
     pub sightings: &'a [Sighting],
     pub map: &'a [MapInstance],
-    pub bounds: Option<FieldRegion>,
+    pub bounds: Option<Region>,
     pub hints: &'a [SymmetryHint],
     /// The pose before it became too uncertain, if it is still worth something.
     pub prior: Option<(Pose, Matrix3<f64>)>,
@@ -243,7 +243,7 @@ fn score(input: &RecoveryInput<'_>, pose: Pose, covariance: Option<Matrix3<f64>>
     let mut cost = 0.0;
     let mut assignment: Vec<(usize, usize)> = Vec::new();
     for (i, s) in input.sightings.iter().enumerate() {
-        let f = pose.to_field(Point::new(s.position.x, s.position.y));
+        let f = pose.to_global(Point::new(s.position.x, s.position.y));
         let c = r * s.covariance * r.transpose() + Matrix2::identity() * HYPOTHESIS_SIGMA.powi(2);
         let best = input
             .map
@@ -299,7 +299,7 @@ fn hint_cost(input: &RecoveryInput<'_>, pose: &Pose) -> f64 {
     }
     let r = rotation(pose.theta);
     for cue in input.team {
-        let f = pose.to_field(Point::new(cue.own_position.x, cue.own_position.y));
+        let f = pose.to_global(Point::new(cue.own_position.x, cue.own_position.y));
         let c = r * cue.own_covariance * r.transpose() + cue.team_covariance;
         let d = Vector2::new(f.x, f.y) - cue.team_position;
         cost += nis(&d, &c).unwrap_or(0.0).min(2.0 * input.gate);
@@ -422,7 +422,7 @@ mod tests {
         RecoveryInput {
             sightings: s,
             map,
-            bounds: Some(FieldRegion { min_x: -5.2, max_x: 5.2, min_y: -3.7, max_y: 3.7 }),
+            bounds: Some(Region { min_x: -5.2, max_x: 5.2, min_y: -3.7, max_y: 3.7 }),
             hints,
             prior: None,
             relocations: &[],
@@ -462,7 +462,7 @@ mod tests {
         spots
     }
 
-    fn line_end_sighting(truth: Pose, end: Point<Field>) -> Sighting {
+    fn line_end_sighting(truth: Pose, end: Point<Global>) -> Sighting {
         let p = truth.to_robot(end);
         Sighting {
             group: 1,
@@ -526,7 +526,7 @@ mod tests {
         let truth = Pose::new(2.0, 0.5, 0.2);
         let s = sightings(truth, &map, &[0, 1]);
         let hints = [SymmetryHint::Region {
-            region: FieldRegion { min_x: 0.0, max_x: 5.2, min_y: -3.7, max_y: 3.7 },
+            region: Region { min_x: 0.0, max_x: 5.2, min_y: -3.7, max_y: 3.7 },
         }];
         let spots = side_line_spots(0.35);
         let mut input = input(&s, &map, &hints);
@@ -556,7 +556,7 @@ mod tests {
         let truth = Pose::new(2.0, 0.5, 0.2);
         let s = sightings(truth, &map, &[0, 1]);
         let hints = [SymmetryHint::Region {
-            region: FieldRegion { min_x: 0.0, max_x: 5.2, min_y: -3.7, max_y: 3.7 },
+            region: Region { min_x: 0.0, max_x: 5.2, min_y: -3.7, max_y: 3.7 },
         }];
         let RecoveryOutcome::Found(h) = recover(&input(&s, &map, &hints)) else {
             panic!("the hint should decide");

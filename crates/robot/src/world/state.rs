@@ -8,7 +8,7 @@ use strata_runtime::{Shared, Time};
 
 use super::config::CameraNoise;
 use super::team::{SharedObject, TeamObject, TeammateEstimate};
-use crate::geometry::{Field, Odometry, Point, Pose, Robot, Vector};
+use crate::geometry::{Global, Odometry, Point, Pose, Robot, Vector};
 use crate::platform::ObjectClass;
 
 /// Stable index of an object filter: its position in [`WorldState::objects`].
@@ -276,18 +276,21 @@ pub struct ObjectEstimate {
     pub position: Point<Robot>,
     /// Covariance of `position` (robot frame).
     pub covariance: Matrix2<f64>,
-    pub field_position: Point<Field>,
-    /// Covariance of `field_position`, including the pose's uncertainty.
-    pub field_covariance: Matrix2<f64>,
+    #[serde(alias = "field_position")]
+    pub global_position: Point<Global>,
+    /// Covariance of `global_position`, including the pose's uncertainty.
+    #[serde(alias = "field_covariance")]
+    pub global_covariance: Matrix2<f64>,
     /// Mobile objects and obstacles.
     pub velocity: Option<Vector<Robot>>,
     pub velocity_covariance: Option<Matrix2<f64>>,
-    pub field_velocity: Option<Vector<Field>>,
+    #[serde(alias = "field_velocity")]
+    pub global_velocity: Option<Vector<Global>>,
     /// In [0, 1]; see `docs/world-model.md`.
     pub confidence: f64,
     pub last_seen: Option<Time>,
     /// Landmarks: the known position of this instance.
-    pub map_position: Option<Point<Field>>,
+    pub map_position: Option<Point<Global>>,
 }
 
 /// Why the pose is lost.
@@ -387,7 +390,7 @@ pub struct ObjectInfo {
     pub variant: Option<u16>,
     pub category: ObjectCategory,
     /// Landmarks: the known position of this instance.
-    pub map_position: Option<Point<Field>>,
+    pub map_position: Option<Point<Global>>,
 }
 
 /// What every world state of one world model shares: its objects of interest, in the order of
@@ -520,7 +523,7 @@ impl WorldState {
     }
 
     /// The known mobile objects as this robot shares them with its teammates.
-    pub fn to_shared(&self, player: u8) -> TeammateEstimate {
+    pub fn to_shared(&self, member: u8) -> TeammateEstimate {
         let objects = self
             .objects
             .iter()
@@ -528,16 +531,16 @@ impl WorldState {
             .map(|o| SharedObject {
                 class: o.class,
                 variant: o.variant,
-                position: o.field_position,
-                velocity: o.field_velocity,
-                covariance: o.field_covariance,
+                position: o.global_position,
+                velocity: o.global_velocity,
+                covariance: o.global_covariance,
                 confidence: o.confidence,
                 age: o.last_seen.map_or(f64::INFINITY, |t| (self.stamp - t).as_secs_f64()),
             })
             .filter(|o| o.age.is_finite())
             .collect();
         TeammateEstimate {
-            player,
+            member,
             stamp: self.stamp,
             pose: self.pose.pose,
             pose_covariance: self.pose.covariance,

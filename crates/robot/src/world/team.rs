@@ -13,7 +13,7 @@ use strata_runtime::Time;
 use super::config::TeamConfig;
 use super::math::{all_finite, chi2_2dof_quantile, nis, symmetrize2};
 use super::state::ObjectId;
-use crate::geometry::{Field, Point, Pose, Vector};
+use crate::geometry::{Global, Point, Pose, Vector};
 use crate::platform::ObjectClass;
 
 /// One mobile object as a teammate estimates it, in the field frame.
@@ -21,8 +21,8 @@ use crate::platform::ObjectClass;
 pub struct SharedObject {
     pub class: ObjectClass,
     pub variant: Option<u16>,
-    pub position: Point<Field>,
-    pub velocity: Option<Vector<Field>>,
+    pub position: Point<Global>,
+    pub velocity: Option<Vector<Global>>,
     /// Field-frame covariance, including the sender's pose uncertainty.
     pub covariance: Matrix2<f64>,
     /// The sender's confidence in the object, in [0, 1].
@@ -34,7 +34,8 @@ pub struct SharedObject {
 /// A teammate's shared estimates: the message the planning layer hands to world modeling.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TeammateEstimate {
-    pub player: u8,
+    #[serde(alias = "player")]
+    pub member: u8,
     /// When the estimate was made, on this robot's clock (the planning layer converts).
     pub stamp: Time,
     pub pose: Pose,
@@ -46,9 +47,9 @@ pub struct TeammateEstimate {
 
 /// A teammate message world modeling refuses.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("estimate from teammate {player}: `{field}` {problem}")]
+#[error("estimate from teammate {member}: `{field}` {problem}")]
 pub struct TeamError {
-    pub player: u8,
+    pub member: u8,
     pub field: String,
     pub problem: String,
 }
@@ -65,7 +66,7 @@ impl TeammateEstimate {
     /// Checks every number: teammates' data comes from outside the process.
     pub fn validate(&self) -> Result<(), TeamError> {
         let bad = |field: String, problem: &str| TeamError {
-            player: self.player,
+            member: self.member,
             field,
             problem: problem.to_owned(),
         };
@@ -105,8 +106,8 @@ pub struct TeamObject {
     pub id: ObjectId,
     pub name: super::state::ObjectName,
     pub class: ObjectClass,
-    pub position: Point<Field>,
-    pub velocity: Option<Vector<Field>>,
+    pub position: Point<Global>,
+    pub velocity: Option<Vector<Global>>,
     pub covariance: Matrix2<f64>,
     /// Whether this robot's own estimate is part of the fusion.
     pub includes_own: bool,
@@ -253,13 +254,13 @@ impl TeamFusion {
         self.gate
     }
 
-    /// Stores a teammate's estimate (replacing an older one from the same player).
+    /// Stores a teammate's estimate (replacing an older one from the same member).
     pub fn insert(&mut self, estimate: TeammateEstimate) -> Result<(), TeamError> {
         estimate.validate()?;
-        match self.teammates.get(&estimate.player) {
+        match self.teammates.get(&estimate.member) {
             Some(old) if old.stamp > estimate.stamp => {}
             _ => {
-                self.teammates.insert(estimate.player, estimate);
+                self.teammates.insert(estimate.member, estimate);
             }
         }
         Ok(())
@@ -332,7 +333,7 @@ impl TeamFusion {
             let covariance =
                 (o.covariance + Matrix2::identity() * (self.config.position_noise * age)) / weight;
             out.push(FusionCandidate {
-                source: Source::Teammate(e.player),
+                source: Source::Teammate(e.member),
                 position,
                 covariance: symmetrize2(covariance),
                 velocity,

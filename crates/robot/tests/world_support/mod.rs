@@ -8,12 +8,12 @@ use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use strata_robot::geometry::{Field, Odometry, Point, Pose, normalize_angle};
+use strata_robot::geometry::{Global, Odometry, Point, Pose, normalize_angle};
 use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use strata_robot::platform::ObjectClass;
 use strata_robot::world::{
-    CameraNoise, ExpectedObservation, FieldRegion, ObjectId, ObjectKind, ObjectOfInterest,
-    OdometryNoise, PoseConfig, PosePrior, SensingCandidate, WorldModelConfig, WorldState,
+    CameraNoise, ExpectedObservation, ObjectId, ObjectKind, ObjectOfInterest, OdometryNoise,
+    PoseConfig, PosePrior, Region, SensingCandidate, WorldModelConfig, WorldState,
 };
 use strata_runtime::Time;
 
@@ -28,16 +28,16 @@ pub const BALL_ACCELERATION_NOISE: f64 = 0.15;
 pub const BALL_MAX_SPEED: f64 = 3.0;
 pub const DT: f64 = 1.0 / 30.0;
 
-pub fn bounds() -> FieldRegion {
-    FieldRegion { min_x: -5.2, max_x: 5.2, min_y: -3.7, max_y: 3.7 }
+pub fn bounds() -> Region {
+    Region { min_x: -5.2, max_x: 5.2, min_y: -3.7, max_y: 3.7 }
 }
 
-pub fn own_half() -> FieldRegion {
-    FieldRegion { min_x: -5.2, max_x: 0.0, min_y: -3.7, max_y: 3.7 }
+pub fn own_half() -> Region {
+    Region { min_x: -5.2, max_x: 0.0, min_y: -3.7, max_y: 3.7 }
 }
 
 /// The landmarks of the test field: (class, map positions).
-pub fn landmarks() -> Vec<(&'static str, ObjectClass, Vec<Point<Field>>)> {
+pub fn landmarks() -> Vec<(&'static str, ObjectClass, Vec<Point<Global>>)> {
     let p = |x: f64, y: f64| Point::new(x, y);
     vec![
         ("goal_post", POST, vec![p(4.5, 0.8), p(4.5, -0.8), p(-4.5, 0.8), p(-4.5, -0.8)]),
@@ -75,7 +75,7 @@ pub fn config(initial: Option<PosePrior>) -> WorldModelConfig {
     );
     WorldModelConfig {
         objects,
-        pose: PoseConfig { initial, field_bounds: Some(bounds()), ..PoseConfig::default() },
+        pose: PoseConfig { initial, bounds: Some(bounds()), ..PoseConfig::default() },
         ..WorldModelConfig::default()
     }
 }
@@ -116,7 +116,7 @@ pub struct Sim {
     pub see_ball: bool,
     /// Consecutive frames, up to now, in which the real ball was detected.
     pub ball_streak: usize,
-    landmarks: Vec<(ObjectClass, Point<Field>)>,
+    landmarks: Vec<(ObjectClass, Point<Global>)>,
 }
 
 impl Sim {

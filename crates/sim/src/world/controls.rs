@@ -2,7 +2,7 @@
 //! and disturb the world. Robots see neither.
 
 use strata_robot::platform::{BodyMotionState, FallDirection};
-use strata_robot::{Field as FieldFrame, Point, Pose, Vector};
+use strata_robot::{Global as FieldFrame, Point, Pose, Vector};
 use strata_spl::gamecontroller::{GameState, Penalty, SetPlay};
 
 use super::{Outbox, RobotSlot, SimError, Simulation};

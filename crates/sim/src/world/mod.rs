@@ -16,7 +16,7 @@ use strata_robot::platform::{
     CameraFrame, FallDirection, HeadAngles, MotionSpec, PlatformInfo, ReceivedPacket, SensorFrame,
     SpecialMotion,
 };
-use strata_robot::{Field as FieldFrame, Point, Pose, Vector, Velocity};
+use strata_robot::{Global as FieldFrame, Point, Pose, Vector, Velocity};
 use strata_runtime::Time;
 use strata_spl::Field;
 use strata_spl::gamecontroller::{GameControlData, GameState, Penalty, ReturnData, RobotInfo};
@@ -417,7 +417,7 @@ impl Simulation {
             let body = &self.robots[slot].body;
             if let Some((side, reach)) = events.dive_block {
                 let p = body.pose.position();
-                let (lx, ly) = body.to_field(0.0, 1.0);
+                let (lx, ly) = body.to_global(0.0, 1.0);
                 let left = Vector::new(lx, ly);
                 let block = match side {
                     DiveSide::Left => strata_robot::geometry::Segment::new(p, p + left * reach),
@@ -429,7 +429,7 @@ impl Simulation {
                 scratch.blocks.push((slot, block));
             }
             scratch.positions.push(Some(body.pose.position()));
-            scratch.velocities.push(field_velocity(body));
+            scratch.velocities.push(global_velocity(body));
         }
 
         // Robots against robots, posts, nets and the carpet's edge.
@@ -791,8 +791,8 @@ impl Simulation {
 }
 
 /// A robot's walking and pushed velocity in the field frame.
-fn field_velocity(body: &Body) -> Vector<FieldFrame> {
-    let (x, y) = body.to_field(body.velocity.vx, body.velocity.vy);
+fn global_velocity(body: &Body) -> Vector<FieldFrame> {
+    let (x, y) = body.to_global(body.velocity.vx, body.velocity.vy);
     Vector::new(x + body.push.x, y + body.push.y)
 }
 

@@ -7,7 +7,7 @@
 
 use std::time::Duration;
 
-use strata_robot::{Field as FieldFrame, Point};
+use strata_robot::{Global as FieldFrame, Point};
 use strata_runtime::Time;
 use strata_spl::Gesture;
 use strata_spl::gamecontroller::GameState;

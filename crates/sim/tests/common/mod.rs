@@ -52,7 +52,7 @@ pub fn place(sim: &mut Simulation, robot: RobotId, x: f64, y: f64, theta: f64) {
     sim.teleport(robot, Pose::new(x, y, theta)).expect("known robot");
 }
 
-pub fn point(x: f64, y: f64) -> Point<strata_robot::Field> {
+pub fn point(x: f64, y: f64) -> Point<strata_robot::Global> {
     Point::new(x, y)
 }
 

@@ -213,7 +213,7 @@ impl WorldModel {
         let input = RecoveryInput {
             sightings: &sightings,
             map: &map,
-            bounds: self.config.pose.field_bounds,
+            bounds: self.config.pose.bounds,
             hints: &self.hints,
             prior,
             relocations: &relocations,

@@ -5,7 +5,7 @@ use nalgebra::{Matrix2, Matrix3};
 use strata_runtime::Time;
 
 use super::WorldModel;
-use crate::geometry::{Field, Point, Pose};
+use crate::geometry::{Global, Point, Pose};
 use crate::world::math::major_sigma;
 use crate::world::pose::PoseFilter;
 use crate::world::published::{
@@ -115,7 +115,7 @@ impl WorldModel {
         &self,
         i: usize,
         frame: &PublicationFrame,
-        unknown: &mut Option<(Point<Field>, Matrix2<f64>)>,
+        unknown: &mut Option<(Point<Global>, Matrix2<f64>)>,
         errors: &mut MapErrors,
     ) -> Estimate {
         let slot = &self.slots[i];
@@ -135,7 +135,7 @@ impl WorldModel {
             && let Some(map) = slot.map_position
             && recent()
         {
-            errors.add(e.field_position.distance(map));
+            errors.add(e.global_position.distance(map));
         }
         e
     }

@@ -4,7 +4,7 @@
 use nalgebra::Vector2;
 use strata_runtime::Time;
 
-use super::{WorldModel, field_estimate};
+use super::{WorldModel, global_estimate};
 use crate::geometry::{Point, Vector};
 use crate::world::recovery::TeamCue;
 use crate::world::state::{ObjectCategory, ObjectId};
@@ -55,14 +55,14 @@ impl WorldModel {
             if let (Some((pose, pose_cov)), Some(track)) = (pose, &self.slots[slot].track)
                 && self.frame_confidence(slot) >= self.config.confidence.unknown_threshold
             {
-                let (position, covariance) = field_estimate(
+                let (position, covariance) = global_estimate(
                     &pose,
                     &pose_cov,
                     track.filter.position_vector(),
                     &track.filter.position_covariance(),
                 );
                 let v = track.filter.velocity();
-                let fv = pose.vector_to_field(v);
+                let fv = pose.vector_to_global(v);
                 candidates.push(FusionCandidate {
                     source: Source::Own,
                     position,
