@@ -20,7 +20,6 @@
 //! the world-state packages only for the comparison.
 
 use std::sync::Arc;
-use std::time::Duration;
 
 use serde::de::DeserializeOwned;
 use serde_json::Value;
@@ -99,8 +98,7 @@ pub fn soccer() -> ModuleRegistry {
         let field = robot.team_field()?;
         let policy = deliberative_behavior(&team, &info, &field, robot.player)?;
         let timing = team.timing.resolved();
-        let load = Duration::try_from_secs_f64(team.deliberative_load).unwrap_or_default();
-        add_deliberative(graph, spec.name, policy, &timing.deliberative, load);
+        add_deliberative(graph, spec.name, policy, &timing.deliberative);
         Ok(())
     });
     registry.register("planning", |graph, spec| {

@@ -152,8 +152,6 @@ pub struct RobotParts<A: Application> {
     pub shared_objects: Vec<String>,
     pub actuation: ActuationConfig,
     pub timing: RobotTiming,
-    /// Extra computation per deliberative tick (the rates experiment's load).
-    pub deliberative_load: Duration,
 }
 
 impl<A: Application> std::fmt::Debug for RobotParts<A> {
@@ -259,14 +257,12 @@ where
     })
 }
 
-/// Adds the deliberative layer (`name`), ticked at its configured rate (1.6 Hz by default),
-/// with `load` of extra computation per tick.
+/// Adds the deliberative layer (`name`), ticked at its configured rate (1.6 Hz by default).
 pub fn add_deliberative<D>(
     graph: &mut GraphBuilder,
     name: &str,
     policy: D,
     timing: &LayerTiming,
-    load: Duration,
 ) -> PolicyPorts<D>
 where
     D: DeliberativePolicy + 'static,
@@ -277,9 +273,7 @@ where
         let ports = DeliberativePorts::declare(p);
         p.trigger(Trigger::every(timing.period(1.6)));
         p.processing_time(timing.processing());
-        let mut module = DeliberativeModule::new(policy, ports);
-        module.artificial_load = load;
-        (module, ports)
+        (DeliberativeModule::new(policy, ports), ports)
     })
 }
 
@@ -326,13 +320,8 @@ pub fn add_robot<A: Application>(
         add_perception(graph, &names.perception, info, parts.perception, &timing.perception);
     let actuation = add_actuation(graph, &names.actuation, parts.actuation, &timing.actuation);
     let reactive = add_reactive(graph, &names.reactive, parts.reactive, &timing.reactive);
-    let deliberative = add_deliberative(
-        graph,
-        &names.deliberative,
-        parts.deliberative,
-        &timing.deliberative,
-        parts.deliberative_load,
-    );
+    let deliberative =
+        add_deliberative(graph, &names.deliberative, parts.deliberative, &timing.deliberative);
 
     let links = Links { team: parts.team_link, external: parts.external_link };
     let (links_in, links_out) =

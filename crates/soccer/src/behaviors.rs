@@ -1179,6 +1179,9 @@ fn field_player_states(mut builder: Builder<S, Ctx>) -> Builder<S, Ctx> {
 pub struct SoccerBehavior {
     machine: StateMachine<S, Ctx>,
     ctx: Ctx,
+    /// Busy computation added to every tick: `strata experiment rates` loads the deliberative
+    /// layer to show the reactive layer keeps its rate (the paper's central claim).
+    load: std::time::Duration,
 }
 
 impl std::fmt::Debug for SoccerBehavior {
@@ -1222,7 +1225,14 @@ impl SoccerBehavior {
                 at_own_restart: false,
                 let_go: None,
             },
+            load: std::time::Duration::ZERO,
         })
+    }
+
+    /// The same behavior, with `load` of busy computation after every tick.
+    pub fn with_load(mut self, load: std::time::Duration) -> SoccerBehavior {
+        self.load = load;
+        self
     }
 
     pub fn active_path(&self) -> String {
@@ -1265,7 +1275,22 @@ impl DeliberativePolicy for SoccerBehavior {
         self.machine.tick(&mut self.ctx, input.now);
         let mut out = std::mem::take(&mut self.ctx.out);
         out.behavior_path = self.machine.active_path();
+        if !self.load.is_zero() {
+            burn_cpu(self.load);
+        }
         out
+    }
+}
+
+/// Busy computation for `duration` of wall time (not a sleep: a sleeping thread would not
+/// compete for the CPU the way a heavy planner does).
+fn burn_cpu(duration: std::time::Duration) {
+    let start = std::time::Instant::now();
+    let mut x = 0u64;
+    while start.elapsed() < duration {
+        for i in 0..1000u64 {
+            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(i));
+        }
     }
 }
 

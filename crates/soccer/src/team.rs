@@ -400,6 +400,9 @@ pub fn deliberative_behavior(
         vision,
         Arc::new(config.motion.clone()),
     )
+    // A load the configuration check would refuse (a config read back from a log is not
+    // checked again) is no load.
+    .map(|b| b.with_load(Duration::try_from_secs_f64(config.deliberative_load).unwrap_or_default()))
 }
 
 /// The planner and the GameController's side of player `player` of team `team_number`.
@@ -468,7 +471,6 @@ pub fn add_soccer_robot(
         shared_objects: shared_objects(),
         actuation: config.actuation.clone(),
         timing: config.timing.clone(),
-        deliberative_load: Duration::from_secs_f64(config.deliberative_load),
     };
     add_robot(graph, parts).map_err(|e| e.to_string())
 }

@@ -161,7 +161,6 @@ pub fn add_patrol_robot(
         shared_objects: vec![INTRUDER.to_owned()],
         actuation: config.actuation.clone(),
         timing: config.timing.clone(),
-        deliberative_load: Duration::ZERO,
     };
     add_robot(graph, parts).map_err(|e| e.to_string())
 }

@@ -1,8 +1,6 @@
 //! The hybrid control layers as runtime modules: thin shells around the pure layers, so the
 //! layers themselves are tested without threads and the shells only move packages.
 
-use std::time::Duration;
-
 use strata_runtime::{
     Context, Input, Message, Module, ModuleError, Output, Policy, Ports, Trigger,
 };
@@ -175,9 +173,6 @@ pub struct DeliberativeModule<P: DeliberativePolicy> {
     world: Option<P::World>,
     assignment: Option<P::Assignment>,
     stability: Stability,
-    /// Extra computation per tick, to test that a loaded deliberative layer does not slow the
-    /// reactive layer (the paper's central claim; `strata experiment rates`).
-    pub artificial_load: Duration,
 }
 
 impl<P: DeliberativePolicy> std::fmt::Debug for DeliberativeModule<P> {
@@ -196,7 +191,6 @@ impl<P: DeliberativePolicy> DeliberativeModule<P> {
             world: None,
             assignment: None,
             stability: Stability::Stable,
-            artificial_load: Duration::ZERO,
         }
     }
 }
@@ -224,22 +218,7 @@ where
             stability: self.stability,
         };
         let output = self.policy.tick(&input);
-        if !self.artificial_load.is_zero() {
-            burn_cpu(self.artificial_load);
-        }
         ctx.send(self.ports.output, output);
         Ok(())
-    }
-}
-
-/// Busy computation for `duration` of wall time (not a sleep: a sleeping thread would not
-/// compete for the CPU the way a heavy planner does).
-fn burn_cpu(duration: Duration) {
-    let start = std::time::Instant::now();
-    let mut x = 0u64;
-    while start.elapsed() < duration {
-        for i in 0..1000u64 {
-            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(i));
-        }
     }
 }
