@@ -44,8 +44,8 @@ use strata_runtime::{
 };
 use strata_sim::{GameState, NoiseLevel, RobotId, SimConfig, SimHandle, Simulation, add_simulator};
 use strata_soccer::field::TeamField;
+use strata_soccer::team::team_world_config;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
-use strata_soccer::world_config::world_config;
 
 use strata_games::logging::{RobotRunConfig, open_run_log};
 use strata_games::matches::{robot_name, served_platform};
@@ -707,7 +707,7 @@ impl Scene {
                 RobotRunConfig {
                     robot: robot_name(id),
                     team: robot.team.clone(),
-                    world: world_config(&team_field),
+                    world: team_world_config(&robot.team, &team_field),
                     field: team_field.field.dimensions().clone(),
                     attack_sign,
                     platform: platform.clone(),

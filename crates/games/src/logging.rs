@@ -24,8 +24,7 @@ use strata_runtime::{
 use strata_sim::{GameTruth, GroundTruth, SimConfig};
 use strata_soccer::behaviors::{Decision, Output as DeliberativeOutput};
 use strata_soccer::field::TeamField;
-use strata_soccer::team::TeamConfig;
-use strata_soccer::world_config::world_config;
+use strata_soccer::team::{TeamConfig, team_world_config};
 use strata_spl::field::FieldDimensions;
 
 use crate::matches::{Match, robot_name};
@@ -96,8 +95,9 @@ impl RunConfig {
         let sim = game.sim.lock();
         let field = sim.field().clone();
         let truth = sim.game();
-        let world =
-            |team: usize| world_config(&TeamField::new(field.clone(), truth.attack_sign[team]));
+        let world = |team: usize, config: &TeamConfig| {
+            team_world_config(config, &TeamField::new(field.clone(), truth.attack_sign[team]))
+        };
         RunConfig {
             players: game.config.players,
             seed: game.config.seed,
@@ -106,7 +106,10 @@ impl RunConfig {
             realtime: game.config.realtime,
             home: game.config.home.clone(),
             away: game.config.away.clone(),
-            world: TeamWorldConfigs { home: world(0), away: world(1) },
+            world: TeamWorldConfigs {
+                home: world(0, &game.config.home),
+                away: world(1, &game.config.away),
+            },
             sim: sim.config().clone(),
             field: field.dimensions().clone(),
             platform: sim.platform_info(),

@@ -70,7 +70,15 @@ pub fn soccer() -> ModuleRegistry {
         let team = robot.team_config()?;
         let info: PlatformInfo = robot.get(&["platform"])?;
         let timing = team.timing.resolved();
-        add_perception(graph, spec.name, info, perception_config(&team), &timing.perception);
+        let camera = robot.world_config()?.camera;
+        add_perception(
+            graph,
+            spec.name,
+            info,
+            perception_config(&team),
+            camera,
+            &timing.perception,
+        );
         Ok(())
     });
     registry.register("world", |graph, spec| {

@@ -40,7 +40,7 @@ use crate::control::scores::Goal;
 use crate::edge::{EdgeModules, Links, RobotPlatform, add_link_edge};
 use crate::perception::{PerceptionConfig, PerceptionModule, PerceptionPorts};
 use crate::platform::{ExternalLink, PlatformInfo, TeamLink};
-use crate::world::{ConfigError, WorldModelConfig, WorldState, add_world_module};
+use crate::world::{CameraNoise, ConfigError, WorldModelConfig, WorldState, add_world_module};
 
 /// How often a layer runs (for periodic layers) and how long its cycles take on the lockstep
 /// host. A field left out keeps the layer's default: a configuration file that changes the
@@ -211,13 +211,14 @@ pub fn add_perception(
     name: &str,
     info: PlatformInfo,
     config: PerceptionConfig,
+    camera: CameraNoise,
     timing: &LayerTiming,
 ) -> PerceptionPorts {
     graph.add(name, |p| {
         let ports = PerceptionPorts::declare(p);
         p.real_time();
         p.processing_time(timing.processing());
-        (PerceptionModule::new(info, config, ports), ports)
+        (PerceptionModule::new(info, config, camera, ports), ports)
     })
 }
 
@@ -306,6 +307,8 @@ pub fn add_robot<A: Application>(
     let names = RobotModules::new(&parts.name);
     let timing = parts.timing.resolved();
 
+    // One camera model: the noise perception attaches is the noise world modeling predicts.
+    let camera = parts.world.camera;
     let world = add_world_module(graph, &names.world, parts.world)?;
     // The world module's processing time and trigger are set by its constructor; its timing
     // model is applied through the builder below.
@@ -316,8 +319,14 @@ pub fn add_robot<A: Application>(
 
     let info = parts.platform.info();
     let edge = parts.platform.into_ports(graph, &parts.name, timing.perception.period(83.3));
-    let perception =
-        add_perception(graph, &names.perception, info, parts.perception, &timing.perception);
+    let perception = add_perception(
+        graph,
+        &names.perception,
+        info,
+        parts.perception,
+        camera,
+        &timing.perception,
+    );
     let actuation = add_actuation(graph, &names.actuation, parts.actuation, &timing.actuation);
     let reactive = add_reactive(graph, &names.reactive, parts.reactive, &timing.reactive);
     let deliberative =

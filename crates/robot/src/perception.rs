@@ -8,42 +8,30 @@ use strata_runtime::{Context, Input, Module, ModuleError, Output, Policy};
 use crate::geometry::normalize_angle;
 use crate::percept::{CameraPercepts, Observation, Percepts, Signal, SignalKind, ViewCone};
 use crate::platform::{ObjectClass, PlatformInfo, SensorFrame};
+use crate::world::CameraNoise;
 
-/// The measurement noise perception attributes to each observation (what world modeling
-/// uses as R). Range noise grows with distance.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// What perception does with the camera's detections besides attaching their noise. The noise
+/// itself is the robot's one camera model, [`CameraNoise`] (world modeling's
+/// `WorldModelConfig::camera`): perception attaches it to each observation and world modeling
+/// predicts observations with it, so the two cannot disagree.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PerceptionConfig {
-    /// Range standard deviation at zero distance, m.
-    pub range_sigma: f64,
-    /// Additional range standard deviation per metre of distance.
-    pub range_sigma_per_metre: f64,
-    /// Bearing standard deviation, rad.
-    pub bearing_sigma: f64,
     /// Classes the camera reports that are signals, not objects to track (the referee, whose
     /// variant is its gesture): they go to the planning layer as [`Signal`]s, not to world
     /// modeling.
     pub signal_classes: Vec<ObjectClass>,
 }
 
-impl Default for PerceptionConfig {
-    fn default() -> Self {
-        PerceptionConfig {
-            range_sigma: 0.05,
-            range_sigma_per_metre: 0.08,
-            bearing_sigma: 0.035,
-            signal_classes: Vec::new(),
-        }
-    }
-}
-
-/// Converts one sensor frame into percepts, and appends the signals it carried to `signals`.
-/// Detections with non-finite numbers are dropped (and counted by the caller): a filter fed a
-/// NaN is lost for good; so is a whistle whose confidence is not a number.
+/// Converts one sensor frame into percepts, each observation with the noise `camera` gives it,
+/// and appends the signals the frame carried to `signals`. Detections with non-finite numbers
+/// are dropped (and counted by the caller): a filter fed a NaN is lost for good; so is a
+/// whistle whose confidence is not a number.
 pub fn percepts_from_frame(
     frame: &SensorFrame,
     info: &PlatformInfo,
     config: &PerceptionConfig,
+    camera_noise: &CameraNoise,
     signals: &mut Vec<Signal>,
 ) -> (Percepts, usize) {
     let mut rejected = 0;
@@ -84,14 +72,15 @@ pub fn percepts_from_frame(
                     signals.push(Signal { stamp: camera.stamp, kind, confidence: 1.0 });
                     return None;
                 }
+                let (range_sigma, bearing_sigma) = camera_noise.sigmas(d.range);
                 Some(Observation {
                     class: d.class,
                     variant: d.variant,
                     range: d.range,
                     bearing,
                     orientation: d.orientation.map(|o| normalize_angle(o + camera.head.yaw)),
-                    range_sigma: config.range_sigma + config.range_sigma_per_metre * d.range,
-                    bearing_sigma: config.bearing_sigma,
+                    range_sigma,
+                    bearing_sigma,
                 })
             })
             .collect();
@@ -151,6 +140,7 @@ impl PerceptionPorts {
 pub struct PerceptionModule {
     info: PlatformInfo,
     config: PerceptionConfig,
+    camera: CameraNoise,
     ports: PerceptionPorts,
     /// Reused for every frame's signals (nearly always none).
     frame_signals: Vec<Signal>,
@@ -170,9 +160,17 @@ impl PerceptionModule {
     pub fn new(
         info: PlatformInfo,
         config: PerceptionConfig,
+        camera: CameraNoise,
         ports: PerceptionPorts,
     ) -> PerceptionModule {
-        PerceptionModule { info, config, ports, frame_signals: Vec::new(), rejected_detections: 0 }
+        PerceptionModule {
+            info,
+            config,
+            camera,
+            ports,
+            frame_signals: Vec::new(),
+            rejected_detections: 0,
+        }
     }
 }
 
@@ -184,6 +182,7 @@ impl Module for PerceptionModule {
                 &package.value,
                 &self.info,
                 &self.config,
+                &self.camera,
                 &mut self.frame_signals,
             );
             if rejected > 0 {
@@ -228,6 +227,44 @@ mod tests {
     }
 
     #[test]
+    fn observations_carry_the_noise_of_the_robots_camera_model() {
+        let camera = CameraNoise {
+            range_sigma: 0.2,
+            range_sigma_per_metre: 0.1,
+            bearing_sigma: 0.07,
+            use_percept_sigmas: true,
+        };
+        let frame = SensorFrame {
+            stamp: Time::from_nanos(7),
+            camera: Some(CameraFrame {
+                stamp: Time::from_nanos(5),
+                head: HeadAngles::default(),
+                footprint: None,
+                detections: vec![Detection {
+                    class: ObjectClass(1),
+                    variant: None,
+                    range: 3.0,
+                    bearing: 0.0,
+                    orientation: None,
+                }],
+            }),
+            ..SensorFrame::default()
+        };
+        let mut signals = Vec::new();
+        let (percepts, _) = percepts_from_frame(
+            &frame,
+            &info(),
+            &PerceptionConfig::default(),
+            &camera,
+            &mut signals,
+        );
+        let observation = &percepts.camera.expect("a camera frame").observations[0];
+        // The sigmas world modeling predicts for the same range (active vision).
+        assert_eq!((observation.range_sigma, observation.bearing_sigma), camera.sigmas(3.0));
+        assert!((observation.range_sigma - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
     fn bearings_move_to_the_body_frame_with_the_head_yaw_at_capture() {
         let detection = |bearing: f64, range: f64| Detection {
             class: ObjectClass(1),
@@ -248,8 +285,13 @@ mod tests {
             ..SensorFrame::default()
         };
         let mut signals = Vec::new();
-        let (percepts, rejected) =
-            percepts_from_frame(&frame, &info(), &PerceptionConfig::default(), &mut signals);
+        let (percepts, rejected) = percepts_from_frame(
+            &frame,
+            &info(),
+            &PerceptionConfig::default(),
+            &CameraNoise::default(),
+            &mut signals,
+        );
         assert_eq!(rejected, 1);
         assert!(signals.is_empty());
         let camera = percepts.camera.expect("camera percepts");
@@ -294,7 +336,8 @@ mod tests {
         let config =
             PerceptionConfig { signal_classes: vec![referee], ..PerceptionConfig::default() };
         let mut signals = Vec::new();
-        let (percepts, rejected) = percepts_from_frame(&frame, &info(), &config, &mut signals);
+        let (percepts, rejected) =
+            percepts_from_frame(&frame, &info(), &config, &CameraNoise::default(), &mut signals);
         assert_eq!(rejected, 0);
         assert_eq!(percepts.observations().len(), 1, "the ball only");
         assert_eq!(percepts.observations()[0].class, ObjectClass(1));
@@ -316,7 +359,8 @@ mod tests {
         // A whistle that is not a number is dropped and counted.
         let garbled = SensorFrame { whistle: Some(f64::NAN), ..SensorFrame::default() };
         signals.clear();
-        let (_, rejected) = percepts_from_frame(&garbled, &info(), &config, &mut signals);
+        let (_, rejected) =
+            percepts_from_frame(&garbled, &info(), &config, &CameraNoise::default(), &mut signals);
         assert_eq!((rejected, signals.len()), (1, 0));
     }
 }

@@ -20,7 +20,7 @@ use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::edge::RobotPlatform;
 use strata_robot::perception::PerceptionConfig;
 use strata_robot::platform::{ExternalLink, ObjectClass, PlatformInfo, TeamLink};
-use strata_robot::world::{PosePrior, SymmetryHint, WorldModelConfig, WorldState};
+use strata_robot::world::{CameraNoise, PosePrior, SymmetryHint, WorldModelConfig, WorldState};
 use strata_runtime::GraphBuilder;
 use strata_spl::ObjectKind;
 
@@ -49,6 +49,9 @@ pub struct TeamConfig {
     pub multiplexer: MultiplexerConfig,
     pub fall_detector: FallDetectorConfig,
     pub perception: PerceptionConfig,
+    /// The robots' camera model: the noise perception attaches to each observation and world
+    /// modeling predicts for active vision.
+    pub camera: CameraNoise,
     pub actuation: ActuationConfig,
     pub motion: MotionModel,
     pub planning: PlanningConfig,
@@ -69,6 +72,7 @@ impl Default for TeamConfig {
             multiplexer: MultiplexerConfig::default(),
             fall_detector: FallDetectorConfig::default(),
             perception: PerceptionConfig::default(),
+            camera: CameraNoise::default(),
             actuation: ActuationConfig::default(),
             motion: MotionModel::default(),
             planning: PlanningConfig::default(),
@@ -205,6 +209,15 @@ impl TeamConfig {
                 format!("must be >= 0, got {dribble}"),
             ));
         }
+        positive("camera.range_sigma", self.camera.range_sigma)?;
+        positive("camera.bearing_sigma", self.camera.bearing_sigma)?;
+        let per_metre = self.camera.range_sigma_per_metre;
+        if !(per_metre.is_finite() && per_metre >= 0.0) {
+            return Err(invalid(
+                "camera.range_sigma_per_metre",
+                format!("must be >= 0, got {per_metre}"),
+            ));
+        }
         positive("motion.head_speed", self.motion.head_speed)?;
         positive("motion.camera_height", self.motion.camera_height)?;
         let [up, down] = self.motion.head_pitch_limits;
@@ -285,14 +298,20 @@ impl std::fmt::Debug for SoccerRobotSpec {
 /// platform that reports every move it sees.
 const DISAGREEMENT_PRIOR: [f64; 3] = [2.0, 2.0, 1.0];
 
-/// The world model's configuration for one robot: the field's, with where it starts if known
-/// and where it may be put without being told.
+/// The world model of a team's robots: the field's, with the team's camera model.
+pub fn team_world_config(team: &TeamConfig, field: &TeamField) -> WorldModelConfig {
+    WorldModelConfig { camera: team.camera, ..world_config(field) }
+}
+
+/// The world model's configuration for one robot of `team`: the team's, with where it starts
+/// if known and where it may be put without being told.
 pub fn robot_world_config(
+    team: &TeamConfig,
     field: &TeamField,
     initial_pose: Option<PosePrior>,
     relocations: &[PosePrior],
 ) -> WorldModelConfig {
-    let mut config = world_config(field);
+    let mut config = team_world_config(team, field);
     config.pose.initial = initial_pose;
     if !relocations.is_empty() {
         // The platform reports the moves it sees (`Percepts::placed`); a single landmark's
@@ -460,7 +479,7 @@ pub fn add_soccer_robot(
         member: spec.player,
         platform: spec.platform,
         perception: perception_config(config),
-        world: robot_world_config(&field, spec.initial_pose, &spec.relocations),
+        world: robot_world_config(config, &field, spec.initial_pose, &spec.relocations),
         reactive,
         deliberative,
         planner,
@@ -483,20 +502,21 @@ mod tests {
     fn a_robot_placed_by_a_platform_that_reports_moves_drops_the_own_half_hint() {
         use strata_robot::geometry::Pose;
         let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let team = TeamConfig::default();
         let region = |c: &WorldModelConfig| {
             c.pose.hints.iter().any(|h| matches!(h, SymmetryHint::Region { .. }))
         };
         let start = PosePrior { pose: Pose::new(-2.0, 0.0, 0.0), sigma: [0.1, 0.1, 0.05] };
         let spot = PosePrior { pose: Pose::new(-1.0, -3.5, FRAC_PI_2), sigma: [0.3, 0.3, 0.4] };
         // The built-in simulator's robots: entering in their own half breaks the symmetry.
-        let sim = robot_world_config(&field, Some(start), &[]);
+        let sim = robot_world_config(&team, &field, Some(start), &[]);
         assert!(region(&sim) && sim.pose.disagreement_prior.is_none());
         // A T1 in rcssservermj: beamed to its pose, its moves reported or at known spots.
-        let t1 = robot_world_config(&field, Some(start), &[spot]);
+        let t1 = robot_world_config(&team, &field, Some(start), &[spot]);
         assert!(!region(&t1) && t1.pose.disagreement_prior.is_some());
         assert!(t1.pose.hints.iter().any(|h| matches!(h, SymmetryHint::Relocations { .. })));
         // Not told where it starts: it still enters in its own half.
-        assert!(region(&robot_world_config(&field, None, &[spot])));
+        assert!(region(&robot_world_config(&team, &field, None, &[spot])));
     }
 
     #[test]
@@ -530,6 +550,13 @@ mod tests {
             e.to_string(),
             "teams/bad.toml: `timing.deliberative.rate_hz` must be > 0, got -1"
         );
+        let e = TeamConfig::from_toml_str("[camera]\nbearing_sigma = 0.0\n", "teams/bad.toml")
+            .expect_err("invalid");
+        assert_eq!(e.to_string(), "teams/bad.toml: `camera.bearing_sigma` must be > 0, got 0");
+        // The camera model moved out of `[perception]`: the old keys are named as unknown.
+        let e = TeamConfig::from_toml_str("[perception]\nrange_sigma = 0.1\n", "teams/old.toml")
+            .expect_err("unknown key");
+        assert!(e.to_string().contains("range_sigma"), "{e}");
         let e = TeamConfig::from_toml_str("coordinaton = true\n", "teams/typo.toml")
             .expect_err("unknown key");
         assert!(

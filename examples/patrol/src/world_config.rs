@@ -39,14 +39,20 @@ pub fn landmark_groups(plan: &FloorPlan) -> Vec<String> {
     groups
 }
 
-/// The noise perception attributes to the camera (a little above the platform's own: a filter
-/// told the truth about its noise and nothing about its model errors is overconfident).
+/// The patrol has no signals among its camera's detections.
 pub fn perception_config() -> PerceptionConfig {
-    PerceptionConfig {
+    PerceptionConfig::default()
+}
+
+/// The robot's camera model: the noise perception attaches to each observation and world
+/// modeling predicts (a little above the platform's own: a filter told the truth about its
+/// noise and nothing about its model errors is overconfident).
+pub fn camera_noise() -> CameraNoise {
+    CameraNoise {
         range_sigma: 0.04,
         range_sigma_per_metre: 0.05,
         bearing_sigma: 0.025,
-        signal_classes: Vec::new(),
+        use_percept_sigmas: true,
     }
 }
 
@@ -90,15 +96,9 @@ pub fn world_config(plan: &FloorPlan, start: Pose) -> WorldModelConfig {
         kind: ObjectKind::Mobile { friction: 1.0, acceleration_noise: 0.4, max_speed: 1.5 },
         confidence: Some(ObjectConfidence { half_life: 10.0, sigma_half: 0.5 }),
     });
-    let camera = perception_config();
     WorldModelConfig {
         objects,
-        camera: CameraNoise {
-            range_sigma: camera.range_sigma,
-            range_sigma_per_metre: camera.range_sigma_per_metre,
-            bearing_sigma: camera.bearing_sigma,
-            use_percept_sigmas: true,
-        },
+        camera: camera_noise(),
         pose: PoseConfig {
             // Robots are switched on at their docks: the building has no symmetry to break.
             initial: Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.05] }),

@@ -306,7 +306,7 @@ pub fn run(opts: &RobotOptions, out: &Arc<dyn RobotOutput>) -> Result<()> {
             let run_config = RobotRunConfig {
                 robot: format!("t{}/{}", opts.team, opts.player),
                 team: config.clone(),
-                world: robot_world_config(&team_field, initial_pose, &relocations),
+                world: robot_world_config(&config, &team_field, initial_pose, &relocations),
                 field: team_field.field.dimensions().clone(),
                 attack_sign,
                 platform: info.clone(),
