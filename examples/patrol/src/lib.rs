@@ -15,7 +15,7 @@
 //! | goals and resources (Table 3) | [`goals`] |
 //! | primitive behaviors, activation functions (3.5, Table 4) | [`primitives`], [`activation`] |
 //! | objects of interest, world modeling (3.1) | [`world_config`] |
-//! | platform (3.7) | [`sim`]: a kinematic building with the `Platform` trait |
+//! | platform (3.7) | [`sim`]: the building on `strata-worldsim`, the robots' platform module |
 //!
 //! See `README.md` for the whole mapping and how to run it.
 

@@ -18,7 +18,7 @@ use strata_robot::control::reactive::{
 use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::edge::RobotPlatform;
 use strata_robot::geometry::Pose;
-use strata_robot::platform::{ExternalLink, SharedPlatform, TeamLink, lock_platform};
+use strata_robot::platform::{ExternalLink, TeamLink};
 use strata_runtime::{GraphBuilder, ProcessingTime};
 
 use crate::activation::{BodyActivation, HeadActivation, WholeBodyActivation};
@@ -91,7 +91,8 @@ pub struct PatrolRobotSpec {
     pub plan: Arc<FloorPlan>,
     /// Where the robot is switched on.
     pub start: Pose,
-    pub platform: SharedPlatform,
+    /// The robot's platform: the building's module serving it, or any platform object.
+    pub platform: RobotPlatform,
     pub team_link: Option<Box<dyn TeamLink>>,
     pub console_link: Option<Box<dyn ExternalLink>>,
 }
@@ -111,7 +112,7 @@ pub fn add_patrol_robot(
     spec: PatrolRobotSpec,
     config: &PatrolConfig,
 ) -> Result<RobotModules, String> {
-    let info = lock_platform(&spec.platform).info();
+    let info = spec.platform.info();
     let model = Arc::new(config.motion.clone());
     let plan = Arc::clone(&spec.plan);
     let mux = config.multiplexer.clone();
@@ -148,7 +149,7 @@ pub fn add_patrol_robot(
     let parts = RobotParts::<Patrol> {
         name: spec.name,
         member: spec.player,
-        platform: RobotPlatform::Shared(spec.platform),
+        platform: spec.platform,
         perception: perception_config(),
         world: world_config(&plan, spec.start),
         reactive,

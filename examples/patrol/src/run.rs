@@ -6,6 +6,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use strata_robot::assembly::RobotModules;
+use strata_robot::edge::RobotPlatform;
 use strata_robot::geometry::{Point, Pose};
 use strata_runtime::{
     Graph, GraphBuilder, HostConfig, HostStats, LockstepHost, ThreadedHost, Time,
@@ -18,7 +19,8 @@ use crate::observer::{Observations, PatrolObserver};
 use crate::planning::Role;
 use crate::robot::{PatrolConfig, PatrolRobotSpec, add_patrol_robot};
 use crate::sim::{
-    AlarmEvent, Building, BuildingConfig, BuildingHandle, GroundTruth, Scenario, Slip, add_building,
+    AlarmEvent, Building, BuildingConfig, BuildingHandle, ConsoleLink, GroundTruth, RadioLink,
+    Scenario, Slip, add_building,
 };
 
 /// The demonstration: two robots on the office floor, two points of interest not where the plan
@@ -90,21 +92,30 @@ impl PatrolRun {
         let seed = scenario.seed;
         let starts = scenario.robots.clone();
         let handle = BuildingHandle::new(
-            Building::new(Arc::clone(&plan), building, scenario).map_err(|e| e.to_string())?,
+            Building::simulation(&plan, building, scenario).map_err(|e| e.to_string())?,
         );
         let mut graph = GraphBuilder::new();
-        add_building(&mut graph, handle.clone());
+        let indices: Vec<usize> = (0..starts.len()).collect();
+        // The building is the robots' platform: its step triggers their perception.
+        let served =
+            add_building(&mut graph, handle.clone(), &indices).map_err(|e| e.to_string())?;
         let mut robots = Vec::new();
         for (index, start) in starts.into_iter().enumerate() {
             let player = u8::try_from(index + 1).map_err(|_| "too many robots".to_owned())?;
+            let platform =
+                served.platform(index).ok_or_else(|| format!("robot {index} is not served"))?;
             let spec = PatrolRobotSpec {
                 name: robot_name(player),
                 player,
                 plan: Arc::clone(&plan),
                 start,
-                platform: handle.platform(index).map_err(|e| e.to_string())?,
-                team_link: Some(Box::new(handle.radio(index).map_err(|e| e.to_string())?)),
-                console_link: Some(Box::new(handle.console(index).map_err(|e| e.to_string())?)),
+                platform: RobotPlatform::Module(platform),
+                team_link: Some(Box::new(
+                    RadioLink::new(&handle, index).map_err(|e| e.to_string())?,
+                )),
+                console_link: Some(Box::new(
+                    ConsoleLink::new(&handle, index).map_err(|e| e.to_string())?,
+                )),
             };
             robots.push(add_patrol_robot(&mut graph, spec, config)?);
         }
@@ -132,13 +143,13 @@ impl PatrolRun {
         observer: &PatrolObserver,
         stats: HostStats,
     ) -> Outcome {
-        let building = building.lock();
+        let simulation = building.lock();
         Outcome {
             plan,
-            truth: building.truth().clone(),
+            truth: simulation.script.truth(&simulation.sim),
             observations: observer.snapshot(),
             stats,
-            duration: building.time().as_secs_f64(),
+            duration: simulation.sim.time().as_secs_f64(),
         }
     }
 
