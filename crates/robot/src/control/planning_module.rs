@@ -117,7 +117,6 @@ impl ExternalDevice for NoDevice {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(bound = "M: Label, R: Label")]
 pub struct TeammateView<M, R> {
-    #[serde(alias = "player")]
     pub member: u8,
     pub mission: M,
     pub role: R,

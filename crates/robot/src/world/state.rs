@@ -276,15 +276,12 @@ pub struct ObjectEstimate {
     pub position: Point<Robot>,
     /// Covariance of `position` (robot frame).
     pub covariance: Matrix2<f64>,
-    #[serde(alias = "field_position")]
     pub global_position: Point<Global>,
     /// Covariance of `global_position`, including the pose's uncertainty.
-    #[serde(alias = "field_covariance")]
     pub global_covariance: Matrix2<f64>,
     /// Mobile objects and obstacles.
     pub velocity: Option<Vector<Robot>>,
     pub velocity_covariance: Option<Matrix2<f64>>,
-    #[serde(alias = "field_velocity")]
     pub global_velocity: Option<Vector<Global>>,
     /// In [0, 1]; see `docs/world-model.md`.
     pub confidence: f64,

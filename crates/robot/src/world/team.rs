@@ -34,7 +34,6 @@ pub struct SharedObject {
 /// A teammate's shared estimates: the message the planning layer hands to world modeling.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TeammateEstimate {
-    #[serde(alias = "player")]
     pub member: u8,
     /// When the estimate was made, on this robot's clock (the planning layer converts).
     pub stamp: Time,
