@@ -36,7 +36,16 @@ enum HeadGoal {
     ObserveBoth(String, String),
 }
 
+strata_robot::primitive_ids! {
+    enum HeadPrimitive {
+        Track => "track",
+        Search => "search",
+    }
+}
+
 impl Goal for HeadGoal {
+    type Primitive = HeadPrimitive;
+
     fn label(&self) -> String {
         match self {
             HeadGoal::Observe(o) => format!("observe {o}"),
@@ -51,7 +60,16 @@ enum BodyGoal {
     GoToAndKick,
 }
 
+strata_robot::primitive_ids! {
+    enum BodyPrimitive {
+        Walk => "walk",
+        Kick => "kick",
+    }
+}
+
 impl Goal for BodyGoal {
+    type Primitive = BodyPrimitive;
+
     fn label(&self) -> String {
         format!("{self:?}").to_lowercase()
     }
@@ -63,7 +81,16 @@ enum WholeGoal {
     Celebrate,
 }
 
+strata_robot::primitive_ids! {
+    enum WholePrimitive {
+        Fall => "fall",
+        Celebrate => "celebrate",
+    }
+}
+
 impl Goal for WholeGoal {
+    type Primitive = WholePrimitive;
+
     fn label(&self) -> String {
         format!("{self:?}").to_lowercase()
     }
@@ -114,13 +141,17 @@ impl ActivationPolicy<HeadGoal, World> for HeadPolicy {
         &self,
         goal: &HeadGoal,
         input: &ReactiveInput<'_, World>,
-    ) -> &'static [&'static str] {
+    ) -> &'static [HeadPrimitive] {
         let world = input.world.expect("world");
         let known = match goal {
             HeadGoal::Observe(o) => world.object(o).is_some_and(|(c, _)| c > 0.3),
             HeadGoal::ObserveBoth(..) => true,
         };
-        if known { &["track", "search"] } else { &["search"] }
+        if known {
+            &[HeadPrimitive::Track, HeadPrimitive::Search]
+        } else {
+            &[HeadPrimitive::Search]
+        }
     }
 }
 
@@ -130,13 +161,13 @@ impl ActivationShortcuts<HeadGoal, World> for HeadPolicy {
     }
 }
 
-struct Look(&'static str);
+struct Look(HeadPrimitive);
 impl PrimitiveBehavior<HeadGoal, HeadCommand, World> for Look {
-    fn name(&self) -> &'static str {
+    fn id(&self) -> HeadPrimitive {
         self.0
     }
     fn step(&mut self, _: &HeadGoal, _: &ReactiveInput<'_, World>) -> Option<HeadCommand> {
-        let yaw = if self.0 == "track" { 0.1 } else { 1.0 };
+        let yaw = if self.0 == HeadPrimitive::Track { 0.1 } else { 1.0 };
         Some(HeadCommand::NonQueue(HeadMotion {
             target: HeadAngles { yaw, pitch: 0.0 },
             max_speed: 2.0,
@@ -153,14 +184,14 @@ impl ActivationPolicy<BodyGoal, World> for BodyPolicy {
         &self,
         goal: &BodyGoal,
         input: &ReactiveInput<'_, World>,
-    ) -> &'static [&'static str] {
+    ) -> &'static [BodyPrimitive] {
         match goal {
-            BodyGoal::Approach => &["walk"],
+            BodyGoal::Approach => &[BodyPrimitive::Walk],
             // Kick vs go-to from percepts; the kick id would be a deliberative parameter.
             BodyGoal::GoToAndKick if input.world.is_some_and(|w| w.target_close) => {
-                &["kick", "walk"]
+                &[BodyPrimitive::Kick, BodyPrimitive::Walk]
             }
-            BodyGoal::GoToAndKick => &["walk"],
+            BodyGoal::GoToAndKick => &[BodyPrimitive::Walk],
         }
     }
 }
@@ -173,8 +204,8 @@ impl ActivationShortcuts<BodyGoal, World> for BodyPolicy {
 
 struct Walk;
 impl PrimitiveBehavior<BodyGoal, BodyCommand, World> for Walk {
-    fn name(&self) -> &'static str {
-        "walk"
+    fn id(&self) -> BodyPrimitive {
+        BodyPrimitive::Walk
     }
     fn step(&mut self, _: &BodyGoal, _: &ReactiveInput<'_, World>) -> Option<BodyCommand> {
         Some(BodyCommand::NonQueue(BodyMotion::Walk {
@@ -186,8 +217,8 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, World> for Walk {
 
 struct Kick;
 impl PrimitiveBehavior<BodyGoal, BodyCommand, World> for Kick {
-    fn name(&self) -> &'static str {
-        "kick"
+    fn id(&self) -> BodyPrimitive {
+        BodyPrimitive::Kick
     }
     fn step(&mut self, _: &BodyGoal, _: &ReactiveInput<'_, World>) -> Option<BodyCommand> {
         Some(BodyCommand::Special(SpecialMotion::Kick(0)))
@@ -206,18 +237,20 @@ impl ActivationPolicy<WholeGoal, World> for WholePolicy {
         &self,
         goal: &WholeGoal,
         input: &ReactiveInput<'_, World>,
-    ) -> &'static [&'static str] {
+    ) -> &'static [WholePrimitive] {
         match goal {
-            WholeGoal::Fall if matches!(input.stability, Stability::Unstable(_)) => &["fall"],
+            WholeGoal::Fall if matches!(input.stability, Stability::Unstable(_)) => {
+                &[WholePrimitive::Fall]
+            }
             WholeGoal::Fall => &[],
-            WholeGoal::Celebrate => &["celebrate"],
+            WholeGoal::Celebrate => &[WholePrimitive::Celebrate],
         }
     }
 }
 
-struct Sequence(&'static str, SpecialMotion);
+struct Sequence(WholePrimitive, SpecialMotion);
 impl PrimitiveBehavior<WholeGoal, WholeBodyCommand, World> for Sequence {
-    fn name(&self) -> &'static str {
+    fn id(&self) -> WholePrimitive {
         self.0
     }
     fn step(&mut self, _: &WholeGoal, _: &ReactiveInput<'_, World>) -> Option<WholeBodyCommand> {
@@ -231,15 +264,15 @@ fn layer(combination: ScoreCombination) -> Layer {
     let config = MultiplexerConfig { combination, hysteresis: 0.0 };
     let head =
         Multiplexer::with_shortcuts(ResourceGroup::Head, config.clone(), Box::new(HeadPolicy))
-            .with_primitive(Box::new(Look("track")))
-            .with_primitive(Box::new(Look("search")));
+            .with_primitive(Box::new(Look(HeadPrimitive::Track)))
+            .with_primitive(Box::new(Look(HeadPrimitive::Search)));
     let body =
         Multiplexer::with_shortcuts(ResourceGroup::Body, config.clone(), Box::new(BodyPolicy))
             .with_primitive(Box::new(Walk))
             .with_primitive(Box::new(Kick));
     let whole = Multiplexer::new(ResourceGroup::HeadAndBody, config, Box::new(WholePolicy))
-        .with_primitive(Box::new(Sequence("fall", SpecialMotion::Fall(0))))
-        .with_primitive(Box::new(Sequence("celebrate", SpecialMotion::Dive(9))))
+        .with_primitive(Box::new(Sequence(WholePrimitive::Fall, SpecialMotion::Fall(0))))
+        .with_primitive(Box::new(Sequence(WholePrimitive::Celebrate, SpecialMotion::Dive(9))))
         .with_reflexes(ScoreVector::single(WholeGoal::Fall));
     ReactiveLayer::new(head, body, whole, FallDetectorConfig::default())
 }
@@ -464,8 +497,8 @@ fn hysteresis_keeps_the_current_goal_when_scores_are_close() {
     let config = MultiplexerConfig { combination: ScoreCombination::Average, hysteresis: 0.05 };
     let mut mux: Multiplexer<HeadGoal, HeadCommand, World> =
         Multiplexer::new(ResourceGroup::Head, config, Box::new(HeadPolicy))
-            .with_primitive(Box::new(Look("track")))
-            .with_primitive(Box::new(Look("search")));
+            .with_primitive(Box::new(Look(HeadPrimitive::Track)))
+            .with_primitive(Box::new(Look(HeadPrimitive::Search)));
     mux.set_scores(
         ScoreVector { goals: vec![observe("a", 0.5), observe("b", 0.5)] },
         &Default::default(),
@@ -514,7 +547,7 @@ impl ActivationPolicy<HeadGoal, World> for Counted {
         &self,
         goal: &HeadGoal,
         input: &ReactiveInput<'_, World>,
-    ) -> &'static [&'static str] {
+    ) -> &'static [HeadPrimitive] {
         self.0.primitives_for(goal, input)
     }
 }
@@ -538,8 +571,8 @@ fn cycles_on_one_world_state_decide_as_cycles_that_ask_every_time() {
             config.clone(),
             Box::new(Counted(HeadPolicy, asked.clone())),
         )
-        .with_primitive(Box::new(Look("track")))
-        .with_primitive(Box::new(Look("search")))
+        .with_primitive(Box::new(Look(HeadPrimitive::Track)))
+        .with_primitive(Box::new(Look(HeadPrimitive::Search)))
     };
     let asked_plain = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
     let asked_revised = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
@@ -608,8 +641,8 @@ fn shortcuts_give_the_contracts_answers() {
         config.clone(),
         Box::new(Counted(HeadPolicy, asked_contract.clone())),
     )
-    .with_primitive(Box::new(Look("track")))
-    .with_primitive(Box::new(Look("search")));
+    .with_primitive(Box::new(Look(HeadPrimitive::Track)))
+    .with_primitive(Box::new(Look(HeadPrimitive::Search)));
     contract.body = Multiplexer::new(ResourceGroup::Body, config.clone(), Box::new(BodyPolicy))
         .with_primitive(Box::new(Walk))
         .with_primitive(Box::new(Kick));
@@ -619,8 +652,8 @@ fn shortcuts_give_the_contracts_answers() {
         config,
         Box::new(Counted(HeadPolicy, asked_shortcuts.clone())),
     )
-    .with_primitive(Box::new(Look("track")))
-    .with_primitive(Box::new(Look("search")));
+    .with_primitive(Box::new(Look(HeadPrimitive::Track)))
+    .with_primitive(Box::new(Look(HeadPrimitive::Search)));
     let worlds = [
         World { confidence: vec![("ball", 0.5, 0.1), ("post", 0.4, 0.4)], target_close: false },
         World { confidence: vec![("ball", 0.1, 0.0), ("post", 0.9, 0.2)], target_close: true },
@@ -710,4 +743,29 @@ fn a_layer_runs_only_the_multiplexers_an_application_uses() {
             report.commands
         );
     }
+}
+
+/// A primitive the policy names but nobody registered leaves the goals only it pursues
+/// inapplicable; the multiplexer and the layer say which primitives they lack.
+#[test]
+fn a_layer_lists_the_primitives_it_lacks() {
+    let config = MultiplexerConfig { combination: ScoreCombination::Average, hysteresis: 0.0 };
+    let mut layer = layer(ScoreCombination::Average);
+    assert_eq!(layer.unregistered(), []);
+    layer.body = Multiplexer::new(ResourceGroup::Body, config.clone(), Box::new(BodyPolicy))
+        .with_primitive(Box::new(Kick));
+    assert_eq!(layer.body.unregistered().collect::<Vec<_>>(), [BodyPrimitive::Walk]);
+    assert_eq!(layer.unregistered(), [(ResourceGroup::Body, "walk")]);
+    layer.body.set_scores(ScoreVector::single(BodyGoal::Approach), &Default::default(), Time::ZERO);
+    let world = World::default();
+    let report = layer.step(Time::ZERO, &upright(), Some(&world));
+    assert!(!report.body.goals[0].applicable && report.body.selected_goal.is_none());
+    // The unused multiplexers of a layer that drives its body only lack nothing.
+    let body_only: ReactiveLayer<NoGoal, BodyGoal, NoGoal, World> =
+        ReactiveLayer::empty(FallDetectorConfig::default()).with_body(
+            Multiplexer::new(ResourceGroup::Body, config, Box::new(BodyPolicy))
+                .with_primitive(Box::new(Walk))
+                .with_primitive(Box::new(Kick)),
+        );
+    assert_eq!(body_only.unregistered(), []);
 }

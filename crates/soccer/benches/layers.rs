@@ -20,7 +20,7 @@ use strata_robot::control::reactive::{
     ActivationPolicy, FallDetectorConfig, Multiplexer, MultiplexerConfig, PrimitiveBehavior,
     ReactiveInput, ReactiveLayer,
 };
-use strata_robot::control::scores::{GoalScore, ScoreVector};
+use strata_robot::control::scores::{Goal, GoalScore, PrimitiveId, ScoreVector};
 use strata_robot::geometry::{Point, Pose, Velocity};
 use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use strata_robot::platform::{ObjectClass, PlatformInfo};
@@ -106,20 +106,21 @@ fn measure(mut f: impl FnMut(), batch: u32, rounds: usize) -> f64 {
     samples[samples.len() / 2]
 }
 
-/// The multiplexer machinery with policies that do nothing: the baseline.
+/// The multiplexer machinery with policies that do nothing: the baseline. Its one primitive
+/// takes the goal type's first id.
 struct Null;
-impl<G: strata_robot::control::scores::Goal> ActivationPolicy<G, WorldState> for Null {
+impl<G: Goal> ActivationPolicy<G, WorldState> for Null {
     fn reactive_score(&self, _: &GoalScore<G>, _: &ReactiveInput<'_, WorldState>) -> f64 {
         0.5
     }
-    fn primitives_for(&self, _: &G, _: &ReactiveInput<'_, WorldState>) -> &'static [&'static str] {
-        &["null"]
+    fn primitives_for(&self, _: &G, _: &ReactiveInput<'_, WorldState>) -> &'static [G::Primitive] {
+        G::Primitive::ALL.get(..1).unwrap_or_default()
     }
 }
 struct NullPrimitive;
-impl<G, C> PrimitiveBehavior<G, C, WorldState> for NullPrimitive {
-    fn name(&self) -> &'static str {
-        "null"
+impl<G: Goal, C> PrimitiveBehavior<G, C, WorldState> for NullPrimitive {
+    fn id(&self) -> G::Primitive {
+        G::Primitive::ALL[0]
     }
     fn step(&mut self, _: &G, _: &ReactiveInput<'_, WorldState>) -> Option<C> {
         None

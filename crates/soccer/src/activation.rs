@@ -14,7 +14,9 @@ use strata_robot::world::{ObjectEstimate, WorldState};
 
 use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
-use crate::primitives::{MotionModel, ball_crossing, kickable, names};
+use crate::primitives::{
+    BodyPrimitive, HeadPrimitive, MotionModel, WholeBodyPrimitive, ball_crossing, kickable,
+};
 use crate::situation::{GoalObjects, ball, head_goal_objects, obstacle_ahead};
 
 type Input<'a> = ReactiveInput<'a, WorldState>;
@@ -69,10 +71,10 @@ impl HeadActivation {
         goal: &'a GoalScore<HeadGoal>,
         input: &Input<'a>,
         find: impl FnOnce(&'a WorldState, &'a HeadGoal) -> GoalObjects<'a>,
-    ) -> (f64, &'static [&'static str]) {
-        let Some(world) = input.world else { return (1.0, &[names::SEARCH_OBJECT_ELLIPSE]) };
+    ) -> (f64, &'static [HeadPrimitive]) {
+        let Some(world) = input.world else { return (1.0, &[HeadPrimitive::SearchObjectEllipse]) };
         if goal.goal == HeadGoal::Scan {
-            return (0.5, &[names::SEARCH_OBJECT_ELLIPSE]);
+            return (0.5, &[HeadPrimitive::SearchObjectEllipse]);
         }
         let objects = find(world, &goal.goal);
         let need = need_to_look(&goal.goal, world, &objects);
@@ -97,8 +99,8 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         need_to_look(&goal.goal, world, &head_goal_objects(world, &goal.goal))
     }
 
-    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> &'static [&'static str] {
-        let Some(world) = input.world else { return &[names::SEARCH_OBJECT_ELLIPSE] };
+    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> &'static [HeadPrimitive] {
+        let Some(world) = input.world else { return &[HeadPrimitive::SearchObjectEllipse] };
         head_primitives(goal, world, || head_goal_objects(world, goal))
     }
 }
@@ -109,7 +111,7 @@ impl ActivationShortcuts<HeadGoal, WorldState> for HeadActivation {
         &self,
         goal: &GoalScore<HeadGoal>,
         input: &Input<'_>,
-    ) -> (f64, &'static [&'static str]) {
+    ) -> (f64, &'static [HeadPrimitive]) {
         self.assess_with(goal, input, head_goal_objects)
     }
 
@@ -132,7 +134,7 @@ impl ActivationShortcuts<HeadGoal, WorldState> for HeadActivation {
         goal: &GoalScore<HeadGoal>,
         notes: &mut GoalNotes,
         input: &Input<'_>,
-    ) -> (f64, &'static [&'static str]) {
+    ) -> (f64, &'static [HeadPrimitive]) {
         let found = notes.get_or_insert_with(FoundObjects::default);
         self.assess_with(goal, input, |world, goal| found.objects(world, goal))
     }
@@ -246,20 +248,22 @@ fn head_primitives<'a>(
     goal: &HeadGoal,
     world: &'a WorldState,
     objects: impl FnOnce() -> GoalObjects<'a>,
-) -> &'static [&'static str] {
+) -> &'static [HeadPrimitive] {
     match goal {
-        HeadGoal::ObserveTogether { .. } => &[names::LOOK_AT_TARGET, names::SEARCH_OBJECT_ELLIPSE],
-        HeadGoal::Scan => &[names::SEARCH_OBJECT_ELLIPSE],
+        HeadGoal::ObserveTogether { .. } => {
+            &[HeadPrimitive::LookAtTarget, HeadPrimitive::SearchObjectEllipse]
+        }
+        HeadGoal::Scan => &[HeadPrimitive::SearchObjectEllipse],
         HeadGoal::ObservePartner { .. }
         | HeadGoal::ObserveFieldLine { .. }
         | HeadGoal::ObserveReferee { .. }
             if !world.pose.lost =>
         {
-            &[names::LOOK_AT_TARGET]
+            &[HeadPrimitive::LookAtTarget]
         }
         HeadGoal::ObservePartner { .. }
         | HeadGoal::ObserveFieldLine { .. }
-        | HeadGoal::ObserveReferee { .. } => &[names::SEARCH_OBJECT_ELLIPSE],
+        | HeadGoal::ObserveReferee { .. } => &[HeadPrimitive::SearchObjectEllipse],
         _ => {
             // Tracking needs a position worth pointing at: a tracked object, or a landmark
             // predicted from a pose that is not lost. A track not yet confident enough to be
@@ -270,9 +274,9 @@ fn head_primitives<'a>(
                 .iter()
                 .any(|o| o.tracked || (o.map_position.is_some() && !world.pose.lost));
             if trackable {
-                &[names::OBJECT_TRACKING, names::SEARCH_OBJECT_ELLIPSE]
+                &[HeadPrimitive::ObjectTracking, HeadPrimitive::SearchObjectEllipse]
             } else {
-                &[names::SEARCH_OBJECT_ELLIPSE]
+                &[HeadPrimitive::SearchObjectEllipse]
             }
         }
     }
@@ -296,33 +300,33 @@ impl ActivationPolicy<BodyGoal, WorldState> for BodyActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> &'static [&'static str] {
+    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> &'static [BodyPrimitive] {
         if goal == &BodyGoal::Stand {
-            return &[names::STAND];
+            return &[BodyPrimitive::Stand];
         }
-        let Some(world) = input.world else { return &[names::STAND] };
+        let Some(world) = input.world else { return &[BodyPrimitive::Stand] };
         let blocked = obstacle_ahead(world, self.model.collision_distance, 0.6).is_some();
         match goal {
             BodyGoal::GoToBallAndKick { kick, target } => {
                 if kickable(&self.model, world, *kick, *target) {
                     // Kick or go-to-ball is decided from percepts; the kick id is the
                     // deliberative layer's parameter.
-                    &[names::KICK_BALL, names::GO_TO_BALL]
+                    &[BodyPrimitive::KickBall, BodyPrimitive::GoToBall]
                 } else if blocked && ball(world).is_none_or(|b| b.robot.range() > 0.5) {
-                    &[names::AVOID_COLLISION, names::GO_TO_BALL]
+                    &[BodyPrimitive::AvoidCollision, BodyPrimitive::GoToBall]
                 } else if ball(world).is_some() {
-                    &[names::GO_TO_BALL]
+                    &[BodyPrimitive::GoToBall]
                 } else {
                     &[]
                 }
             }
             BodyGoal::GoToPosition { .. } if blocked => {
-                &[names::AVOID_COLLISION, names::GO_TO_POSITION]
+                &[BodyPrimitive::AvoidCollision, BodyPrimitive::GoToPosition]
             }
             BodyGoal::GoToPosition { .. } | BodyGoal::ObserveTarget { .. } => {
-                &[names::GO_TO_POSITION]
+                &[BodyPrimitive::GoToPosition]
             }
-            BodyGoal::Stand => &[names::STAND],
+            BodyGoal::Stand => &[BodyPrimitive::Stand],
         }
     }
 }
@@ -365,7 +369,11 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &WholeBodyGoal, input: &Input<'_>) -> &'static [&'static str] {
+    fn primitives_for(
+        &self,
+        goal: &WholeBodyGoal,
+        input: &Input<'_>,
+    ) -> &'static [WholeBodyPrimitive] {
         match goal {
             // A whole-body sequence of our own (a stand-up sweeping the torso up from the
             // ground, a dive) tilts the robot on purpose: that is not a fall to protect from.
@@ -373,20 +381,20 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
                 if matches!(input.stability, Stability::Unstable(_))
                     && !input.actuation.busy.contains(&strata_robot::command::Resource::Head) =>
             {
-                &[names::FALL]
+                &[WholeBodyPrimitive::Fall]
             }
             WholeBodyGoal::StandUp { .. } if matches!(input.stability, Stability::Fallen(_)) => {
-                &[names::STAND_UP]
+                &[WholeBodyPrimitive::StandUp]
             }
             WholeBodyGoal::Dive { .. } if input.stability.is_stable() => {
                 let dive = input.world.and_then(ball_crossing).is_some_and(|(y, t)| {
                     t < self.dive_horizon && y.abs() < self.dive_reach && t > 0.05
                 });
-                if dive { &[names::DIVE] } else { &[] }
+                if dive { &[WholeBodyPrimitive::Dive] } else { &[] }
             }
             WholeBodyGoal::GoToBallAndDribble { .. } if input.stability.is_stable() => {
                 if input.world.and_then(ball).is_some_and(|b| b.known) {
-                    &[names::DRIBBLING]
+                    &[WholeBodyPrimitive::Dribbling]
                 } else {
                     &[]
                 }

@@ -39,7 +39,7 @@ use crate::catalog::{GOALKEEPER_NUMBER, Mission, Role};
 use crate::field::TeamField;
 use crate::game::{GameDirective, Kicking};
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
-use crate::primitives::{MotionModel, TOGETHER_RANGE, facing, names};
+use crate::primitives::{BodyPrimitive, MotionModel, TOGETHER_RANGE, facing};
 use crate::situation::{ball, best_instance, obstacle_ahead};
 use crate::value::{GoToBallValue, GoalCoveringValue, PositionValue, RefereeVisibilityValue};
 use crate::world_config::{BALL, landmark_groups};
@@ -806,7 +806,7 @@ fn go_to_ball(ctx: &mut Ctx) -> Status {
         // function says. It aims where a shot would: the side of the goal its keeper leaves.
         ctx.set_body(BodyGoal::GoToBallAndKick { kick: Kick::Forward, target });
         ctx.out.whole_body = ScoreVector::single(WholeBodyGoal::GoToBallAndDribble { target });
-        ctx.out.deactivated.insert(names::KICK_BALL.to_owned());
+        ctx.out.deactivate(BodyPrimitive::KickBall);
     } else {
         let kick = if ctx.role() == Role::Striker { Kick::Forward } else { Kick::Pass };
         let target = if ctx.role() == Role::Striker { target } else { ctx.field.opponent_goal() };
@@ -1297,6 +1297,7 @@ fn burn_cpu(duration: std::time::Duration) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use strata_robot::control::scores::PrimitiveId;
 
     #[test]
     fn the_machine_builds_for_goalie_and_field_players() {
@@ -1542,7 +1543,7 @@ mod tests {
             out.whole_body.goals.first().map(|g| &g.goal),
             Some(WholeBodyGoal::GoToBallAndDribble { .. })
         ));
-        assert!(out.deactivated.contains(names::KICK_BALL), "{:?}", out.deactivated);
+        assert!(out.deactivated.contains(BodyPrimitive::KickBall.name()), "{:?}", out.deactivated);
     }
 
     #[test]
@@ -1565,7 +1566,7 @@ mod tests {
             out = scene.tick(&mut b, k, Some(0.6), Role::Striker, kick_off.clone());
         }
         assert!(out.whole_body.is_empty(), "{:?}", out.whole_body);
-        assert!(!out.deactivated.contains(names::KICK_BALL));
+        assert!(!out.deactivated.contains(BodyPrimitive::KickBall.name()));
         assert!(matches!(
             out.body.goals.first().map(|g| &g.goal),
             Some(BodyGoal::GoToBallAndKick { .. })

@@ -5,6 +5,8 @@ use serde::{Deserialize, Serialize};
 use strata_robot::control::scores::Goal;
 use strata_robot::geometry::{Global, Point, Pose};
 
+use crate::primitives::{BodyPrimitive, HeadPrimitive, WholeBodyPrimitive};
+
 /// Which goal, from this team's point of view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -51,6 +53,8 @@ pub enum HeadGoal {
 }
 
 impl Goal for HeadGoal {
+    type Primitive = HeadPrimitive;
+
     fn label(&self) -> String {
         match self {
             HeadGoal::ObserveBall => "observe ball".into(),
@@ -121,6 +125,8 @@ pub enum BodyGoal {
 }
 
 impl Goal for BodyGoal {
+    type Primitive = BodyPrimitive;
+
     fn label(&self) -> String {
         match self {
             BodyGoal::ObserveTarget { .. } => "observe target".into(),
@@ -144,6 +150,8 @@ pub enum WholeBodyGoal {
 }
 
 impl Goal for WholeBodyGoal {
+    type Primitive = WholeBodyPrimitive;
+
     fn label(&self) -> String {
         match self {
             WholeBodyGoal::GoToBallAndDribble { .. } => "go to ball and dribble".into(),

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use strata_robot::command::{BodyCommand, BodyMotion, HeadCommand, HeadMotion, WholeBodyCommand};
 use strata_robot::control::active_vision::GazeCandidate;
 pub use strata_robot::control::primitives::{HeadSender, Stand, StandUp, WalkSender};
+use strata_robot::control::primitives::{StandPrimitive, StandUpPrimitive, names};
 use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput};
 use strata_robot::geometry::{Point, Pose, Robot, Velocity, normalize_angle};
 use strata_robot::platform::{Footprint, HeadAngles, SpecialMotion};
@@ -19,20 +20,43 @@ use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
 use crate::situation::{ball, head_goal_objects, obstacle_ahead, obstacles};
 
-/// Names of the primitive behaviors, as the multiplexers and the deliberative layer refer to
-/// them (deactivation).
-pub mod names {
-    pub const SEARCH_OBJECT_ELLIPSE: &str = "search object ellipse";
-    pub const OBJECT_TRACKING: &str = "object tracking";
-    pub const LOOK_AT_TARGET: &str = "look at target";
-    pub const GO_TO_POSITION: &str = "go to position";
-    pub const GO_TO_BALL: &str = "go to ball";
-    pub const DRIBBLING: &str = "dribbling";
-    pub const AVOID_COLLISION: &str = "avoid collision";
-    pub const KICK_BALL: &str = "kick ball";
-    pub use strata_robot::control::primitives::names::{STAND, STAND_UP};
-    pub const FALL: &str = "fall";
-    pub const DIVE: &str = "dive";
+strata_robot::primitive_ids! {
+    /// The head's primitive behaviors (Table 4), as activation policies name them.
+    pub enum HeadPrimitive {
+        SearchObjectEllipse => "search object ellipse",
+        ObjectTracking => "object tracking",
+        LookAtTarget => "look at target",
+    }
+}
+
+strata_robot::primitive_ids! {
+    /// The body's primitive behaviors (Table 4), as activation policies name them and the
+    /// deliberative layer deactivates them.
+    pub enum BodyPrimitive {
+        GoToPosition => "go to position",
+        GoToBall => "go to ball",
+        KickBall => "kick ball",
+        AvoidCollision => "avoid collision",
+        Stand => names::STAND,
+    }
+}
+
+strata_robot::primitive_ids! {
+    /// The primitive behaviors that drive head and body together (Table 4).
+    pub enum WholeBodyPrimitive {
+        Dribbling => "dribbling",
+        StandUp => names::STAND_UP,
+        Fall => "fall",
+        Dive => "dive",
+    }
+}
+
+impl StandPrimitive for BodyPrimitive {
+    const STAND: BodyPrimitive = BodyPrimitive::Stand;
+}
+
+impl StandUpPrimitive for WholeBodyPrimitive {
+    const STAND_UP: WholeBodyPrimitive = WholeBodyPrimitive::StandUp;
 }
 
 /// The robot's motion abilities as the primitives assume them (NAO-like defaults, matching the
@@ -254,8 +278,8 @@ impl SearchObjectEllipse {
 }
 
 impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for SearchObjectEllipse {
-    fn name(&self) -> &'static str {
-        names::SEARCH_OBJECT_ELLIPSE
+    fn id(&self) -> HeadPrimitive {
+        HeadPrimitive::SearchObjectEllipse
     }
 
     fn activate(&mut self, _: &HeadGoal, input: &Input<'_, '_>) {
@@ -301,8 +325,8 @@ impl ObjectTracking {
 }
 
 impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for ObjectTracking {
-    fn name(&self) -> &'static str {
-        names::OBJECT_TRACKING
+    fn id(&self) -> HeadPrimitive {
+        HeadPrimitive::ObjectTracking
     }
 
     fn activate(&mut self, _: &HeadGoal, _: &Input<'_, '_>) {
@@ -372,8 +396,8 @@ pub fn look_target(
 }
 
 impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for LookAtTarget {
-    fn name(&self) -> &'static str {
-        names::LOOK_AT_TARGET
+    fn id(&self) -> HeadPrimitive {
+        HeadPrimitive::LookAtTarget
     }
 
     fn activate(&mut self, _: &HeadGoal, _: &Input<'_, '_>) {
@@ -418,8 +442,8 @@ pub fn body_target(world: &WorldState, goal: &BodyGoal) -> Option<(Point<Robot>,
 }
 
 impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToPosition {
-    fn name(&self) -> &'static str {
-        names::GO_TO_POSITION
+    fn id(&self) -> BodyPrimitive {
+        BodyPrimitive::GoToPosition
     }
 
     fn activate(&mut self, _: &BodyGoal, _: &Input<'_, '_>) {
@@ -496,8 +520,8 @@ impl GoToBall {
 }
 
 impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToBall {
-    fn name(&self) -> &'static str {
-        names::GO_TO_BALL
+    fn id(&self) -> BodyPrimitive {
+        BodyPrimitive::GoToBall
     }
 
     fn activate(&mut self, _: &BodyGoal, _: &Input<'_, '_>) {
@@ -528,8 +552,8 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToBall {
 pub struct KickBall;
 
 impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for KickBall {
-    fn name(&self) -> &'static str {
-        names::KICK_BALL
+    fn id(&self) -> BodyPrimitive {
+        BodyPrimitive::KickBall
     }
 
     fn step(&mut self, goal: &BodyGoal, input: &Input<'_, '_>) -> Option<BodyCommand> {
@@ -555,8 +579,8 @@ impl AvoidCollision {
 }
 
 impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for AvoidCollision {
-    fn name(&self) -> &'static str {
-        names::AVOID_COLLISION
+    fn id(&self) -> BodyPrimitive {
+        BodyPrimitive::AvoidCollision
     }
 
     fn activate(&mut self, _: &BodyGoal, _: &Input<'_, '_>) {
@@ -700,8 +724,8 @@ pub fn dribble_walk(
 }
 
 impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribbling {
-    fn name(&self) -> &'static str {
-        names::DRIBBLING
+    fn id(&self) -> WholeBodyPrimitive {
+        WholeBodyPrimitive::Dribbling
     }
 
     fn activate(&mut self, _: &WholeBodyGoal, input: &Input<'_, '_>) {
@@ -760,8 +784,8 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dribblin
 pub struct Fall;
 
 impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Fall {
-    fn name(&self) -> &'static str {
-        names::FALL
+    fn id(&self) -> WholeBodyPrimitive {
+        WholeBodyPrimitive::Fall
     }
 
     fn step(&mut self, goal: &WholeBodyGoal, _: &Input<'_, '_>) -> Option<WholeBodyCommand> {
@@ -790,8 +814,8 @@ pub fn ball_crossing(world: &WorldState) -> Option<(f64, f64)> {
 }
 
 impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dive {
-    fn name(&self) -> &'static str {
-        names::DIVE
+    fn id(&self) -> WholeBodyPrimitive {
+        WholeBodyPrimitive::Dive
     }
 
     fn step(&mut self, _: &WholeBodyGoal, input: &Input<'_, '_>) -> Option<WholeBodyCommand> {

@@ -519,6 +519,31 @@ mod tests {
         assert!(region(&robot_world_config(&team, &field, None, &[spot])));
     }
 
+    /// Every primitive an activation policy can name is registered with its multiplexer, on
+    /// every preset: one left out would make the goals only it pursues inapplicable, silently.
+    #[test]
+    fn the_reactive_layer_registers_every_primitive() {
+        let field =
+            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
+        let info = PlatformInfo {
+            name: "test".into(),
+            sensor_period: Duration::from_millis(12),
+            camera_fov: 1.06,
+            camera_range: 6.0,
+            head_yaw_limits: (-2.0, 2.0),
+            head_pitch_limits: (-0.6, 0.5),
+            max_head_speed: 4.0,
+            max_velocity: strata_robot::geometry::Velocity::new(0.25, 0.15, 1.2),
+            motions: Vec::new(),
+            can_walk: true,
+        };
+        for name in TeamConfig::preset_names() {
+            let config = TeamConfig::preset(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let layer = reactive_layer(&config, &info, &field);
+            assert_eq!(layer.unregistered(), [], "{name}");
+        }
+    }
+
     #[test]
     fn every_preset_loads() {
         for name in TeamConfig::preset_names() {

@@ -8,7 +8,7 @@ use strata_robot::control::scores::GoalScore;
 use strata_robot::world::WorldState;
 
 use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
-use crate::primitives::{head_goal_objects, names};
+use crate::primitives::{BodyPrimitive, HeadPrimitive, WholeBodyPrimitive, head_goal_objects};
 
 type Input<'a> = ReactiveInput<'a, WorldState>;
 
@@ -31,13 +31,13 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> &'static [&'static str] {
-        let Some(world) = input.world else { return &[names::SCAN] };
+    fn primitives_for(&self, goal: &HeadGoal, input: &Input<'_>) -> &'static [HeadPrimitive] {
+        let Some(world) = input.world else { return &[HeadPrimitive::Scan] };
         let localized = !world.pose.lost;
         match goal {
-            HeadGoal::Scan => &[names::SCAN],
-            HeadGoal::LookAt { .. } if localized => &[names::LOOK_AT_TARGET],
-            HeadGoal::LookAt { .. } => &[names::SCAN],
+            HeadGoal::Scan => &[HeadPrimitive::Scan],
+            HeadGoal::LookAt { .. } if localized => &[HeadPrimitive::LookAtTarget],
+            HeadGoal::LookAt { .. } => &[HeadPrimitive::Scan],
             _ => {
                 let objects = head_goal_objects(world, goal);
                 // Tracking needs a position worth pointing at: a known object, or a landmark
@@ -45,12 +45,12 @@ impl ActivationPolicy<HeadGoal, WorldState> for HeadActivation {
                 let trackable =
                     objects.iter().any(|o| o.known || (o.map_position.is_some() && localized));
                 if trackable {
-                    &[names::OBJECT_TRACKING, names::SCAN]
+                    &[HeadPrimitive::ObjectTracking, HeadPrimitive::Scan]
                 } else if matches!(goal, HeadGoal::InspectPoint { .. }) && localized {
                     // Not seen yet (or forgotten): look where the plan puts it.
-                    &[names::LOOK_AT_TARGET, names::SCAN]
+                    &[HeadPrimitive::LookAtTarget, HeadPrimitive::Scan]
                 } else {
-                    &[names::SCAN]
+                    &[HeadPrimitive::Scan]
                 }
             }
         }
@@ -71,10 +71,12 @@ impl ActivationPolicy<BodyGoal, WorldState> for BodyActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> &'static [&'static str] {
+    fn primitives_for(&self, goal: &BodyGoal, input: &Input<'_>) -> &'static [BodyPrimitive] {
         match goal {
-            BodyGoal::GoToWaypoint { .. } if input.world.is_some() => &[names::GO_TO_WAYPOINT],
-            _ => &[names::STAND],
+            BodyGoal::GoToWaypoint { .. } if input.world.is_some() => {
+                &[BodyPrimitive::GoToWaypoint]
+            }
+            _ => &[BodyPrimitive::Stand],
         }
     }
 }
@@ -96,17 +98,21 @@ impl ActivationPolicy<WholeBodyGoal, WorldState> for WholeBodyActivation {
         }
     }
 
-    fn primitives_for(&self, goal: &WholeBodyGoal, input: &Input<'_>) -> &'static [&'static str] {
+    fn primitives_for(
+        &self,
+        goal: &WholeBodyGoal,
+        input: &Input<'_>,
+    ) -> &'static [WholeBodyPrimitive] {
         match goal {
             // A stand-up tilts the robot on purpose: that is not a fall to protect from.
             WholeBodyGoal::Fall { .. }
                 if matches!(input.stability, Stability::Unstable(_))
                     && !input.actuation.busy.contains(&Resource::Head) =>
             {
-                &[names::FALL]
+                &[WholeBodyPrimitive::Fall]
             }
             WholeBodyGoal::StandUp { .. } if matches!(input.stability, Stability::Fallen(_)) => {
-                &[names::STAND_UP]
+                &[WholeBodyPrimitive::StandUp]
             }
             _ => &[],
         }

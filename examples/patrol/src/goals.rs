@@ -5,6 +5,8 @@ use serde::{Deserialize, Serialize};
 use strata_robot::control::scores::Goal;
 use strata_robot::geometry::{Global, Point, Pose};
 
+use crate::primitives::{BodyPrimitive, HeadPrimitive, WholeBodyPrimitive};
+
 /// Goals of the head: the sensing primitives active vision chooses among.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "goal", rename_all = "snake_case")]
@@ -27,6 +29,8 @@ pub enum HeadGoal {
 }
 
 impl Goal for HeadGoal {
+    type Primitive = HeadPrimitive;
+
     fn label(&self) -> String {
         match self {
             HeadGoal::InspectPoint { poi } => format!("{INSPECT_PREFIX}{poi}"),
@@ -78,6 +82,8 @@ pub enum BodyGoal {
 }
 
 impl Goal for BodyGoal {
+    type Primitive = BodyPrimitive;
+
     fn label(&self) -> String {
         match self {
             BodyGoal::GoToWaypoint { stop: true, .. } => "go to position".into(),
@@ -96,6 +102,8 @@ pub enum WholeBodyGoal {
 }
 
 impl Goal for WholeBodyGoal {
+    type Primitive = WholeBodyPrimitive;
+
     fn label(&self) -> String {
         match self {
             WholeBodyGoal::Fall { .. } => "fall".into(),

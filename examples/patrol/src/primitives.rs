@@ -9,6 +9,7 @@ use strata_robot::command::{
     BodyCommand, BodyMotion, HeadCommand, HeadMotion, Resource, WholeBodyCommand,
 };
 pub use strata_robot::control::primitives::{HeadSender, Stand, StandUp, WalkSender};
+use strata_robot::control::primitives::{StandPrimitive, StandUpPrimitive, names};
 use strata_robot::control::reactive::{PrimitiveBehavior, ReactiveInput};
 use strata_robot::geometry::{Point, Robot, Velocity, normalize_angle};
 use strata_robot::platform::{HeadAngles, SpecialMotion};
@@ -18,15 +19,37 @@ use crate::building::FloorPlan;
 use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
 use crate::world_config::{INTRUDER, poi_name};
 
-/// Names of the primitive behaviors, as the multiplexers and the deliberative layer refer to
-/// them.
-pub mod names {
-    pub const SCAN: &str = "scan";
-    pub const OBJECT_TRACKING: &str = "object tracking";
-    pub const LOOK_AT_TARGET: &str = "look at target";
-    pub const GO_TO_WAYPOINT: &str = "go to waypoint";
-    pub const FALL: &str = "fall";
-    pub use strata_robot::control::primitives::names::{STAND, STAND_UP};
+strata_robot::primitive_ids! {
+    /// The head's primitive behaviors, as activation policies name them.
+    pub enum HeadPrimitive {
+        Scan => "scan",
+        ObjectTracking => "object tracking",
+        LookAtTarget => "look at target",
+    }
+}
+
+strata_robot::primitive_ids! {
+    /// The body's primitive behaviors.
+    pub enum BodyPrimitive {
+        GoToWaypoint => "go to waypoint",
+        Stand => names::STAND,
+    }
+}
+
+strata_robot::primitive_ids! {
+    /// The primitive behaviors that drive head and body together: the reflexes.
+    pub enum WholeBodyPrimitive {
+        Fall => "fall",
+        StandUp => names::STAND_UP,
+    }
+}
+
+impl StandPrimitive for BodyPrimitive {
+    const STAND: BodyPrimitive = BodyPrimitive::Stand;
+}
+
+impl StandUpPrimitive for WholeBodyPrimitive {
+    const STAND_UP: WholeBodyPrimitive = WholeBodyPrimitive::StandUp;
 }
 
 /// The robot's motion abilities as the primitives assume them.
@@ -119,8 +142,8 @@ impl Scan {
 }
 
 impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for Scan {
-    fn name(&self) -> &'static str {
-        names::SCAN
+    fn id(&self) -> HeadPrimitive {
+        HeadPrimitive::Scan
     }
 
     fn activate(&mut self, _: &HeadGoal, input: &Input<'_>) {
@@ -157,8 +180,8 @@ impl ObjectTracking {
 }
 
 impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for ObjectTracking {
-    fn name(&self) -> &'static str {
-        names::OBJECT_TRACKING
+    fn id(&self) -> HeadPrimitive {
+        HeadPrimitive::ObjectTracking
     }
 
     fn activate(&mut self, _: &HeadGoal, _: &Input<'_>) {
@@ -187,8 +210,8 @@ impl LookAtTarget {
 }
 
 impl PrimitiveBehavior<HeadGoal, HeadCommand, WorldState> for LookAtTarget {
-    fn name(&self) -> &'static str {
-        names::LOOK_AT_TARGET
+    fn id(&self) -> HeadPrimitive {
+        HeadPrimitive::LookAtTarget
     }
 
     fn activate(&mut self, _: &HeadGoal, _: &Input<'_>) {
@@ -227,8 +250,8 @@ impl GoToWaypoint {
 }
 
 impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToWaypoint {
-    fn name(&self) -> &'static str {
-        names::GO_TO_WAYPOINT
+    fn id(&self) -> BodyPrimitive {
+        BodyPrimitive::GoToWaypoint
     }
 
     fn activate(&mut self, _: &BodyGoal, _: &Input<'_>) {
@@ -266,8 +289,8 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for GoToWaypoint {
 pub struct Fall;
 
 impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Fall {
-    fn name(&self) -> &'static str {
-        names::FALL
+    fn id(&self) -> WholeBodyPrimitive {
+        WholeBodyPrimitive::Fall
     }
 
     fn step(&mut self, goal: &WholeBodyGoal, _: &Input<'_>) -> Option<WholeBodyCommand> {

@@ -19,13 +19,14 @@ use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::edge::RobotPlatform;
 use strata_robot::geometry::Pose;
 use strata_robot::platform::{ExternalLink, TeamLink};
+use strata_robot::world::WorldState;
 use strata_runtime::{GraphBuilder, ProcessingTime};
 
 use crate::activation::{BodyActivation, HeadActivation, WholeBodyActivation};
 use crate::behaviors::{BehaviorConfig, PatrolBehavior};
 use crate::building::FloorPlan;
 use crate::console::{AlarmBoard, OperatorConsole};
-use crate::goals::WholeBodyGoal;
+use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
 use crate::planning::{PatrolCodec, PatrolPlanning};
 use crate::primitives::{
     Fall, GoToWaypoint, LookAtTarget, MotionModel, ObjectTracking, Scan, Stand, StandUp,
@@ -106,20 +107,15 @@ impl std::fmt::Debug for PatrolRobotSpec {
     }
 }
 
-/// Adds one patrol robot (all four modules, all three layers) to `graph`.
-pub fn add_patrol_robot(
-    graph: &mut GraphBuilder,
-    spec: PatrolRobotSpec,
-    config: &PatrolConfig,
-) -> Result<RobotModules, String> {
-    let info = spec.platform.info();
+/// The patrol's reactive layer: its three multiplexers with their primitive behaviors, the
+/// fall and stand-up reflexes, and the fall detector.
+pub fn reactive_layer(config: &PatrolConfig, plan: &Arc<FloorPlan>) -> PatrolReactiveLayer {
     let model = Arc::new(config.motion.clone());
-    let plan = Arc::clone(&spec.plan);
     let mux = config.multiplexer.clone();
     let head = Multiplexer::new(ResourceGroup::Head, mux.clone(), Box::new(HeadActivation))
         .with_primitive(Box::new(Scan::new(Arc::clone(&model))))
         .with_primitive(Box::new(ObjectTracking::new(Arc::clone(&model))))
-        .with_primitive(Box::new(LookAtTarget::new(Arc::clone(&model), Arc::clone(&plan))));
+        .with_primitive(Box::new(LookAtTarget::new(Arc::clone(&model), Arc::clone(plan))));
     let body = Multiplexer::new(ResourceGroup::Body, mux.clone(), Box::new(BodyActivation))
         .with_primitive(Box::new(GoToWaypoint::new(Arc::clone(&model))))
         .with_primitive(Box::new(Stand::default()));
@@ -131,7 +127,21 @@ pub fn add_patrol_robot(
         .with_primitive(Box::new(Fall))
         .with_primitive(Box::new(StandUp))
         .with_reflexes(reflexes);
-    let reactive = ReactiveLayer::new(head, body, whole, config.fall_detector.clone());
+    ReactiveLayer::new(head, body, whole, config.fall_detector.clone())
+}
+
+/// The reactive layer type of a patrol robot.
+pub type PatrolReactiveLayer = ReactiveLayer<HeadGoal, BodyGoal, WholeBodyGoal, WorldState>;
+
+/// Adds one patrol robot (all four modules, all three layers) to `graph`.
+pub fn add_patrol_robot(
+    graph: &mut GraphBuilder,
+    spec: PatrolRobotSpec,
+    config: &PatrolConfig,
+) -> Result<RobotModules, String> {
+    let info = spec.platform.info();
+    let plan = Arc::clone(&spec.plan);
+    let reactive = reactive_layer(config, &plan);
     let vision = ActiveVisionConfig {
         fov: info.camera_fov,
         range: info.camera_range,
@@ -164,4 +174,17 @@ pub fn add_patrol_robot(
         timing: config.timing.clone(),
     };
     add_robot(graph, parts).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every primitive an activation policy can name is registered with its multiplexer: one
+    /// left out would make the goals only it pursues inapplicable, silently.
+    #[test]
+    fn the_reactive_layer_registers_every_primitive() {
+        let layer = reactive_layer(&PatrolConfig::default(), &Arc::new(FloorPlan::office()));
+        assert_eq!(layer.unregistered(), []);
+    }
 }

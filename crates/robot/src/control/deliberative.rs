@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use strata_runtime::Time;
 
 use crate::control::reactive::Stability;
-use crate::control::scores::{Goal, ScoreVector};
+use crate::control::scores::{Goal, PrimitiveId, ScoreVector};
 
 /// What one deliberative tick hands the reactive layer.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -25,10 +25,18 @@ pub struct DeliberativeOutput<H, B, X> {
     pub body: ScoreVector<B>,
     pub whole_body: ScoreVector<X>,
     /// Primitive behaviors that must not be activated for now (e.g. "kick ball" while
-    /// dribbling is wanted).
+    /// dribbling is wanted), by [`PrimitiveId::name`]: a name applies to every multiplexer
+    /// with a primitive of that name. [`DeliberativeOutput::deactivate`] names one by its id.
     pub deactivated: BTreeSet<String>,
     /// The active state and behavior-tree path, e.g. "Goalie playing/Goal covering/cover".
     pub behavior_path: String,
+}
+
+impl<H, B, X> DeliberativeOutput<H, B, X> {
+    /// Deactivates `primitive` until the next tick.
+    pub fn deactivate(&mut self, primitive: impl PrimitiveId) {
+        self.deactivated.insert(primitive.name().to_owned());
+    }
 }
 
 impl<H, B, X> Default for DeliberativeOutput<H, B, X> {

@@ -61,7 +61,7 @@ where
 }
 
 /// Runs a reactive cycle on every new percept (the fastest layer, at the sensor rate).
-pub struct ReactiveModule<H, B, X, W> {
+pub struct ReactiveModule<H: Goal, B: Goal, X: Goal, W> {
     layer: ReactiveLayer<H, B, X, W>,
     ports: ReactivePorts<H, B, X, W>,
     world: Option<W>,

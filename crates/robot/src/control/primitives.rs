@@ -10,14 +10,28 @@ use crate::command::{
     BodyCommand, BodyMotion, HeadCommand, HeadMotion, ResourceGroup, WholeBodyCommand,
 };
 use crate::control::reactive::{PrimitiveBehavior, ReactiveInput, Stability};
+use crate::control::scores::{Goal, PrimitiveId};
 use crate::geometry::Velocity;
 use crate::platform::{FallDirection, HeadAngles, SpecialMotion};
 use strata_runtime::Time;
 
-/// Names of the shared primitives, as multiplexers and deliberative layers refer to them.
+/// Names of the shared primitives, for an application's ids of them
+/// ([`StandPrimitive`], [`StandUpPrimitive`]): reports and logs show the same names whichever
+/// application runs.
 pub mod names {
     pub const STAND: &str = "stand";
     pub const STAND_UP: &str = "stand-up";
+}
+
+/// The primitive ids of a body goal type that [`Stand`] can pursue: which of them is [`Stand`].
+pub trait StandPrimitive: PrimitiveId {
+    const STAND: Self;
+}
+
+/// The primitive ids of a head+body goal type that [`StandUp`] can pursue: which of them is
+/// [`StandUp`].
+pub trait StandUpPrimitive: PrimitiveId {
+    const STAND_UP: Self;
 }
 
 /// Sends a walk only when it differs from the last one or half its duration has passed: fewer
@@ -85,9 +99,9 @@ pub struct Stand {
     sent: bool,
 }
 
-impl<G, W> PrimitiveBehavior<G, BodyCommand, W> for Stand {
-    fn name(&self) -> &'static str {
-        names::STAND
+impl<G: Goal<Primitive: StandPrimitive>, W> PrimitiveBehavior<G, BodyCommand, W> for Stand {
+    fn id(&self) -> G::Primitive {
+        G::Primitive::STAND
     }
 
     fn activate(&mut self, _: &G, _: &ReactiveInput<'_, W>) {
@@ -115,9 +129,11 @@ impl StandUp {
     }
 }
 
-impl<G, W> PrimitiveBehavior<G, WholeBodyCommand, W> for StandUp {
-    fn name(&self) -> &'static str {
-        names::STAND_UP
+impl<G: Goal<Primitive: StandUpPrimitive>, W> PrimitiveBehavior<G, WholeBodyCommand, W>
+    for StandUp
+{
+    fn id(&self) -> G::Primitive {
+        G::Primitive::STAND_UP
     }
 
     fn step(&mut self, _: &G, input: &ReactiveInput<'_, W>) -> Option<WholeBodyCommand> {

@@ -11,8 +11,82 @@ use serde::{Deserialize, Serialize};
 pub trait Goal:
     Clone + Debug + PartialEq + Serialize + DeserializeOwned + Send + Sync + 'static
 {
+    /// The primitive behaviors that can pursue goals of this type: a closed set, so that an
+    /// activation policy names them by values the compiler checks and a misspelt primitive
+    /// cannot make a goal inapplicable for ever.
+    type Primitive: PrimitiveId;
+
     /// A short human-readable name for reports and plots, parameters included.
     fn label(&self) -> String;
+}
+
+/// Which primitive behavior, among those of one goal type ([`Goal::Primitive`]): usually a
+/// field-less enum declared with [`crate::primitive_ids!`]. Activation policies, primitive
+/// behaviors and multiplexers refer to primitives by these values; reports, logs and the
+/// deliberative layer's deactivations by [`PrimitiveId::name`].
+pub trait PrimitiveId: Copy + Eq + Debug + Send + Sync + 'static {
+    /// Every primitive of the set, so that a multiplexer can tell which it lacks
+    /// ([`crate::control::reactive::Multiplexer::unregistered`]).
+    const ALL: &'static [Self];
+
+    /// The name reports and logs show, and deactivations name: unique within the set.
+    fn name(self) -> &'static str;
+}
+
+/// The primitive ids of a goal type no primitive can pursue ([`NoGoal`]'s): there are none.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum NoPrimitive {}
+
+impl PrimitiveId for NoPrimitive {
+    const ALL: &'static [NoPrimitive] = &[];
+
+    fn name(self) -> &'static str {
+        match self {}
+    }
+}
+
+/// Declares a goal type's primitive ids: a field-less enum and its [`PrimitiveId`], each
+/// variant with the name reports and logs show. The macro writes [`PrimitiveId::ALL`] from
+/// the same list as the variants, so that no primitive is left out of it (one left out would
+/// escape [`crate::control::reactive::Multiplexer::unregistered`]).
+///
+/// ```
+/// strata_robot::primitive_ids! {
+///     /// The head's primitive behaviors.
+///     pub enum HeadPrimitive {
+///         Scan => "scan",
+///         /// Keeps the goal's object in the middle of the image.
+///         ObjectTracking => "object tracking",
+///     }
+/// }
+/// use strata_robot::control::scores::PrimitiveId;
+/// assert_eq!(HeadPrimitive::ObjectTracking.name(), "object tracking");
+/// assert_eq!(HeadPrimitive::ALL, [HeadPrimitive::Scan, HeadPrimitive::ObjectTracking]);
+/// ```
+#[macro_export]
+macro_rules! primitive_ids {
+    (
+        $(#[$meta:meta])*
+        $vis:vis enum $id:ident {
+            $($(#[$variant_meta:meta])* $variant:ident => $name:expr),* $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        $vis enum $id {
+            $($(#[$variant_meta])* $variant),*
+        }
+
+        impl $crate::control::scores::PrimitiveId for $id {
+            const ALL: &'static [$id] = &[$($id::$variant),*];
+
+            fn name(self) -> &'static str {
+                match self {
+                    $($id::$variant => $name),*
+                }
+            }
+        }
+    };
 }
 
 /// The goal type of a resource group an application does not use (a robot without a head, or
@@ -22,6 +96,8 @@ pub trait Goal:
 pub enum NoGoal {}
 
 impl Goal for NoGoal {
+    type Primitive = NoPrimitive;
+
     fn label(&self) -> String {
         match *self {}
     }

@@ -2,7 +2,7 @@
 //! while they hold, and the ranking.
 
 use super::{GoalNotes, GoalReport, GoalReports, Multiplexer, ReactiveInput, Selection};
-use crate::control::scores::{Goal, GoalScore, ScoreVector};
+use crate::control::scores::{Goal, GoalScore, PrimitiveId, ScoreVector};
 
 /// One goal as the activation function assessed it: everything that holds until the score
 /// vector or (for a world-only policy) the world state changes.
@@ -143,7 +143,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         made: Option<&GoalScore<G>>,
         notes: &mut GoalNotes,
         input: &ReactiveInput<'_, W>,
-        resolved: &mut Vec<(&'static [&'static str], Option<usize>)>,
+        resolved: &mut Vec<(&'static [G::Primitive], Option<usize>)>,
     ) -> (GoalReport, f64, Option<usize>) {
         let goal = made.unwrap_or(offered_goal);
         let (reactive, primitives) = self.policy.assess_noted(goal, notes, input);
@@ -170,23 +170,23 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         (report, final_score, primitive)
     }
 
-    /// The first of `names` that is registered and not deactivated, remembered in
-    /// `resolved` (taken out of the multiplexer while its goals are assessed).
+    /// The first of `ids` that is registered and not deactivated, remembered in `resolved`
+    /// (taken out of the multiplexer while its goals are assessed).
     fn resolve(
         &self,
-        names: &'static [&'static str],
-        resolved: &mut Vec<(&'static [&'static str], Option<usize>)>,
+        ids: &'static [G::Primitive],
+        resolved: &mut Vec<(&'static [G::Primitive], Option<usize>)>,
     ) -> Option<usize> {
-        // The same static list, at the same address: the same names.
-        if let Some((_, primitive)) = resolved.iter().find(|(n, _)| std::ptr::eq(*n, names)) {
+        // The same static list, at the same address and as long: the same ids.
+        if let Some((_, primitive)) = resolved.iter().find(|(i, _)| std::ptr::eq(*i, ids)) {
             return *primitive;
         }
-        let primitive = names
+        let primitive = ids
             .iter()
             .copied()
-            .filter(|name| !self.deactivated.contains(*name))
-            .find_map(|name| self.primitives.iter().position(|p| p.name() == name));
-        resolved.push((names, primitive));
+            .filter(|id| !self.deactivated.contains(id.name()))
+            .find_map(|id| self.primitives.iter().position(|p| p.id() == id));
+        resolved.push((ids, primitive));
         primitive
     }
 

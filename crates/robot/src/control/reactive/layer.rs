@@ -12,12 +12,12 @@ use super::{
 use crate::command::{
     ActuationMessage, BodyCommand, HeadCommand, MotionCommands, ResourceGroup, WholeBodyCommand,
 };
-use crate::control::scores::Goal;
+use crate::control::scores::{Goal, PrimitiveId};
 use crate::percept::Percepts;
 
 /// The three multiplexers of a humanoid and the fall detector. `H`, `B`, `X`: the
 /// application's head, body and head+body goal types; `W`: the world state type.
-pub struct ReactiveLayer<H, B, X, W> {
+pub struct ReactiveLayer<H: Goal, B: Goal, X: Goal, W> {
     pub head: Multiplexer<H, HeadCommand, W>,
     pub body: Multiplexer<B, BodyCommand, W>,
     pub whole_body: Multiplexer<X, WholeBodyCommand, W>,
@@ -76,6 +76,17 @@ impl<H: Goal, B: Goal, X: Goal, W> ReactiveLayer<H, B, X, W> {
     pub fn with_whole_body(mut self, whole_body: Multiplexer<X, WholeBodyCommand, W>) -> Self {
         self.whole_body = whole_body;
         self
+    }
+
+    /// Each primitive of the three goal types that its multiplexer lacks
+    /// ([`Multiplexer::unregistered`]), by group and name: empty for a layer that registers
+    /// every primitive its policies can name. An unused multiplexer's goal type
+    /// ([`crate::control::scores::NoGoal`]) has none.
+    pub fn unregistered(&self) -> Vec<(ResourceGroup, &'static str)> {
+        let head = self.head.unregistered().map(|id| (self.head.group(), id.name()));
+        let body = self.body.unregistered().map(|id| (self.body.group(), id.name()));
+        let whole = self.whole_body.unregistered().map(|id| (self.whole_body.group(), id.name()));
+        head.chain(body).chain(whole).collect()
     }
 
     pub fn actuation_message(&mut self, message: &ActuationMessage) {

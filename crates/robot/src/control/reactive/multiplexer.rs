@@ -14,7 +14,7 @@ use super::{
     PrimitiveBehavior, ReactiveInput,
 };
 use crate::command::ResourceGroup;
-use crate::control::scores::{Goal, GoalScore, ScoreCombination, ScoreVector};
+use crate::control::scores::{Goal, GoalScore, PrimitiveId, ScoreCombination, ScoreVector};
 
 /// Tunables of a multiplexer.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -53,7 +53,7 @@ pub struct Selection {
 
 /// Manages one resource group: holds the deliberative score vector, runs the activation
 /// function, activates one primitive behavior.
-pub struct Multiplexer<G, Cmd, W> {
+pub struct Multiplexer<G: Goal, Cmd, W> {
     pub(super) group: ResourceGroup,
     pub(super) config: MultiplexerConfig,
     pub(super) policy: Policy<G, W>,
@@ -67,11 +67,13 @@ pub struct Multiplexer<G, Cmd, W> {
     pub(super) labels: Vec<(std::sync::Arc<str>, std::sync::Arc<[String]>)>,
     /// The policy's notes on each offered goal (reflexes first), emptied with the labels.
     pub(super) notes: Vec<GoalNotes>,
+    /// By name: the deliberative layer's output carries one set for all three multiplexers,
+    /// and logs hold it as names.
     pub(super) deactivated: BTreeSet<String>,
-    /// The primitive each list of names given by the policy resolves to, under the current
+    /// The primitive each list of ids given by the policy resolves to, under the current
     /// deactivations: the policy answers with a few static lists, so each is resolved once
-    /// per score vector rather than by comparing names for every goal.
-    pub(super) resolved: Vec<(&'static [&'static str], Option<usize>)>,
+    /// per score vector rather than by looking each id up for every goal.
+    pub(super) resolved: Vec<(&'static [G::Primitive], Option<usize>)>,
     pub(super) assessment: Assessment<G>,
     /// Where the next assessment's reports are gathered (kept for its capacity).
     pub(super) scratch: Vec<GoalReport>,
@@ -83,7 +85,7 @@ impl<G: Goal, Cmd, W> Debug for Multiplexer<G, Cmd, W> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Multiplexer")
             .field("group", &self.group)
-            .field("primitives", &self.primitives.iter().map(|p| p.name()).collect::<Vec<_>>())
+            .field("primitives", &self.primitives.iter().map(|p| p.id().name()).collect::<Vec<_>>())
             .field("scores", &self.scores)
             .finish()
     }
@@ -145,9 +147,9 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         }
     }
 
-    /// Registers a primitive behavior. Names must be unique within the multiplexer.
+    /// Registers a primitive behavior; it replaces one registered earlier with the same id.
     pub fn with_primitive(mut self, primitive: Box<dyn PrimitiveBehavior<G, Cmd, W>>) -> Self {
-        self.primitives.retain(|p| p.name() != primitive.name());
+        self.primitives.retain(|p| p.id() != primitive.id());
         self.primitives.push(primitive);
         self.resolved.clear();
         self.assessment.key = None;
@@ -182,8 +184,17 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         self.group
     }
 
-    pub fn primitive_names(&self) -> Vec<&'static str> {
-        self.primitives.iter().map(|p| p.name()).collect()
+    /// The ids of the registered primitives, in the order they were registered.
+    pub fn primitive_ids(&self) -> impl Iterator<Item = G::Primitive> + '_ {
+        self.primitives.iter().map(|p| p.id())
+    }
+
+    /// The goal type's primitives ([`PrimitiveId::ALL`]) that are not registered: a policy
+    /// that names one gets nothing from it, and a goal only it could pursue is never
+    /// selected. An application's tests assert that this is empty for the multiplexers it
+    /// uses.
+    pub fn unregistered(&self) -> impl Iterator<Item = G::Primitive> + '_ {
+        G::Primitive::ALL.iter().copied().filter(|id| self.primitives.iter().all(|p| p.id() != *id))
     }
 
     /// A new score vector from the deliberative layer replaces the previous one; the
@@ -251,7 +262,7 @@ impl<G: Goal, Cmd, W> Multiplexer<G, Cmd, W> {
         let primitive = &mut self.primitives[selection.primitive];
         self.report.selected_goal =
             self.assessment.reports.get(selection.goal).map(|r| r.goal.clone());
-        self.report.primitive = Some(std::borrow::Cow::Borrowed(primitive.name()));
+        self.report.primitive = Some(std::borrow::Cow::Borrowed(primitive.id().name()));
         self.report.inhibited_by = None;
         primitive.step(goal, input)
     }

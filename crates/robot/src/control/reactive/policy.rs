@@ -6,7 +6,7 @@ use std::fmt::Debug;
 use strata_runtime::Time;
 
 use super::{ActuationStatus, Stability};
-use crate::control::scores::GoalScore;
+use crate::control::scores::{Goal, GoalScore};
 use crate::percept::Percepts;
 
 /// What a primitive behavior sees each cycle: the newest data, never older (paper 3.5).
@@ -22,8 +22,9 @@ pub struct ReactiveInput<'a, W> {
 
 /// A primitive behavior (paper 3.5.1): a short-term policy for one resource group, pursuing a
 /// goal set by the deliberative layer. It knows nothing of the consequences of its actions.
-pub trait PrimitiveBehavior<G, Cmd, W>: Send {
-    fn name(&self) -> &'static str;
+pub trait PrimitiveBehavior<G: Goal, Cmd, W>: Send {
+    /// Which of the goal type's primitives this is: what activation policies name it by.
+    fn id(&self) -> G::Primitive;
 
     /// The multiplexer activated this primitive (it was not active in the previous cycle, or
     /// its goal changed).
@@ -37,7 +38,7 @@ pub trait PrimitiveBehavior<G, Cmd, W>: Send {
 }
 
 /// The application's part of a multiplexer's activation function.
-pub trait ActivationPolicy<G, W>: Send {
+pub trait ActivationPolicy<G: Goal, W>: Send {
     /// Stage 1: a goal that cannot be executed now as one (several objects that do not fit in
     /// one gaze) is divided into goals that can (`Some`, possibly empty: the goal cannot be
     /// pursued at all). `None`, the default, keeps the goal as offered — the common case, which
@@ -53,22 +54,22 @@ pub trait ActivationPolicy<G, W>: Send {
     /// Stage 2: the reactive score S_r in [0, 1], refreshed on every percept.
     fn reactive_score(&self, goal: &GoalScore<G>, input: &ReactiveInput<'_, W>) -> f64;
 
-    /// The primitive behaviors (by name) that can pursue `goal` given the percepts, preferred
-    /// first. Empty: the goal cannot be pursued now (e.g. a fall goal while stable). A static
-    /// list: the choice among a fixed catalogue, made every cycle without allocating.
-    fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> &'static [&'static str];
+    /// The primitive behaviors that can pursue `goal` given the percepts, preferred first.
+    /// Empty: the goal cannot be pursued now (e.g. a fall goal while stable). A static list:
+    /// the choice among a fixed catalogue, made every cycle without allocating.
+    fn primitives_for(&self, goal: &G, input: &ReactiveInput<'_, W>) -> &'static [G::Primitive];
 }
 
 /// The activation policy of an idle multiplexer: no goal applies, no primitive is named.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct NoActivation;
 
-impl<G, W> ActivationPolicy<G, W> for NoActivation {
+impl<G: Goal, W> ActivationPolicy<G, W> for NoActivation {
     fn reactive_score(&self, _goal: &GoalScore<G>, _input: &ReactiveInput<'_, W>) -> f64 {
         0.0
     }
 
-    fn primitives_for(&self, _goal: &G, _input: &ReactiveInput<'_, W>) -> &'static [&'static str] {
+    fn primitives_for(&self, _goal: &G, _input: &ReactiveInput<'_, W>) -> &'static [G::Primitive] {
         &[]
     }
 }
@@ -81,7 +82,7 @@ impl<G, W> ActivationPolicy<G, W> for NoActivation {
 ///
 /// [`Multiplexer::with_shortcuts`]: super::Multiplexer::with_shortcuts
 /// [`Multiplexer::new`]: super::Multiplexer::new
-pub trait ActivationShortcuts<G, W>: ActivationPolicy<G, W> {
+pub trait ActivationShortcuts<G: Goal, W>: ActivationPolicy<G, W> {
     /// Stage 2 and the choice of primitives at once: what the multiplexer asks of every goal
     /// each cycle. The default asks [`ActivationPolicy::reactive_score`] and
     /// [`ActivationPolicy::primitives_for`]; a policy whose two answers read the same percepts
@@ -90,7 +91,7 @@ pub trait ActivationShortcuts<G, W>: ActivationPolicy<G, W> {
         &self,
         goal: &GoalScore<G>,
         input: &ReactiveInput<'_, W>,
-    ) -> (f64, &'static [&'static str]) {
+    ) -> (f64, &'static [G::Primitive]) {
         (self.reactive_score(goal, input), self.primitives_for(&goal.goal, input))
     }
 
@@ -126,7 +127,7 @@ pub trait ActivationShortcuts<G, W>: ActivationPolicy<G, W> {
         goal: &GoalScore<G>,
         _notes: &mut GoalNotes,
         input: &ReactiveInput<'_, W>,
-    ) -> (f64, &'static [&'static str]) {
+    ) -> (f64, &'static [G::Primitive]) {
         self.assess(goal, input)
     }
 }
@@ -162,12 +163,12 @@ impl Debug for GoalNotes {
 }
 
 /// A multiplexer's policy: the contract alone, or with its shortcuts.
-pub(super) enum Policy<G, W> {
+pub(super) enum Policy<G: Goal, W> {
     Contract(Box<dyn ActivationPolicy<G, W>>),
     Shortcuts(Box<dyn ActivationShortcuts<G, W>>),
 }
 
-impl<G, W> Policy<G, W> {
+impl<G: Goal, W> Policy<G, W> {
     pub(super) fn reuse_key(&self, input: &ReactiveInput<'_, W>) -> Option<u64> {
         match self {
             Policy::Contract(_) => None,
@@ -192,7 +193,7 @@ impl<G, W> Policy<G, W> {
         goal: &GoalScore<G>,
         notes: &mut GoalNotes,
         input: &ReactiveInput<'_, W>,
-    ) -> (f64, &'static [&'static str]) {
+    ) -> (f64, &'static [G::Primitive]) {
         match self {
             Policy::Contract(policy) => {
                 (policy.reactive_score(goal, input), policy.primitives_for(&goal.goal, input))
