@@ -333,8 +333,7 @@ mod tests {
             }),
             ..SensorFrame::default()
         };
-        let config =
-            PerceptionConfig { signal_classes: vec![referee], ..PerceptionConfig::default() };
+        let config = PerceptionConfig { signal_classes: vec![referee] };
         let mut signals = Vec::new();
         let (percepts, rejected) =
             percepts_from_frame(&frame, &info(), &config, &CameraNoise::default(), &mut signals);
