@@ -162,6 +162,7 @@ fn team_messages() -> Result<Seeds, Box<dyn std::error::Error>> {
             confidence: 0.6,
             age: 0.4,
         }],
+        signal: None,
     };
     let goalie = TeamMessage {
         sender: 1,
