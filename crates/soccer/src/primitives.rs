@@ -17,6 +17,7 @@ use strata_runtime::Time;
 
 use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
+use crate::motions;
 use crate::situation::{ball, head_goal_objects, obstacle_ahead, obstacles};
 
 /// Names of the primitive behaviors, as the multiplexers and the deliberative layer refer to
@@ -537,7 +538,7 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for KickBall {
         if input.actuation.is_busy(strata_robot::command::ResourceGroup::Body) {
             return None;
         }
-        Some(BodyCommand::Special(SpecialMotion::Kick(kick.sequence())))
+        Some(BodyCommand::Special(motions::kick(kick.sequence())))
     }
 }
 
@@ -769,7 +770,7 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Fall {
             WholeBodyGoal::Fall { sequence } => *sequence,
             _ => 0,
         };
-        Some(WholeBodyCommand::Special { motion: SpecialMotion::Fall(sequence) })
+        Some(WholeBodyCommand::Special { motion: SpecialMotion::fall(sequence) })
     }
 }
 
@@ -804,7 +805,7 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dive {
         } else {
             1
         };
-        Some(WholeBodyCommand::Special { motion: SpecialMotion::Dive(sequence) })
+        Some(WholeBodyCommand::Special { motion: motions::dive(sequence) })
     }
 }
 

@@ -20,8 +20,8 @@ use serde::{Deserialize, Serialize};
 use strata_robot::geometry::{Global, Odometry, Point, Pose, Velocity, normalize_angle};
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CameraFrame, CycleStage, Detection, ExternalLink,
-    FallDirection, FootContact, HeadAngles, InertialData, LinkError, MotionFeedback, MotionSpec,
-    Platform, PlatformError, PlatformInfo, ReceivedPacket, SensorFrame, SharedPlatform,
+    FallDirection, FootContact, HeadAngles, InertialData, LinkError, MotionFeedback, MotionName,
+    MotionSpec, Platform, PlatformError, PlatformInfo, ReceivedPacket, SensorFrame, SharedPlatform,
     SpecialMotion, TeamLink,
 };
 use strata_runtime::{Context, GraphBuilder, Module, ModuleError, ModuleId, Time, Trigger};
@@ -226,7 +226,7 @@ impl SimRobot {
     fn holds_head(&self) -> bool {
         match self.activity {
             Activity::Falling { .. } | Activity::Fallen => true,
-            Activity::Special { motion, .. } => motion.uses_head(),
+            Activity::Special { motion, .. } => motion.head,
             _ => false,
         }
     }
@@ -376,9 +376,9 @@ impl Building {
             max_head_speed: self.config.max_head_speed,
             max_velocity: self.config.max_velocity,
             motions: vec![
-                spec(SpecialMotion::Fall(0), "protective fall", PROTECTIVE_FALL),
-                spec(SpecialMotion::StandUp(0), "stand up from the front", STAND_UP_TIME),
-                spec(SpecialMotion::StandUp(1), "stand up from the back", STAND_UP_TIME),
+                spec(SpecialMotion::fall(0), "protective fall", PROTECTIVE_FALL),
+                spec(SpecialMotion::stand_up(0), "stand up from the front", STAND_UP_TIME),
+                spec(SpecialMotion::stand_up(1), "stand up from the back", STAND_UP_TIME),
             ],
             can_walk: true,
         }
@@ -469,8 +469,8 @@ impl Building {
             Activity::Special { motion, elapsed, duration, start_tilt } => {
                 let elapsed = elapsed + dt;
                 let progress = (elapsed / duration).min(1.0);
-                match motion {
-                    SpecialMotion::StandUp(_) => {
+                match motion.kind {
+                    MotionName::STAND_UP => {
                         robot.tilt = start_tilt * (1.0 - progress);
                         if progress >= 1.0 {
                             stood_up = true;
@@ -790,14 +790,14 @@ impl Building {
                 };
             }
             Some(BodyOrder::Special { motion }) => {
-                robot.activity = match (motion, robot.activity) {
-                    (SpecialMotion::Fall(_), Activity::Falling { elapsed }) => Activity::Special {
+                robot.activity = match (motion.kind, robot.activity) {
+                    (MotionName::FALL, Activity::Falling { elapsed }) => Activity::Special {
                         motion,
                         elapsed: 0.0,
                         duration: (FALL_TIME - elapsed).max(0.1),
                         start_tilt: robot.tilt,
                     },
-                    (SpecialMotion::Fall(_), Activity::Standing | Activity::Walking { .. }) => {
+                    (MotionName::FALL, Activity::Standing | Activity::Walking { .. }) => {
                         // Sitting down backwards is the safe way for a standing humanoid.
                         robot.direction = FallDirection::Back;
                         Activity::Special {
@@ -807,14 +807,17 @@ impl Building {
                             start_tilt: robot.tilt,
                         }
                     }
-                    (SpecialMotion::StandUp(_), Activity::Fallen) => Activity::Special {
+                    (MotionName::STAND_UP, Activity::Fallen) => Activity::Special {
                         motion,
                         elapsed: 0.0,
                         duration: STAND_UP_TIME,
                         start_tilt: robot.tilt,
                     },
-                    (SpecialMotion::Kick(_) | SpecialMotion::Dive(_), _) => {
-                        return Err(PlatformError::Unsupported(format!("{motion:?}")));
+                    // The building's robots stand up and fall, nothing else.
+                    (kind, _) if kind != MotionName::FALL && kind != MotionName::STAND_UP => {
+                        return Err(PlatformError::Unsupported(format!(
+                            "{motion}: the patrol robot's catalogue has stand_up and fall"
+                        )));
                     }
                     // A sequence that does not fit the body's state is ignored (a stand-up
                     // while standing); actuation sees no special state and releases it.
@@ -1042,11 +1045,16 @@ mod tests {
         assert_eq!(b.truth.falls.len(), 1);
         let frame = b.robots[0].frame.clone().expect("frame");
         assert!(frame.inertial.body_angles[1] > 1.0 && frame.camera.is_none());
+        // A motion the building's robots lack is refused by name, not ignored.
+        let kick = SpecialMotion::new(MotionName::from_static("kick"), 0, false);
+        let orders = ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion: kick }) };
+        let refused = b.apply_orders(0, &orders).expect_err("no kick");
+        assert!(refused.to_string().contains("kick 0"), "{refused}");
         b.apply_orders(
             0,
             &ActuatorOrders {
                 head: None,
-                body: Some(BodyOrder::Special { motion: SpecialMotion::StandUp(0) }),
+                body: Some(BodyOrder::Special { motion: SpecialMotion::stand_up(0) }),
             },
         )
         .expect("stand up");

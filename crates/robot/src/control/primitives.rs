@@ -126,7 +126,7 @@ impl<G, W> PrimitiveBehavior<G, WholeBodyCommand, W> for StandUp {
             return None;
         }
         Some(WholeBodyCommand::Special {
-            motion: SpecialMotion::StandUp(StandUp::sequence_for(direction)),
+            motion: SpecialMotion::stand_up(StandUp::sequence_for(direction)),
         })
     }
 }
