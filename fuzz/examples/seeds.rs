@@ -19,7 +19,9 @@ use strata_nao::SensorPacket;
 use strata_robot::control::planning::{SharedObject, StandingStatus, TeamMessage};
 use strata_robot::geometry::{Odometry, Point, Pose};
 use strata_robot::percept::Percepts;
-use strata_robot::platform::{BodyMotionState, HeadAngles, MotionFeedback};
+use strata_robot::platform::{
+    BodyMotionState, HeadAngles, MotionFeedback, MotionName, SpecialMotion,
+};
 use strata_runtime::Time;
 use strata_soccer::catalog::{Mission, Role};
 use strata_spl::gamecontroller::{
@@ -162,6 +164,7 @@ fn team_messages() -> Result<Seeds, Box<dyn std::error::Error>> {
             confidence: 0.6,
             age: 0.4,
         }],
+        signal: None,
     };
     let goalie = TeamMessage {
         sender: 1,
@@ -262,6 +265,10 @@ fn sim_messages() -> Seeds {
             "orders-kick",
             r#"{"type":"orders","orders":{"head":null,"body":{"order":"special","motion":{"kind":"kick","sequence":0}}}}"#,
         ),
+        (
+            "orders-application-motion",
+            r#"{"type":"orders","orders":{"head":null,"body":{"order":"special","motion":{"kind":"wave","sequence":2,"head":false}}}}"#,
+        ),
         ("team-message", r#"{"type":"team_message","payload":"0a0b0c"}"#),
         ("goodbye", r#"{"type":"goodbye"}"#),
         (
@@ -344,8 +351,18 @@ fn cdr_payloads() -> Result<Seeds, Box<dyn std::error::Error>> {
         odometry: Odometry { dx: 0.01, dy: -0.002, dtheta: 0.03 },
     };
     let odometry = cdr(&feedback.odometry)?;
+    // Soccer's kick is written as the robot crate's enum wrote it; a motion of an
+    // application's own carries its name, the one text in the feedback.
+    let special = |motion| MotionFeedback {
+        body: BodyMotionState::Special { motion, elapsed: 0.25, duration: 1.5 },
+        ..feedback
+    };
+    let kicking = special(strata_soccer::motions::kick(1));
+    let waving = special(SpecialMotion::new(MotionName::from_static("wave"), 2, false));
     let mut seeds = with_near_misses(Seeds::from([
         ("motion-feedback".into(), cdr(&feedback)?),
+        ("motion-feedback-kicking".into(), cdr(&kicking)?),
+        ("motion-feedback-named".into(), cdr(&waving)?),
         ("odometry".into(), odometry),
         ("percepts-default".into(), cdr(&Percepts::default())?),
     ]));

@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 use strata_robot::command::{MotionCommands, WholeBodyCommand};
 use strata_robot::control::reactive::ReactiveReport;
 use strata_robot::geometry::{Global as FieldFrame, Point, Pose, normalize_angle};
-use strata_robot::platform::{BodyMotionState, SpecialMotion};
+use strata_robot::platform::{BodyMotionState, MotionName, SpecialMotion};
 use strata_runtime::{Package, Tap, TapRecord};
 use strata_sim::{BallScript, EventKind, FallDirection, NoiseLevel, RobotId};
 use strata_soccer::behaviors::covering_pose;
@@ -265,7 +265,9 @@ impl Tap for FallTap {
             let fall = matches!(
                 p.value,
                 MotionCommands::WholeBody {
-                    command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(_) }
+                    command: WholeBodyCommand::Special {
+                        motion: SpecialMotion { kind: MotionName::FALL, .. }
+                    }
                 }
             );
             let mut r = self.recorded.lock().unwrap_or_else(|e| e.into_inner());
@@ -281,7 +283,9 @@ impl Tap for FallTap {
             let fall = matches!(
                 p.value.commands,
                 MotionCommands::WholeBody {
-                    command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(_) }
+                    command: WholeBodyCommand::Special {
+                        motion: SpecialMotion { kind: MotionName::FALL, .. }
+                    }
                 }
             );
             let mut r = self.recorded.lock().unwrap_or_else(|e| e.into_inner());
@@ -307,7 +311,7 @@ fn is_down(body: &BodyMotionState, falling: bool, fallen: bool) -> bool {
         || matches!(
             body,
             BodyMotionState::Special {
-                motion: SpecialMotion::StandUp(_) | SpecialMotion::Fall(_),
+                motion: SpecialMotion { kind: MotionName::STAND_UP | MotionName::FALL, .. },
                 ..
             }
         )

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use strata_robot::geometry::{Odometry, Velocity};
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, FallDirection, HeadAngles, HeadOrder,
-    MotionSpec, PlatformError, SpecialMotion,
+    MotionName, MotionSpec, PlatformError, SpecialMotion,
 };
 
 use crate::codec::{ActuatorPacket, Leds, SensorPacket};
@@ -131,19 +131,19 @@ impl MotionController {
         &self.library
     }
 
-    /// The special motions this robot can play: every tagged sequence, plus `StandUp(0)`
+    /// The special motions this robot can play: every tagged sequence, plus stand-up 0
     /// (front or back chosen by how the robot lies) when both stand-ups exist.
     pub fn catalogue(&self) -> Vec<MotionSpec> {
         let mut specs = self.library.catalogue();
-        let front = self.library.for_motion(SpecialMotion::StandUp(STAND_UP_FRONT));
-        let back = self.library.for_motion(SpecialMotion::StandUp(STAND_UP_BACK));
+        let front = self.library.for_motion(SpecialMotion::stand_up(STAND_UP_FRONT));
+        let back = self.library.for_motion(SpecialMotion::stand_up(STAND_UP_BACK));
         if let (Some(front), Some(back), None) =
-            (front, back, self.library.for_motion(SpecialMotion::StandUp(0)))
+            (front, back, self.library.for_motion(SpecialMotion::stand_up(0)))
         {
             specs.insert(
                 0,
                 MotionSpec {
-                    motion: SpecialMotion::StandUp(0),
+                    motion: SpecialMotion::stand_up(0),
                     name: "stand_up (front or back, by how the robot lies)".to_owned(),
                     duration: std::time::Duration::from_secs_f64(
                         front.duration().max(back.duration()),
@@ -189,7 +189,9 @@ impl MotionController {
             }
             BodyMode::Playing { purpose: Purpose::Stand, .. }
             | BodyMode::Holding { purpose: Purpose::Stand }
-            | BodyMode::Holding { purpose: Purpose::Special(SpecialMotion::StandUp(_)) } => {}
+            | BodyMode::Holding {
+                purpose: Purpose::Special(SpecialMotion { kind: MotionName::STAND_UP, .. }),
+            } => {}
             _ => self.play(Purpose::Stand, STAND),
         }
     }
@@ -213,18 +215,14 @@ impl MotionController {
         if let BodyMode::Playing { purpose: Purpose::Special(current), .. } = self.body {
             // Actuation repeats the order until it sees the motion running; a protective fall
             // is the only thing that interrupts another special motion.
-            if current == motion || !matches!(motion, SpecialMotion::Fall(_)) {
+            if current == motion || !motion.is(MotionName::FALL) {
                 return Ok(());
             }
         }
-        let name = match motion {
-            SpecialMotion::StandUp(0) if self.library.for_motion(motion).is_none() => {
-                self.auto_stand_up()?
-            }
-            _ => match self.library.for_motion(motion) {
-                Some(sequence) => sequence.name.clone(),
-                None => return Err(PlatformError::Unsupported(self.missing(motion))),
-            },
+        let name = match self.library.for_motion(motion) {
+            Some(sequence) => sequence.name.clone(),
+            None if motion.same_sequence(&SpecialMotion::stand_up(0)) => self.auto_stand_up()?,
+            None => return Err(PlatformError::Unsupported(self.missing(motion))),
         };
         if matches!(self.body, BodyMode::Walking) {
             self.gait.abort();
@@ -233,15 +231,15 @@ impl MotionController {
         Ok(())
     }
 
-    /// `StandUp(0)`: the front or back stand-up by the sign of the torso pitch, or the stand
+    /// Stand-up 0: the front or back stand-up by the sign of the torso pitch, or the stand
     /// posture when the robot is not lying at all.
     fn auto_stand_up(&self) -> Result<String, PlatformError> {
         let [roll, pitch] = self.angles;
         let lying = pitch.abs() > self.config.fallen_angle || roll.abs() > self.config.fallen_angle;
         let motion = match (lying, pitch >= 0.0) {
             (false, _) => return Ok(STAND.to_owned()),
-            (true, true) => SpecialMotion::StandUp(STAND_UP_FRONT),
-            (true, false) => SpecialMotion::StandUp(STAND_UP_BACK),
+            (true, true) => SpecialMotion::stand_up(STAND_UP_FRONT),
+            (true, false) => SpecialMotion::stand_up(STAND_UP_BACK),
         };
         self.library
             .for_motion(motion)
@@ -249,24 +247,17 @@ impl MotionController {
             .ok_or_else(|| PlatformError::Unsupported(self.missing(motion)))
     }
 
+    /// Why `motion` cannot be played: the built-in library has stand-ups and a protective fall;
+    /// anything else (a kick needs balance control) is a motion file the team adds.
     fn missing(&self, motion: SpecialMotion) -> String {
         let available: Vec<String> =
-            self.catalogue().iter().map(|s| format!("{:?}", s.motion)).collect();
-        let what = match motion {
-            SpecialMotion::Kick(n) => format!(
-                "kick {n}: the NAO motion library has no kick (a kick needs balance control; a \
-                 tuned key-frame kick can be added as a sequence tagged kind = \"kick\")"
-            ),
-            SpecialMotion::Dive(n) => format!(
-                "dive {n}: the NAO motion library has no dive (add a sequence tagged \
-                 kind = \"dive\")"
-            ),
-            SpecialMotion::StandUp(n) => {
-                format!("stand-up sequence {n}: not in the NAO motion library")
-            }
-            SpecialMotion::Fall(n) => format!("fall sequence {n}: not in the NAO motion library"),
-        };
-        format!("{what}; available: {}", available.join(", "))
+            self.catalogue().iter().map(|s| s.motion.to_string()).collect();
+        let SpecialMotion { kind, sequence, .. } = motion;
+        format!(
+            "{kind} {sequence}: not in the NAO motion library (add a sequence tagged \
+             motion = {{ kind = \"{kind}\", sequence = {sequence} }}); available: {}",
+            available.join(", ")
+        )
     }
 
     /// Sits down and goes limp (shutdown, long pauses). Interrupts anything, walking included.
@@ -531,12 +522,12 @@ impl MotionController {
     }
 }
 
-/// A sequence drives the head if it names the head joints, except a kick, which uses the body
-/// only (the head stays with head orders, paper 3.5.1).
+/// A sequence drives the head if it names the head joints, except a motion ordered for the
+/// body only (a kick: the head stays with head orders, paper 3.5.1).
 fn drives_head(purpose: Purpose, player: &Player) -> bool {
     let names_head =
         player.sequence().moves(Joint::HeadYaw) || player.sequence().moves(Joint::HeadPitch);
-    names_head && !matches!(purpose, Purpose::Special(SpecialMotion::Kick(_)))
+    names_head && !matches!(purpose, Purpose::Special(motion) if !motion.head)
 }
 
 /// Keeps a head target within the yaw range and the yaw-dependent pitch range.
@@ -632,12 +623,17 @@ mod tests {
     #[test]
     fn kicks_and_dives_are_unsupported() {
         let mut c = controller();
-        for motion in [SpecialMotion::Kick(0), SpecialMotion::Dive(1), SpecialMotion::StandUp(7)] {
+        let named = |kind: &str, sequence, head| {
+            SpecialMotion::new(MotionName::new(kind).unwrap(), sequence, head)
+        };
+        let (kick, dive) = (named("kick", 0, false), named("dive", 1, true));
+        for motion in [kick, dive, SpecialMotion::stand_up(7)] {
             let orders = ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion }) };
             let Err(PlatformError::Unsupported(reason)) = c.apply(&orders) else { panic!() };
-            assert!(reason.contains("available: StandUp(0), "), "{reason}");
+            assert!(reason.starts_with(&format!("{motion}: not in the NAO motion library")));
+            assert!(reason.contains("available: stand_up 0, "), "{reason}");
         }
-        assert!(c.catalogue().iter().all(|s| !matches!(s.motion, SpecialMotion::Kick(_))));
+        assert!(c.catalogue().iter().all(|s| !s.motion.is(kick.kind)));
     }
 
     #[test]
@@ -682,7 +678,7 @@ mod tests {
             let mut packet = standing_packet();
             packet.angles = [0.0, pitch];
             run(&mut c, &packet, 6);
-            let motion = SpecialMotion::StandUp(0);
+            let motion = SpecialMotion::stand_up(0);
             c.apply(&ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion }) })
                 .unwrap();
             let BodyMode::Playing { player, .. } = &c.body else { panic!() };
@@ -721,7 +717,7 @@ mod tests {
             let mut packet = standing_packet();
             packet.angles = angles;
             run(&mut c, &packet, 6);
-            let motion = SpecialMotion::StandUp(StandUp::sequence_for(direction));
+            let motion = SpecialMotion::stand_up(StandUp::sequence_for(direction));
             c.apply(&ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion }) })
                 .unwrap();
             let BodyMode::Playing { player, .. } = &c.body else { panic!("{direction:?}") };
@@ -737,18 +733,19 @@ mod tests {
         run(&mut c, &packet, 6);
         let special =
             |motion| ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion }) };
-        c.apply(&special(SpecialMotion::StandUp(STAND_UP_FRONT))).unwrap();
+        c.apply(&special(SpecialMotion::stand_up(STAND_UP_FRONT))).unwrap();
         c.step(&packet);
-        c.apply(&special(SpecialMotion::StandUp(STAND_UP_BACK))).unwrap();
+        c.apply(&special(SpecialMotion::stand_up(STAND_UP_BACK))).unwrap();
+        let front = SpecialMotion::stand_up(STAND_UP_FRONT);
         assert!(matches!(
             c.body_state(),
-            BodyMotionState::Special { motion: SpecialMotion::StandUp(STAND_UP_FRONT), .. }
+            BodyMotionState::Special { motion, .. } if motion == front
         ));
-        c.apply(&special(SpecialMotion::Fall(0))).unwrap();
+        c.apply(&special(SpecialMotion::fall(0))).unwrap();
         let out = c.step(&packet);
         assert!(matches!(
             c.body_state(),
-            BodyMotionState::Special { motion: SpecialMotion::Fall(0), .. }
+            BodyMotionState::Special { motion, .. } if motion == SpecialMotion::fall(0)
         ));
         assert!(out.stiffness[Joint::LKneePitch.index()] <= 0.3);
         run(&mut c, &packet, 60);

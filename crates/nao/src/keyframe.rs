@@ -7,7 +7,9 @@
 //! ```toml
 //! name = "stand_up_front"
 //! description = "Lying on the belly: push up, tuck the legs, squat, stand."
-//! # Optional: the catalogue entry this sequence answers (kind: stand_up, fall, kick, dive).
+//! # Optional: the catalogue entry this sequence answers: the kind of motion the robot orders
+//! # (stand_up, fall, or one the application names: kick, dive) and its number; `head = false`
+//! # for a kind of the application's that leaves the head to head orders (a kick does).
 //! motion = { kind = "stand_up", sequence = 1 }
 //!
 //! [[frames]]
@@ -88,29 +90,13 @@ impl Interpolation {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-enum MotionKind {
-    StandUp,
-    Fall,
-    Kick,
-    Dive,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct MotionTag {
-    kind: MotionKind,
-    sequence: u8,
-}
-
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MotionFile {
     name: String,
     #[serde(default)]
     description: String,
-    motion: Option<MotionTag>,
+    motion: Option<SpecialMotion>,
     frames: Vec<FrameFile>,
 }
 
@@ -165,12 +151,7 @@ impl KeyFrameSequence {
         if parsed.frames.is_empty() {
             return Err(invalid("a sequence needs at least one frame".into()));
         }
-        let motion = parsed.motion.map(|tag| match tag.kind {
-            MotionKind::StandUp => SpecialMotion::StandUp(tag.sequence),
-            MotionKind::Fall => SpecialMotion::Fall(tag.sequence),
-            MotionKind::Kick => SpecialMotion::Kick(tag.sequence),
-            MotionKind::Dive => SpecialMotion::Dive(tag.sequence),
-        });
+        let motion = parsed.motion;
         let mut joints = [false; JOINT_COUNT];
         let mut frames = Vec::with_capacity(parsed.frames.len());
         for (index, frame) in parsed.frames.iter().enumerate() {
@@ -403,11 +384,12 @@ impl MotionLibrary {
         let mut owners: BTreeMap<String, &str> = BTreeMap::new();
         for sequence in sequences.values() {
             if let Some(motion) = sequence.motion
-                && let Some(other) = owners.insert(format!("{motion:?}"), &sequence.name)
+                && let Some(other) =
+                    owners.insert(format!("{} {}", motion.kind, motion.sequence), &sequence.name)
             {
                 return Err(MotionError::Invalid {
                     file: sequence.name.clone(),
-                    reason: format!("{motion:?} is already played by \"{other}\""),
+                    reason: format!("{motion} is already played by \"{other}\""),
                 });
             }
         }
@@ -418,9 +400,9 @@ impl MotionLibrary {
         self.sequences.get(name)
     }
 
-    /// The sequence tagged with exactly this catalogue entry.
+    /// The sequence tagged with this catalogue entry (its kind and number).
     pub fn for_motion(&self, motion: SpecialMotion) -> Option<&Arc<KeyFrameSequence>> {
-        self.sequences.values().find(|s| s.motion == Some(motion))
+        self.sequences.values().find(|s| s.motion.is_some_and(|m| m.same_sequence(&motion)))
     }
 
     pub fn names(&self) -> impl Iterator<Item = &str> {
@@ -440,7 +422,10 @@ impl MotionLibrary {
                 })
             })
             .collect();
-        specs.sort_by_key(|s| format!("{:?}", s.motion));
+        specs.sort_by(|a, b| {
+            let key = |s: &MotionSpec| (s.motion.kind.as_str().to_owned(), s.motion.sequence);
+            key(a).cmp(&key(b))
+        });
         specs
     }
 }
@@ -465,10 +450,10 @@ mod tests {
                 }
             }
         }
-        assert!(library.for_motion(SpecialMotion::StandUp(1)).is_some());
-        assert!(library.for_motion(SpecialMotion::StandUp(2)).is_some());
-        assert!(library.for_motion(SpecialMotion::Fall(0)).is_some());
-        assert!(library.for_motion(SpecialMotion::Kick(0)).is_none());
+        assert!(library.for_motion(SpecialMotion::stand_up(1)).is_some());
+        assert!(library.for_motion(SpecialMotion::stand_up(2)).is_some());
+        assert!(library.for_motion(SpecialMotion::fall(0)).is_some());
+        assert!(library.for_motion(kick(0)).is_none());
     }
 
     #[test]
@@ -498,10 +483,19 @@ mod tests {
         joints = { LKneePitch = 0, HeadYaw = 10 }
     "#;
 
+    /// A kick as soccer orders it: the body only.
+    fn kick(sequence: u8) -> SpecialMotion {
+        SpecialMotion::new(
+            strata_robot::platform::MotionName::new("kick").unwrap(),
+            sequence,
+            false,
+        )
+    }
+
     #[test]
     fn player_interpolates_from_the_start_pose() {
         let sequence = Arc::new(KeyFrameSequence::parse("test.toml", TWO_FRAMES).unwrap());
-        assert_eq!(sequence.motion, Some(SpecialMotion::Kick(3)));
+        assert_eq!(sequence.motion, Some(kick(3)));
         assert!(sequence.moves(Joint::LKneePitch) && sequence.moves(Joint::HeadYaw));
         assert!(!sequence.moves(Joint::RKneePitch));
         let mut start = [0.0; JOINT_COUNT];
@@ -570,6 +564,17 @@ mod tests {
         assert!(empty.contains("at least one frame"), "{empty}");
         let typo = error_of("name = \"x\"\nframez = []");
         assert!(typo.starts_with("motion file bad.toml: "), "{typo}");
+        let long =
+            error_of(&TWO_FRAMES.replace("\"kick\"", "\"a kick with the left foot, forward\""));
+        assert!(long.contains("a motion name has 1 to 31 bytes"), "{long}");
+    }
+
+    #[test]
+    fn a_sequence_answers_a_kind_the_application_names_and_may_leave_the_head_free() {
+        let text = TWO_FRAMES.replace("kind = \"kick\"", "kind = \"wave\", head = false");
+        let sequence = KeyFrameSequence::parse("wave.toml", &text).unwrap();
+        let wave = strata_robot::platform::MotionName::new("wave").unwrap();
+        assert_eq!(sequence.motion, Some(SpecialMotion::new(wave, 3, false)));
     }
 
     #[test]
@@ -585,8 +590,8 @@ mod tests {
         std::fs::write(dir.join("notes.txt"), "ignored").unwrap();
         let library = MotionLibrary::with_overrides(&dir).unwrap();
         assert_eq!(library.get(STAND).unwrap().duration(), 2.0);
-        assert!(library.for_motion(SpecialMotion::Kick(3)).is_some());
-        assert!(library.catalogue().iter().any(|s| s.motion == SpecialMotion::Kick(3)));
+        assert!(library.for_motion(kick(3)).is_some());
+        assert!(library.catalogue().iter().any(|s| s.motion == kick(3)));
         std::fs::write(dir.join("z_clash.toml"), TWO_FRAMES.replace("\"test\"", "\"other\""))
             .unwrap();
         let clash = MotionLibrary::with_overrides(&dir).unwrap_err().to_string();

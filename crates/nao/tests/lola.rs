@@ -10,8 +10,8 @@ use strata_nao::codec::touch;
 use strata_nao::{Joint, Leds, LolaConfig, LolaError, LolaPlatform, Rgb, SENSOR_PACKET_SIZE};
 use strata_robot::geometry::Velocity;
 use strata_robot::platform::{
-    ActuatorOrders, BodyMotionState, BodyOrder, FallDirection, HeadAngles, HeadOrder, Platform,
-    PlatformError, SpecialMotion,
+    ActuatorOrders, BodyMotionState, BodyOrder, FallDirection, HeadAngles, HeadOrder, MotionName,
+    Platform, PlatformError, SpecialMotion,
 };
 use strata_runtime::Time;
 
@@ -43,7 +43,8 @@ fn sensors_arrive_in_strata_conventions() {
     assert!(!info.can_walk);
     assert_eq!(info.sensor_period, Duration::from_millis(12));
     let motions: Vec<SpecialMotion> = info.motions.iter().map(|m| m.motion).collect();
-    for expected in [SpecialMotion::StandUp(0), SpecialMotion::StandUp(1), SpecialMotion::Fall(0)] {
+    for expected in [SpecialMotion::stand_up(0), SpecialMotion::stand_up(1), SpecialMotion::fall(0)]
+    {
         assert!(motions.contains(&expected), "{motions:?}");
     }
 
@@ -146,11 +147,15 @@ fn walking_is_reported_unsupported() {
     let reply = lola.exchange();
     assert!(reply.position[Joint::HeadYaw.index()] < 0.0);
 
-    let kick = BodyOrder::Special { motion: SpecialMotion::Kick(0) };
+    // A motion the application names and the library lacks is refused, by name.
+    let kick = SpecialMotion::new(MotionName::from_static("kick"), 0, false);
     let error = platform
-        .write(now(), &ActuatorOrders { head: None, body: Some(kick) })
+        .write(
+            now(),
+            &ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion: kick }) },
+        )
         .expect_err("no kick");
-    assert!(error.to_string().contains("no kick"), "{error}");
+    assert!(error.to_string().contains("kick 0: not in the NAO motion library"), "{error}");
 }
 
 #[test]
@@ -164,7 +169,7 @@ fn a_fallen_robot_is_detected_and_stands_up() {
     }
     let feedback = platform.read_motion(now()).expect("feedback");
     assert_eq!(feedback.body, BodyMotionState::Fallen { direction: FallDirection::Back });
-    let stand_up = BodyOrder::Special { motion: SpecialMotion::StandUp(0) };
+    let stand_up = BodyOrder::Special { motion: SpecialMotion::stand_up(0) };
     platform.write(now(), &ActuatorOrders { head: None, body: Some(stand_up) }).expect("stand up");
     let reply = lola.exchange_with(&lying);
     assert_eq!(reply.stiffness[Joint::LShoulderPitch.index()], 0.8, "first frame of stand_up_back");
@@ -173,7 +178,7 @@ fn a_fallen_robot_is_detected_and_stands_up() {
     else {
         panic!("not playing the stand-up")
     };
-    assert_eq!(motion, SpecialMotion::StandUp(0));
+    assert_eq!(motion, SpecialMotion::stand_up(0));
     assert!(duration > 3.0);
 }
 

@@ -13,7 +13,7 @@ use strata_robot::control::reactive::FallDetectorConfig;
 use strata_robot::geometry::{Odometry, Velocity};
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, FallDirection, HeadAngles, HeadOrder,
-    MotionSpec, PlatformError, SpecialMotion,
+    MotionName, MotionSpec, PlatformError, SpecialMotion,
 };
 
 use crate::getup::GetUpMotions;
@@ -24,6 +24,14 @@ use crate::joints::{
 use crate::kick::{self, KickCycle, KickRun, KickSpec};
 use crate::kinematics::Quaternion;
 use crate::policy::{LegState, WalkCommand, WalkPolicy};
+
+/// The T1's kicks, by the league's name, which soccer orders them by.
+pub const KICK: MotionName = MotionName::from_static(strata_spl::motions::KICK.name);
+
+/// Kick `sequence` of the catalogue ([`MotionConfig::kicks`]).
+pub const fn kick_motion(sequence: u8) -> SpecialMotion {
+    SpecialMotion::new(KICK, sequence, strata_spl::motions::KICK.head)
+}
 
 /// The server's agent cycle, s: every perception advances the controller by this much.
 pub const CYCLE: f64 = 0.02;
@@ -206,19 +214,19 @@ impl T1Controller {
     /// The special motions this body can make.
     pub fn catalogue(&self) -> Vec<MotionSpec> {
         let mut catalogue = vec![MotionSpec {
-            motion: SpecialMotion::Fall(0),
+            motion: SpecialMotion::fall(0),
             name: "protective fall: every joint soft".to_owned(),
             duration: std::time::Duration::from_secs_f64(FALL_DURATION),
         }];
-        catalogue.extend(self.config.kicks.iter().zip(0u8..).map(|(kick, n)| MotionSpec {
-            motion: SpecialMotion::Kick(n),
-            name: format!("kick {}", kick.name),
-            duration: std::time::Duration::from_secs_f64(kick.duration()),
+        catalogue.extend(self.config.kicks.iter().zip(0u8..).map(|(spec, n)| MotionSpec {
+            motion: kick_motion(n),
+            name: format!("kick {}", spec.name),
+            duration: std::time::Duration::from_secs_f64(spec.duration()),
         }));
         for (sequence, side) in [(0, "front (face down)"), (1, "back (face up)")] {
             if let Some(motion) = self.getup.motion(sequence) {
                 catalogue.push(MotionSpec {
-                    motion: SpecialMotion::StandUp(sequence),
+                    motion: SpecialMotion::stand_up(sequence),
                     name: format!("keyframed get-up from the {side}"),
                     duration: std::time::Duration::from_secs_f64(motion.duration()),
                 });
@@ -280,25 +288,29 @@ impl T1Controller {
                 Ok(())
             }
             (
-                BodyOrder::Special { motion: SpecialMotion::Fall(_) },
+                BodyOrder::Special { motion: SpecialMotion { kind: MotionName::FALL, .. } },
                 BodyMode::Fallen(_) | BodyMode::GettingUp { .. },
             ) => Ok(()),
-            (BodyOrder::Special { motion: SpecialMotion::Fall(_) }, BodyMode::Falling { .. }) => {
-                Ok(())
-            }
-            (BodyOrder::Special { motion: SpecialMotion::Fall(_) }, _) => {
+            (
+                BodyOrder::Special { motion: SpecialMotion { kind: MotionName::FALL, .. } },
+                BodyMode::Falling { .. },
+            ) => Ok(()),
+            (BodyOrder::Special { motion: SpecialMotion { kind: MotionName::FALL, .. } }, _) => {
                 self.body = BodyMode::Falling { elapsed: 0.0 };
                 Ok(())
             }
-            (BodyOrder::Special { motion: SpecialMotion::Kick(_) }, BodyMode::Kicking(_)) => Ok(()),
             (
-                BodyOrder::Special { motion: SpecialMotion::Kick(n) },
+                BodyOrder::Special { motion: SpecialMotion { kind: KICK, .. } },
+                BodyMode::Kicking(_),
+            ) => Ok(()),
+            (
+                BodyOrder::Special { motion: SpecialMotion { kind: KICK, sequence: n, .. } },
                 BodyMode::Standing | BodyMode::Walking(_),
             ) if let Some(spec) = self.config.kicks.get(usize::from(n)) => {
                 self.body = BodyMode::Kicking(KickRun::new(n, spec, self.policy.is_walking()));
                 Ok(())
             }
-            (BodyOrder::Special { motion: SpecialMotion::Kick(_) }, _)
+            (BodyOrder::Special { motion: SpecialMotion { kind: KICK, .. } }, _)
                 if matches!(
                     self.body,
                     BodyMode::Fallen(_) | BodyMode::Falling { .. } | BodyMode::GettingUp { .. }
@@ -309,7 +321,9 @@ impl T1Controller {
                 ))
             }
             (
-                BodyOrder::Special { motion: SpecialMotion::StandUp(sequence) },
+                BodyOrder::Special {
+                    motion: SpecialMotion { kind: MotionName::STAND_UP, sequence, .. },
+                },
                 BodyMode::Fallen(_),
             ) if self.getup.motion(sequence).is_some() => {
                 let start = self.measured.as_ref().map_or_else(
@@ -320,21 +334,24 @@ impl T1Controller {
                 Ok(())
             }
             (
-                BodyOrder::Special { motion: SpecialMotion::StandUp(_) },
+                BodyOrder::Special { motion: SpecialMotion { kind: MotionName::STAND_UP, .. } },
                 BodyMode::GettingUp { .. },
             ) => Ok(()),
             // Refused rather than ignored, so actuation frees the body: ordered again once the
             // robot lies still.
-            (BodyOrder::Special { motion: SpecialMotion::StandUp(_) }, mode)
-                if !matches!(mode, BodyMode::Fallen(_)) =>
-            {
-                Err(PlatformError::Unsupported(format!(
-                    "a stand-up while the T1 is not lying on the ground ({mode:?})"
-                )))
-            }
+            (
+                BodyOrder::Special { motion: SpecialMotion { kind: MotionName::STAND_UP, .. } },
+                mode,
+            ) if !matches!(mode, BodyMode::Fallen(_)) => Err(PlatformError::Unsupported(format!(
+                "a stand-up while the T1 is not lying on the ground ({mode:?})"
+            ))),
             (BodyOrder::Special { motion }, _) => Err(PlatformError::Unsupported(format!(
-                "special motion {motion:?} on the T1 (its catalogue: {:?})",
-                self.catalogue().iter().map(|m| m.motion).collect::<Vec<_>>()
+                "special motion {motion} on the T1 (its catalogue: {})",
+                self.catalogue()
+                    .iter()
+                    .map(|m| m.motion.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ))),
         }
     }
@@ -609,13 +626,13 @@ impl T1Controller {
                 BodyMotionState::Walking { stage: CycleStage::Execution, velocity }
             }
             BodyMode::Falling { elapsed } => BodyMotionState::Special {
-                motion: SpecialMotion::Fall(0),
+                motion: SpecialMotion::fall(0),
                 elapsed,
                 duration: FALL_DURATION,
             },
             BodyMode::Fallen(direction) => BodyMotionState::Fallen { direction },
             BodyMode::Kicking(run) => BodyMotionState::Special {
-                motion: SpecialMotion::Kick(run.sequence),
+                motion: kick_motion(run.sequence),
                 elapsed: run.elapsed,
                 duration: self
                     .config
@@ -624,7 +641,7 @@ impl T1Controller {
                     .map_or(0.0, |k| run.duration(k)),
             },
             BodyMode::GettingUp { sequence, elapsed, .. } => BodyMotionState::Special {
-                motion: SpecialMotion::StandUp(sequence),
+                motion: SpecialMotion::stand_up(sequence),
                 elapsed,
                 duration: self.getup.motion(sequence).map_or(0.0, |m| m.duration()),
             },
@@ -728,12 +745,12 @@ mod tests {
         assert_eq!(c.body_state(), BodyMotionState::Standing);
         let nan = Velocity::new(f64::NAN, 0.0, 0.0);
         assert!(c.apply(&body(BodyOrder::Walk { velocity: nan })).is_err());
-        let side_kick = BodyOrder::Special { motion: SpecialMotion::Kick(2) };
+        let side_kick = BodyOrder::Special { motion: kick_motion(2) };
         assert!(matches!(c.apply(&body(side_kick)), Err(PlatformError::Unsupported(_))));
     }
 
     fn kick(n: u8) -> ActuatorOrders {
-        body(BodyOrder::Special { motion: SpecialMotion::Kick(n) })
+        body(BodyOrder::Special { motion: kick_motion(n) })
     }
 
     #[test]
@@ -743,12 +760,12 @@ mod tests {
         for (n, spec) in c.config().kicks.iter().enumerate() {
             let entry = catalogue
                 .iter()
-                .find(|m| m.motion == SpecialMotion::Kick(n as u8))
+                .find(|m| m.motion == kick_motion(n as u8))
                 .expect("each kick is in the catalogue");
             assert_eq!(entry.duration.as_secs_f64(), spec.duration());
             assert!(entry.name.contains(&spec.name));
         }
-        assert!(catalogue.iter().any(|m| m.motion == SpecialMotion::Fall(0)));
+        assert!(catalogue.iter().any(|m| m.motion == SpecialMotion::fall(0)));
     }
 
     #[test]
@@ -763,11 +780,9 @@ mod tests {
         let cycles = (duration / CYCLE).round() as usize;
         for i in 0..cycles {
             match c.body_state() {
-                BodyMotionState::Special {
-                    motion: SpecialMotion::Kick(1),
-                    elapsed,
-                    duration: d,
-                } => {
+                BodyMotionState::Special { motion, elapsed, duration: d }
+                    if motion == kick_motion(1) =>
+                {
                     assert!((elapsed - i as f64 * CYCLE).abs() < 1e-9);
                     assert_eq!(d, duration);
                 }
@@ -788,10 +803,10 @@ mod tests {
         let mut c = controller();
         c.apply(&kick(0)).expect("a kick is taken while standing");
         c.step(upright());
-        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::Fall(0) })).expect("taken");
+        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::fall(0) })).expect("taken");
         assert!(matches!(
             c.body_state(),
-            BodyMotionState::Special { motion: SpecialMotion::Fall(0), .. }
+            BodyMotionState::Special { motion, .. } if motion == SpecialMotion::fall(0)
         ));
         for _ in 0..MotionConfig::default().fallen_cycles {
             c.step(pitched(1.4));
@@ -847,7 +862,7 @@ mod tests {
     #[test]
     fn a_protective_fall_softens_every_joint_for_its_duration() {
         let mut c = controller();
-        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::Fall(0) })).expect("taken");
+        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::fall(0) })).expect("taken");
         let commands = c.step(upright());
         assert!(matches!(c.body_state(), BodyMotionState::Special { .. }));
         let defaults = c.policy.config().default_targets();
@@ -880,21 +895,18 @@ mod tests {
     }
 
     fn stand_up(sequence: u8) -> ActuatorOrders {
-        body(BodyOrder::Special { motion: SpecialMotion::StandUp(sequence) })
+        body(BodyOrder::Special { motion: SpecialMotion::stand_up(sequence) })
     }
 
     #[test]
     fn the_catalogue_lists_the_get_ups_it_has_with_their_durations() {
         let c = with_front_getup();
         let stand_ups = |c: &T1Controller| -> Vec<MotionSpec> {
-            c.catalogue()
-                .into_iter()
-                .filter(|m| matches!(m.motion, SpecialMotion::StandUp(_)))
-                .collect()
+            c.catalogue().into_iter().filter(|m| m.motion.is(MotionName::STAND_UP)).collect()
         };
         let catalogue = stand_ups(&c);
         assert_eq!(catalogue.len(), 1);
-        assert_eq!(catalogue[0].motion, SpecialMotion::StandUp(0));
+        assert_eq!(catalogue[0].motion, SpecialMotion::stand_up(0));
         assert_eq!(catalogue[0].duration, std::time::Duration::from_millis(500));
         assert!(stand_ups(&controller()).is_empty(), "no get-up without motions");
     }
@@ -920,13 +932,13 @@ mod tests {
         assert!((last[knee].q - 2.0).abs() < 0.1, "near the first keyframe: {}", last[knee].q);
         match c.body_state() {
             BodyMotionState::Special { motion, elapsed, duration } => {
-                assert_eq!(motion, SpecialMotion::StandUp(0));
+                assert_eq!(motion, SpecialMotion::stand_up(0));
                 assert!((elapsed - 0.22).abs() < 1e-9 && duration == 0.5, "{elapsed} {duration}");
             }
             other => panic!("getting up expected, got {other:?}"),
         }
         // Tilted on purpose while getting up: neither a fall nor a new order interrupts it.
-        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::Fall(0) })).expect("ignored");
+        c.apply(&body(BodyOrder::Special { motion: SpecialMotion::fall(0) })).expect("ignored");
         c.apply(&body(BodyOrder::Walk { velocity: Velocity::new(0.3, 0.0, 0.0) })).expect("ok");
         c.apply(&stand_up(0)).expect("already getting up");
         for _ in 0..14 {

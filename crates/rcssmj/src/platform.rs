@@ -21,8 +21,8 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CameraFrame, FootContact, HeadAngles, InertialData,
-    MotionFeedback, PendingProblems, Platform, PlatformError, PlatformInfo, SensorFrame,
-    SpecialMotion, stamp_at,
+    MotionFeedback, MotionName, PendingProblems, Platform, PlatformError, PlatformInfo,
+    SensorFrame, stamp_at,
 };
 use strata_runtime::Time;
 
@@ -569,8 +569,10 @@ impl Platform for RcssPlatform {
         if let Some(reason) = &shared.disconnected {
             return Err(PlatformError::Disconnected(reason.clone()));
         }
-        let fall_ordered =
-            matches!(orders.body, Some(BodyOrder::Special { motion: SpecialMotion::Fall(_) }));
+        let fall_ordered = match orders.body {
+            Some(BodyOrder::Special { motion }) => motion.is(MotionName::FALL),
+            _ => false,
+        };
         if fall_ordered {
             let time = shared.sim_time;
             shared.falls.order(time, Instant::now());

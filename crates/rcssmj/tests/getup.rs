@@ -92,7 +92,7 @@ fn attempt(
     if !matches!(lying.body, BodyMotionState::Fallen { .. }) {
         return Err(format!("laid down, it is not fallen but {:?}", lying.body));
     }
-    order(robot, BodyOrder::Special { motion: SpecialMotion::StandUp(sequence) });
+    order(robot, BodyOrder::Special { motion: SpecialMotion::stand_up(sequence) });
     let (took, ended) = run_for(robot, last, 20.0, |motion, t| {
         t < 0.1 || matches!(motion.body, BodyMotionState::Special { .. })
     });
@@ -136,7 +136,7 @@ fn a_t1_laid_on_the_ground_stands_up_and_stands() {
         [(0, "front (face down)", [h, 0.0, h, 0.0]), (1, "back (face up)", [h, 0.0, -h, 0.0])];
     let mut tried = 0;
     for (sequence, side, orientation) in sides {
-        if !motions.iter().any(|m| m.motion == SpecialMotion::StandUp(sequence)) {
+        if !motions.iter().any(|m| m.motion == SpecialMotion::stand_up(sequence)) {
             println!("from the {side}: no get-up in the catalogue");
             continue;
         }

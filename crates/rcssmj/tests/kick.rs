@@ -15,13 +15,14 @@ mod common;
 
 use common::{run_for, server};
 
+use strata_rcssmj::controller::kick_motion;
 use strata_rcssmj::kick::KickSpec;
 use strata_rcssmj::platform::{RcssConfig, RcssPlatform};
 use strata_rcssmj::protocol::FieldSide;
 use strata_rcssmj::protocol::monitor::MonitorCommand;
 use strata_rcssmj::server::ServerProcess;
 use strata_robot::geometry::Velocity;
-use strata_robot::platform::{ActuatorOrders, BodyMotionState, BodyOrder, Platform, SpecialMotion};
+use strata_robot::platform::{ActuatorOrders, BodyMotionState, BodyOrder, Platform};
 use strata_runtime::Time;
 
 /// Where the kicks were tuned from standing: 0.20 m ahead of the torso, on its centre line.
@@ -106,7 +107,7 @@ fn attempt(server: &ServerProcess, robot: &mut RcssPlatform, setup: Setup) -> At
             truth.game.map(|g| g.play_mode)
         );
     }
-    order(robot, BodyOrder::Special { motion: SpecialMotion::Kick(sequence) });
+    order(robot, BodyOrder::Special { motion: kick_motion(sequence) });
     let mut fell = false;
     let mut fell_at = None;
     let mut kicking = false;
@@ -129,7 +130,7 @@ fn attempt(server: &ServerProcess, robot: &mut RcssPlatform, setup: Setup) -> At
                 fell = true;
                 fell_at = Some(t);
             }
-            BodyMotionState::Special { motion: SpecialMotion::Kick(n), .. } if n == sequence => {
+            BodyMotionState::Special { motion, .. } if motion == kick_motion(sequence) => {
                 kicking = true;
             }
             BodyMotionState::Standing if kicking => ended_standing = true,

@@ -23,7 +23,7 @@ use crate::command::{
 use crate::edge::OrderRefused;
 use crate::geometry::{Odometry, Velocity};
 use crate::platform::{
-    ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, HeadOrder, MotionFeedback,
+    ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, HeadOrder, MotionFeedback, MotionName,
     SpecialMotion,
 };
 
@@ -113,7 +113,7 @@ impl ActuationState {
         self.body = BodyExecution::Special { motion, started: false, waited: 0.0 };
         self.orders.body = Some(BodyOrder::Special { motion });
         self.messages.push(ActuationMessage::ResourceBusy { resource: Resource::Body });
-        if motion.uses_head() {
+        if motion.head {
             self.head_queue.clear();
             self.head_current = None;
             self.head_held_by_special = true;
@@ -148,7 +148,7 @@ impl ActuationState {
                 self.command(&MotionCommands::PerResource { head: Some(head), body: Some(body) });
             }
             MotionCommands::WholeBody { command: WholeBodyCommand::Special { motion } } => {
-                let preempts = matches!(motion, SpecialMotion::Fall(_));
+                let preempts = motion.is(MotionName::FALL);
                 let already =
                     matches!(self.body, BodyExecution::Special { motion: m, .. } if m == motion);
                 if already {
@@ -231,13 +231,13 @@ impl ActuationState {
                 *waited += dt;
                 let (motion, late) = (*motion, *waited > SPECIAL_START_DEADLINE);
                 // A fall ordered as the robot came to lie is over before it began.
-                let fall_over = matches!(motion, SpecialMotion::Fall(_))
-                    && matches!(state, BodyMotionState::Fallen { .. });
+                let fall_over =
+                    motion.is(MotionName::FALL) && matches!(state, BodyMotionState::Fallen { .. });
                 if !fall_over && late {
                     self.reject(
                         Resource::Body,
                         &format!(
-                            "the platform did not start {motion:?} within {SPECIAL_START_DEADLINE} s"
+                            "the platform did not start {motion} within {SPECIAL_START_DEADLINE} s"
                         ),
                     );
                 }
@@ -335,7 +335,7 @@ impl ActuationState {
         }
     }
 
-    /// The platform refused the last body order (a NAO without a kick, say): a special
+    /// The platform refused the last body order (a motion not in its catalogue, say): a special
     /// sequence that never started must not hold its resources.
     pub fn body_order_refused(&mut self) -> Vec<ActuationMessage> {
         let mut messages = Vec::new();
@@ -479,6 +479,9 @@ mod tests {
     use super::*;
     use crate::platform::HeadAngles;
 
+    /// An application's sequence of the body alone: the head stays free.
+    const WAVE: SpecialMotion = SpecialMotion::new(MotionName::from_static("wave"), 0, false);
+
     fn feedback(t: f64, body: BodyMotionState) -> MotionFeedback {
         MotionFeedback {
             stamp: Time::from_secs_f64(t),
@@ -564,30 +567,23 @@ mod tests {
         let mut a = ActuationState::new(ActuationConfig::default());
         a.command(&MotionCommands::PerResource {
             head: None,
-            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
+            body: Some(BodyCommand::Special(WAVE)),
         });
         let (orders, messages) = a.update(&feedback(0.0, BodyMotionState::Standing));
-        assert_eq!(
-            orders.and_then(|o| o.body),
-            Some(BodyOrder::Special { motion: SpecialMotion::Kick(0) })
-        );
+        assert_eq!(orders.and_then(|o| o.body), Some(BodyOrder::Special { motion: WAVE }));
         assert!(messages.contains(&ActuationMessage::ResourceBusy { resource: Resource::Body }));
-        let kicking = BodyMotionState::Special {
-            motion: SpecialMotion::Kick(0),
-            elapsed: 0.1,
-            duration: 1.0,
-        };
-        let _ = a.update(&feedback(0.1, kicking));
+        let waving = BodyMotionState::Special { motion: WAVE, elapsed: 0.1, duration: 1.0 };
+        let _ = a.update(&feedback(0.1, waving));
         a.command(&MotionCommands::PerResource {
             head: None,
             body: Some(BodyCommand::NonQueue(walk(0.1, 1.0))),
         });
-        let (_, messages) = a.update(&feedback(0.2, kicking));
+        let (_, messages) = a.update(&feedback(0.2, waving));
         assert!(messages.iter().any(|m| matches!(
             m,
             ActuationMessage::CommandRejected { resource: Resource::Body, .. }
         )));
-        // A kick does not hold the head.
+        // A sequence of the body alone leaves the head to head commands.
         a.command(&MotionCommands::PerResource {
             head: Some(HeadCommand::NonQueue(HeadMotion {
                 target: HeadAngles { yaw: 0.5, pitch: 0.0 },
@@ -595,20 +591,20 @@ mod tests {
             })),
             body: None,
         });
-        let (orders, _) = a.update(&feedback(0.3, kicking));
+        let (orders, _) = a.update(&feedback(0.3, waving));
         assert!(orders.and_then(|o| o.head).is_some());
-        // A fall preempts the kick and takes the head too.
+        // A fall preempts it and takes the head too.
         a.command(&MotionCommands::WholeBody {
-            command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(0) },
+            command: WholeBodyCommand::Special { motion: SpecialMotion::fall(0) },
         });
-        let (orders, messages) = a.update(&feedback(0.35, kicking));
+        let (orders, messages) = a.update(&feedback(0.35, waving));
         assert_eq!(
             orders.and_then(|o| o.body),
-            Some(BodyOrder::Special { motion: SpecialMotion::Fall(0) })
+            Some(BodyOrder::Special { motion: SpecialMotion::fall(0) })
         );
         assert!(messages.contains(&ActuationMessage::ResourceBusy { resource: Resource::Head }));
         let falling = BodyMotionState::Special {
-            motion: SpecialMotion::Fall(0),
+            motion: SpecialMotion::fall(0),
             elapsed: 0.1,
             duration: 0.5,
         };
@@ -630,14 +626,14 @@ mod tests {
         let mut a = ActuationState::new(ActuationConfig::default());
         let lying = BodyMotionState::Fallen { direction: crate::platform::FallDirection::Back };
         a.command(&MotionCommands::WholeBody {
-            command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(0) },
+            command: WholeBodyCommand::Special { motion: SpecialMotion::fall(0) },
         });
         // The T1 takes the order and goes on lying: the fall is over before it began.
         let (_, messages) = a.update(&feedback(0.0, lying));
         assert!(
             messages.contains(&ActuationMessage::ResourceReleased { resource: Resource::Body })
         );
-        let stand_up = SpecialMotion::StandUp(1);
+        let stand_up = SpecialMotion::stand_up(1);
         a.command(&MotionCommands::WholeBody {
             command: WholeBodyCommand::Special { motion: stand_up },
         });
@@ -651,7 +647,7 @@ mod tests {
         let mut a = ActuationState::new(ActuationConfig::default());
         a.command(&MotionCommands::PerResource {
             head: None,
-            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
+            body: Some(BodyCommand::Special(WAVE)),
         });
         let mut released_at = None;
         let mut rejected = false;
@@ -677,7 +673,7 @@ mod tests {
         let mut a = ActuationState::new(ActuationConfig::default());
         a.command(&MotionCommands::PerResource {
             head: None,
-            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
+            body: Some(BodyCommand::Special(WAVE)),
         });
         let _ = a.update(&feedback(0.0, BodyMotionState::Standing));
         let released = a.body_order_refused();
@@ -738,15 +734,15 @@ mod tests {
         )));
     }
 
-    /// A platform that refuses every special sequence (a NAO without a kick motion).
-    struct RefusesKicks {
+    /// A platform that refuses every special sequence (its catalogue is empty).
+    struct RefusesSpecialMotions {
         wrote: u32,
     }
 
-    impl crate::platform::Platform for RefusesKicks {
+    impl crate::platform::Platform for RefusesSpecialMotions {
         fn info(&self) -> crate::platform::PlatformInfo {
             crate::platform::PlatformInfo {
-                name: "refuses kicks".into(),
+                name: "refuses special motions".into(),
                 sensor_period: std::time::Duration::from_millis(12),
                 camera_fov: 1.06,
                 camera_range: 5.0,
@@ -781,7 +777,7 @@ mod tests {
             self.wrote += 1;
             match orders.body {
                 Some(BodyOrder::Special { .. }) => {
-                    Err(crate::platform::PlatformError::Unsupported("no kick".into()))
+                    Err(crate::platform::PlatformError::Unsupported("no wave".into()))
                 }
                 _ => Ok(()),
             }
@@ -793,7 +789,7 @@ mod tests {
         use strata_runtime::{GraphBuilder, HostConfig, LockstepHost, Policy};
 
         let platform: crate::platform::SharedPlatform =
-            std::sync::Arc::new(std::sync::Mutex::new(RefusesKicks { wrote: 0 }));
+            std::sync::Arc::new(std::sync::Mutex::new(RefusesSpecialMotions { wrote: 0 }));
         let mut graph = GraphBuilder::new();
         let ports = graph.add("actuation", |p| {
             let ports = ActuationPorts::declare(p);
@@ -819,11 +815,9 @@ mod tests {
         let mut host =
             LockstepHost::new(graph.build().expect("valid graph"), HostConfig::with_seed(1));
         let at = Time::from_secs_f64(0.1);
-        let kick = MotionCommands::PerResource {
-            head: None,
-            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
-        };
-        host.inject(commands, kick, at, at).expect("external input");
+        let wave =
+            MotionCommands::PerResource { head: None, body: Some(BodyCommand::Special(WAVE)) };
+        host.inject(commands, wave, at, at).expect("external input");
         // The refusal is handled with the next commands, as the reactive layer sends every cycle.
         let next = Time::from_secs_f64(0.2);
         let none = MotionCommands::PerResource { head: None, body: None };
@@ -843,7 +837,7 @@ mod tests {
                 m,
                 ActuationMessage::ResourceReleased { resource: Resource::Body }
             )),
-            "the refused kick must not keep the body busy: {received:?}"
+            "the refused sequence must not keep the body busy: {received:?}"
         );
     }
 

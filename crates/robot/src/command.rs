@@ -117,7 +117,7 @@ pub enum BodyMotion {
 pub enum BodyCommand {
     Queue(BodyMotion),
     NonQueue(BodyMotion),
-    /// A sequence that needs the body only (a kick).
+    /// A sequence that needs the body only (soccer's kick).
     Special(SpecialMotion),
 }
 

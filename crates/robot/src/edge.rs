@@ -539,13 +539,13 @@ mod tests {
             head: None,
             body: Some(BodyOrder::Walk { velocity: crate::geometry::Velocity::new(0.1, 0.0, 0.0) }),
         };
-        let kick = ActuatorOrders {
+        let stand_up = ActuatorOrders {
             head: None,
-            body: Some(BodyOrder::Special { motion: crate::platform::SpecialMotion::Kick(0) }),
+            body: Some(BodyOrder::Special { motion: crate::platform::SpecialMotion::stand_up(0) }),
         };
         let at = |ms: u64| Time::from_nanos(ms * 1_000_000);
         host.inject(actuators.orders, walk, at(15), at(15)).expect("inject");
-        host.inject(actuators.orders, kick, at(25), at(25)).expect("inject");
+        host.inject(actuators.orders, stand_up, at(25), at(25)).expect("inject");
         host.run_for(Duration::from_millis(95)).expect("runs");
 
         // Reads at 0, 10, ..., 90 ms: the 3rd, 6th and 9th garbled and skipped, the robot going on.

@@ -136,30 +136,252 @@ pub struct SensorFrame {
     pub whistle: Option<f64>,
 }
 
-strata_runtime::text_and_binary_enum! {
-    /// A non-parametric movement sequence (paper 3.5.1, the special policy). The number selects
-    /// a sequence of that kind in the platform's motion catalogue ([`PlatformInfo::motions`]).
-    /// In text (a motion file, the simulator's JSON protocol) `{ kind = "stand_up", sequence =
-    /// 2 }`; in binary encodings (logs) a variant and a number.
-    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-    pub enum SpecialMotion {
-        /// Uses the body only: the head stays free.
-        Kick(u8),
-        /// Uses head and body.
-        StandUp(u8),
-        /// Protective fall: minimise joint torque once instability is detected. Head and body.
-        Fall(u8),
-        /// Head and body.
-        Dive(u8),
+/// The name of a kind of special motion: `"stand_up"`, `"fall"`, or one the application
+/// names (soccer's `"kick"` and `"dive"`). Held inline, so a motion is `Copy` and passing one
+/// along never allocates, whether it was named by a constant or read from a protocol or a log.
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MotionName {
+    len: u8,
+    bytes: [u8; MotionName::CAPACITY],
+}
+
+/// A motion name that is empty or longer than [`MotionName::CAPACITY`] bytes.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("a motion name has 1 to {} bytes, not {len} ({name:?})", MotionName::CAPACITY)]
+pub struct InvalidMotionName {
+    /// The name's first characters: enough to find it, never a whole message a peer sent.
+    pub name: String,
+    pub len: usize,
+}
+
+impl MotionName {
+    /// The longest name, in bytes.
+    pub const CAPACITY: usize = 31;
+    /// The robot's getting up from the ground ([`crate::control::primitives::StandUp`]).
+    pub const STAND_UP: MotionName = MotionName::from_static("stand_up");
+    /// The protective fall the fall detector calls for.
+    pub const FALL: MotionName = MotionName::from_static("fall");
+
+    /// A name known when the program is built. Evaluated in a `const`, an empty or too long
+    /// name fails the build; elsewhere it panics, so names read at run time go through
+    /// [`MotionName::new`].
+    pub const fn from_static(name: &'static str) -> MotionName {
+        match MotionName::checked(name) {
+            Some(name) => name,
+            None => panic!("a motion name has 1 to MotionName::CAPACITY bytes"),
+        }
     }
-    text: #[serde(tag = "kind", content = "sequence", rename_all = "snake_case")]
-    binary: #[serde(rename_all = "snake_case")]
+
+    /// A name read at run time (a motion file, a protocol).
+    pub fn new(name: &str) -> Result<MotionName, InvalidMotionName> {
+        MotionName::checked(name).ok_or_else(|| InvalidMotionName {
+            name: name.chars().take(2 * MotionName::CAPACITY).collect(),
+            len: name.len(),
+        })
+    }
+
+    const fn checked(name: &str) -> Option<MotionName> {
+        let source = name.as_bytes();
+        if source.is_empty() || source.len() > MotionName::CAPACITY {
+            return None;
+        }
+        let mut bytes = [0; MotionName::CAPACITY];
+        let mut i = 0;
+        while i < source.len() {
+            bytes[i] = source[i];
+            i += 1;
+        }
+        // The unused bytes stay zero, so equal names have equal bytes (derived `Eq`, `Hash`).
+        Some(MotionName { len: source.len() as u8, bytes })
+    }
+
+    pub fn as_str(&self) -> &str {
+        // Copied whole from a `str`, never cut: always UTF-8.
+        std::str::from_utf8(&self.bytes[..usize::from(self.len)]).unwrap_or_default()
+    }
+}
+
+impl std::fmt::Debug for MotionName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        std::fmt::Debug::fmt(self.as_str(), f)
+    }
+}
+
+impl std::fmt::Display for MotionName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl Serialize for MotionName {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.as_str())
+    }
+}
+
+impl<'de> Deserialize<'de> for MotionName {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Name;
+        impl serde::de::Visitor<'_> for Name {
+            type Value = MotionName;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "a motion name of 1 to {} bytes", MotionName::CAPACITY)
+            }
+
+            fn visit_str<E: serde::de::Error>(self, name: &str) -> Result<MotionName, E> {
+                // A CDR trace reads an empty placeholder where a name would be.
+                if name.is_empty() && strata_runtime::cdr::is_tracing() {
+                    return Ok(MotionName::STAND_UP);
+                }
+                MotionName::new(name).map_err(E::custom)
+            }
+        }
+        deserializer.deserialize_str(Name)
+    }
+}
+
+/// A non-parametric movement sequence (paper 3.5.1, the special policy): a kind the
+/// application names, and a number that selects one sequence of that kind in the platform's
+/// motion catalogue ([`PlatformInfo::motions`]). The robot crate names the two every biped
+/// needs ([`SpecialMotion::stand_up`], [`SpecialMotion::fall`]); an application names its own
+/// (soccer: `strata_soccer::motions::kick`). A platform runs the kinds in its catalogue and
+/// refuses the others ([`PlatformError::Unsupported`]), which actuation reports.
+///
+/// In text (a motion file, the simulator's JSON protocol) `{ kind = "stand_up", sequence = 2 }`,
+/// with `head = false` for a motion that leaves the head free (left out where text written
+/// before applications named their motions implied it: `{ kind = "kick", sequence = 0 }`). In
+/// binary encodings (logs) the four kinds the robot crate once named itself are a variant and a
+/// number, the same bytes as then; any other motion is a fifth variant with the kind, the
+/// number and the head use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SpecialMotion {
+    pub kind: MotionName,
+    pub sequence: u8,
+    /// Whether the sequence moves the head as well as the body: while it runs, head commands
+    /// are refused. A kick leaves the head to keep the ball in view; getting up does not.
+    pub head: bool,
 }
 
 impl SpecialMotion {
-    /// Whether the sequence needs the head as well as the body.
-    pub fn uses_head(&self) -> bool {
-        !matches!(self, SpecialMotion::Kick(_))
+    pub const fn new(kind: MotionName, sequence: u8, head: bool) -> SpecialMotion {
+        SpecialMotion { kind, sequence, head }
+    }
+
+    /// Getting up from the ground: stand-up `sequence` of the catalogue. Head and body.
+    pub const fn stand_up(sequence: u8) -> SpecialMotion {
+        SpecialMotion::new(MotionName::STAND_UP, sequence, true)
+    }
+
+    /// Protective fall: minimise joint torque once instability is detected. Head and body.
+    pub const fn fall(sequence: u8) -> SpecialMotion {
+        SpecialMotion::new(MotionName::FALL, sequence, true)
+    }
+
+    /// Whether this is a motion of kind `kind`.
+    pub fn is(&self, kind: MotionName) -> bool {
+        self.kind == kind
+    }
+
+    /// Whether `other` selects the same sequence of a catalogue: the kind and the number (the
+    /// head use is the caller's claim, not part of the sequence).
+    pub fn same_sequence(&self, other: &SpecialMotion) -> bool {
+        self.kind == other.kind && self.sequence == other.sequence
+    }
+}
+
+/// The head use a text form leaves out: the whole robot, except for the kinds the robot crate
+/// named before applications named their own, which keep the head use they had then (so motion
+/// files and protocol messages written then read the same).
+fn usual_head(kind: MotionName) -> bool {
+    LEGACY_KINDS.iter().find(|(name, _)| *name == kind).is_none_or(|(_, head)| *head)
+}
+
+impl std::fmt::Display for SpecialMotion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {}", self.kind, self.sequence)?;
+        if self.head != usual_head(self.kind) {
+            write!(f, " ({} the head)", if self.head { "with" } else { "without" })?;
+        }
+        Ok(())
+    }
+}
+
+/// The kinds the robot crate named itself until applications named their own, in the order of
+/// that enum's variants (a log's variant index) and with the head use each had. Only for the
+/// forms written then, which stay as they were: the robot crate runs no kick and no dive.
+const LEGACY_KINDS: [(MotionName, bool); 4] = [
+    (MotionName::from_static("kick"), false),
+    (MotionName::STAND_UP, true),
+    (MotionName::FALL, true),
+    (MotionName::from_static("dive"), true),
+];
+
+mod special_motion_forms {
+    use super::{LEGACY_KINDS, MotionName, SpecialMotion, usual_head};
+    use serde::{Deserialize, Serialize};
+
+    #[derive(Serialize, Deserialize)]
+    #[serde(rename = "SpecialMotion", deny_unknown_fields)]
+    struct Text {
+        kind: MotionName,
+        sequence: u8,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        head: Option<bool>,
+    }
+
+    /// Positional. The first four variants are the enum logs held before applications named
+    /// their motions (CDR writes a variant's index, MessagePack its name); any other kind, or
+    /// one of those four with another head use, is `Named`.
+    #[derive(Serialize, Deserialize)]
+    #[serde(rename = "SpecialMotion", rename_all = "snake_case")]
+    enum Binary {
+        Kick(u8),
+        StandUp(u8),
+        Fall(u8),
+        Dive(u8),
+        Named { kind: MotionName, sequence: u8, head: bool },
+    }
+
+    impl Serialize for SpecialMotion {
+        fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+            let SpecialMotion { kind, sequence, head } = *self;
+            if serializer.is_human_readable() {
+                let head = (head != usual_head(kind)).then_some(head);
+                Text { kind, sequence, head }.serialize(serializer)
+            } else {
+                // The four kinds logs held as variants keep their bytes, so logs of the same
+                // run are the same and older ones replay without differences.
+                let [kick, stand_up, fall, dive] = LEGACY_KINDS;
+                let binary = match (kind, head) {
+                    legacy if legacy == kick => Binary::Kick(sequence),
+                    legacy if legacy == stand_up => Binary::StandUp(sequence),
+                    legacy if legacy == fall => Binary::Fall(sequence),
+                    legacy if legacy == dive => Binary::Dive(sequence),
+                    _ => Binary::Named { kind, sequence, head },
+                };
+                binary.serialize(serializer)
+            }
+        }
+    }
+
+    impl<'de> Deserialize<'de> for SpecialMotion {
+        fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+            if deserializer.is_human_readable() {
+                let Text { kind, sequence, head } = Text::deserialize(deserializer)?;
+                let head = head.unwrap_or_else(|| usual_head(kind));
+                return Ok(SpecialMotion { kind, sequence, head });
+            }
+            let [kick, stand_up, fall, dive] = LEGACY_KINDS;
+            let ((kind, head), sequence) = match Binary::deserialize(deserializer)? {
+                Binary::Kick(sequence) => (kick, sequence),
+                Binary::StandUp(sequence) => (stand_up, sequence),
+                Binary::Fall(sequence) => (fall, sequence),
+                Binary::Dive(sequence) => (dive, sequence),
+                Binary::Named { kind, sequence, head } => ((kind, head), sequence),
+            };
+            Ok(SpecialMotion { kind, sequence, head })
+        }
     }
 }
 
@@ -278,8 +500,9 @@ pub struct PlatformInfo {
 }
 
 impl PlatformInfo {
+    /// The catalogue entry of `motion`'s sequence (its kind and number).
     pub fn motion(&self, motion: SpecialMotion) -> Option<&MotionSpec> {
-        self.motions.iter().find(|m| m.motion == motion)
+        self.motions.iter().find(|m| m.motion.same_sequence(&motion))
     }
 }
 

@@ -13,7 +13,7 @@ use strata_robot::control::reactive::{
 use strata_robot::control::scores::{Goal, GoalScore, NoGoal, ScoreCombination, ScoreVector};
 use strata_robot::geometry::Velocity;
 use strata_robot::percept::Percepts;
-use strata_robot::platform::{HeadAngles, SpecialMotion};
+use strata_robot::platform::{HeadAngles, MotionName, SpecialMotion};
 use strata_runtime::Time;
 
 /// A toy world: how confident the robot is about each object, and their bearings.
@@ -215,13 +215,17 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, World> for Walk {
     }
 }
 
+/// This application's motions beside the robot crate's own: a kick leaves the head free.
+const KICK: SpecialMotion = SpecialMotion::new(MotionName::from_static("kick"), 0, false);
+const CELEBRATE: SpecialMotion = SpecialMotion::new(MotionName::from_static("celebrate"), 9, true);
+
 struct Kick;
 impl PrimitiveBehavior<BodyGoal, BodyCommand, World> for Kick {
     fn id(&self) -> BodyPrimitive {
         BodyPrimitive::Kick
     }
     fn step(&mut self, _: &BodyGoal, _: &ReactiveInput<'_, World>) -> Option<BodyCommand> {
-        Some(BodyCommand::Special(SpecialMotion::Kick(0)))
+        Some(BodyCommand::Special(KICK))
     }
 }
 
@@ -271,8 +275,8 @@ fn layer(combination: ScoreCombination) -> Layer {
             .with_primitive(Box::new(Walk))
             .with_primitive(Box::new(Kick));
     let whole = Multiplexer::new(ResourceGroup::HeadAndBody, config, Box::new(WholePolicy))
-        .with_primitive(Box::new(Sequence(WholePrimitive::Fall, SpecialMotion::Fall(0))))
-        .with_primitive(Box::new(Sequence(WholePrimitive::Celebrate, SpecialMotion::Dive(9))))
+        .with_primitive(Box::new(Sequence(WholePrimitive::Fall, SpecialMotion::fall(0))))
+        .with_primitive(Box::new(Sequence(WholePrimitive::Celebrate, CELEBRATE)))
         .with_reflexes(ScoreVector::single(WholeGoal::Fall));
     ReactiveLayer::new(head, body, whole, FallDetectorConfig::default())
 }
@@ -412,10 +416,7 @@ fn kick_or_walk_is_chosen_from_percepts_and_the_deliberative_layer_can_deactivat
     assert_eq!(report.body.primitive.as_deref(), Some("kick"));
     assert!(matches!(
         report.commands,
-        MotionCommands::PerResource {
-            body: Some(BodyCommand::Special(SpecialMotion::Kick(0))),
-            ..
-        }
+        MotionCommands::PerResource { body: Some(BodyCommand::Special(KICK)), .. }
     ));
     let far = World { confidence: vec![], target_close: false };
     let report = layer.step(Time::ZERO, &upright(), Some(&far));
@@ -449,7 +450,7 @@ fn a_fall_inhibits_head_and_body_within_one_reactive_cycle() {
     assert_eq!(
         report.commands,
         MotionCommands::WholeBody {
-            command: WholeBodyCommand::Special { motion: SpecialMotion::Fall(0) }
+            command: WholeBodyCommand::Special { motion: SpecialMotion::fall(0) }
         }
     );
     assert_eq!(report.head.inhibited_by, Some(ResourceGroup::HeadAndBody));

@@ -11,7 +11,7 @@ use strata_robot::command::{
 use strata_robot::control::reactive::{GoalReport, MuxReport, ReactiveReport, Stability};
 use strata_robot::geometry::Velocity;
 use strata_robot::platform::{
-    BodyMotionState, CycleStage, FallDirection, HeadAngles, SpecialMotion,
+    BodyMotionState, BodyOrder, CycleStage, FallDirection, HeadAngles, MotionName, SpecialMotion,
 };
 use strata_runtime::shared::{self, Recorder};
 use strata_runtime::{Encoding, Time, cdr};
@@ -114,7 +114,7 @@ fn a_selected_goal_beyond_the_goals_is_refused() {
 
 #[test]
 fn commands_and_platform_states_are_tagged_in_text_and_positional_in_cdr() {
-    let kick = SpecialMotion::StandUp(2);
+    let kick = SpecialMotion::stand_up(2);
     assert_eq!(
         serde_json::to_value(kick).expect("json"),
         serde_json::json!({ "kind": "stand_up", "sequence": 2 })
@@ -123,7 +123,8 @@ fn commands_and_platform_states_are_tagged_in_text_and_positional_in_cdr() {
         toml::from_str("motion = { kind = \"kick\", sequence = 1 }").expect("toml");
     let motion: SpecialMotion =
         from_toml["motion"].clone().try_into().expect("a motion file's form");
-    assert_eq!(motion, SpecialMotion::Kick(1));
+    // A kick written before the application named it left the head free, and still does.
+    assert_eq!(motion, SpecialMotion::new(MotionName::from_static("kick"), 1, false));
     let walking = BodyMotionState::Walking {
         stage: CycleStage::Execution,
         velocity: Velocity { vx: 0.1, vy: 0.0, omega: 0.0 },
@@ -132,6 +133,7 @@ fn commands_and_platform_states_are_tagged_in_text_and_positional_in_cdr() {
     for state in [
         walking,
         BodyMotionState::Special { motion: kick, elapsed: 0.5, duration: 2.0 },
+        BodyMotionState::Special { motion: WAVE, elapsed: 0.5, duration: 2.0 },
         BodyMotionState::Fallen { direction: FallDirection::Left },
         BodyMotionState::Limp,
     ] {
@@ -184,4 +186,94 @@ fn symmetry_hints_are_tagged_in_text_and_positional_in_cdr() {
     }
     let format = cdr::trace::<WorldCommand>().expect("CDR describes world commands");
     cdr::idl_schema(&format, "WorldCommand").expect("an IDL schema");
+}
+
+/// A motion an application names: one that leaves the head free.
+const WAVE: SpecialMotion = SpecialMotion::new(MotionName::from_static("wave"), 3, false);
+
+#[test]
+fn an_application_names_its_motions_and_says_when_the_head_stays_free() {
+    assert_eq!(
+        serde_json::to_value(WAVE).expect("json"),
+        serde_json::json!({ "kind": "wave", "sequence": 3, "head": false })
+    );
+    let with_head = SpecialMotion { head: true, ..WAVE };
+    assert_eq!(
+        serde_json::to_value(with_head).expect("json"),
+        serde_json::json!({ "kind": "wave", "sequence": 3 })
+    );
+    for motion in [WAVE, with_head, SpecialMotion::fall(0)] {
+        let order = BodyOrder::Special { motion };
+        for encoding in [Encoding::Cdr, Encoding::MessagePack, Encoding::Json] {
+            let mut bytes = Vec::new();
+            encoding.encode(&order, &mut bytes).expect("encoded");
+            assert_eq!(encoding.decode::<BodyOrder>(&bytes).expect("back"), order, "{encoding:?}");
+        }
+    }
+    // A name is at most MotionName::CAPACITY bytes, and not empty: refused, not cut.
+    let long = "w".repeat(MotionName::CAPACITY + 1);
+    assert!(MotionName::new(&long).is_err());
+    assert!(MotionName::new("").is_err());
+    let json = serde_json::json!({ "kind": long, "sequence": 0 });
+    let error = serde_json::from_value::<SpecialMotion>(json).expect_err("too long");
+    assert!(error.to_string().contains("motion name"), "{error}");
+    let json = serde_json::json!({ "kind": "wave", "sequence": 0, "arms": true });
+    assert!(serde_json::from_value::<SpecialMotion>(json).is_err(), "unknown fields are refused");
+}
+
+/// The enums logs held before applications named their motions, as the robot crate declared
+/// them then.
+mod before {
+    use serde::Serialize;
+
+    #[derive(Serialize)]
+    #[serde(rename_all = "snake_case")]
+    pub enum SpecialMotion {
+        Kick(u8),
+        StandUp(u8),
+        Fall(u8),
+        Dive(u8),
+    }
+
+    /// The variants before `special` are there for its index (CDR) only.
+    #[allow(dead_code)]
+    #[derive(Serialize)]
+    #[serde(rename_all = "snake_case")]
+    pub enum BodyMotionState {
+        Standing,
+        Walking { stage: u8, velocity: [f64; 3] },
+        Special { motion: SpecialMotion, elapsed: f64, duration: f64 },
+    }
+}
+
+#[test]
+fn logs_written_while_the_robot_crate_named_the_motions_still_read() {
+    let named = |kind: &'static str, sequence: u8, head: bool| {
+        SpecialMotion::new(MotionName::from_static(kind), sequence, head)
+    };
+    let cases = [
+        (before::SpecialMotion::Kick(1), named("kick", 1, false)),
+        (before::SpecialMotion::StandUp(2), SpecialMotion::stand_up(2)),
+        (before::SpecialMotion::Fall(0), SpecialMotion::fall(0)),
+        (before::SpecialMotion::Dive(3), named("dive", 3, true)),
+    ];
+    for (old, motion) in cases {
+        let old = before::BodyMotionState::Special { motion: old, elapsed: 0.25, duration: 1.5 };
+        let now = BodyMotionState::Special { motion, elapsed: 0.25, duration: 1.5 };
+        // CDR writes the variant's index, MessagePack its name.
+        for encoding in [Encoding::Cdr, Encoding::MessagePack] {
+            let mut bytes = Vec::new();
+            encoding.encode(&old, &mut bytes).expect("encoded");
+            assert_eq!(encoding.decode::<BodyMotionState>(&bytes).expect("read"), now);
+            // Written now, the same bytes: a replay of an older log finds no difference.
+            let mut again = Vec::new();
+            encoding.encode(&now, &mut again).expect("encoded");
+            assert_eq!(again, bytes, "{encoding:?} {motion}");
+        }
+    }
+    // A dive that leaves the head free is not the dive those logs knew: it says so.
+    let mut bytes = Vec::new();
+    let own_dive = named("dive", 3, false);
+    Encoding::Cdr.encode(&own_dive, &mut bytes).expect("encoded");
+    assert_eq!(Encoding::Cdr.decode::<SpecialMotion>(&bytes).expect("read"), own_dive);
 }

@@ -9,7 +9,8 @@ use std::f64::consts::PI;
 
 use serde::{Deserialize, Serialize};
 use strata_robot::platform::{
-    BodyMotionState, BodyOrder, CycleStage, FallDirection, HeadAngles, HeadOrder, SpecialMotion,
+    BodyMotionState, BodyOrder, CycleStage, FallDirection, HeadAngles, HeadOrder, MotionName,
+    SpecialMotion,
 };
 use strata_robot::{Odometry, Pose, Vector, Velocity};
 use strata_runtime::Time;
@@ -18,6 +19,21 @@ use crate::config::{DiveSide, RobotConfig};
 use crate::noise::NoiseParams;
 use crate::random::Stream;
 use crate::util::{Rotating, approach, length, sin_cos, smoothstep, wrap_near};
+
+/// The kinds of the simulator's catalogue beside the robot crate's stand-ups and falls: the
+/// league's names, which soccer orders them by.
+pub(crate) const KICK: MotionName = MotionName::from_static(strata_spl::motions::KICK.name);
+pub(crate) const DIVE: MotionName = MotionName::from_static(strata_spl::motions::DIVE.name);
+
+/// Kick `sequence` of the catalogue, as soccer orders it.
+pub(crate) const fn kick(sequence: u8) -> SpecialMotion {
+    SpecialMotion::new(KICK, sequence, strata_spl::motions::KICK.head)
+}
+
+/// Dive `sequence` of the catalogue, as soccer orders it.
+pub(crate) const fn dive(sequence: u8) -> SpecialMotion {
+    SpecialMotion::new(DIVE, sequence, strata_spl::motions::DIVE.head)
+}
 
 /// Why a robot fell.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -322,7 +338,7 @@ impl Body {
     /// A whole-body sequence (or a fall) holds the head joints.
     fn holds_head(&self) -> bool {
         match self.activity {
-            Activity::Special(run) => run.motion.uses_head(),
+            Activity::Special(run) => run.motion.head,
             Activity::Falling { .. } => true,
             _ => false,
         }
@@ -347,8 +363,8 @@ impl Body {
                 Ok(())
             }
             BodyOrder::Special { motion } => {
-                if !catalogue_has(config, motion) {
-                    return Err(format!("{motion:?} is not in the motion catalogue"));
+                if catalogue_entry(config, motion).is_none() {
+                    return Err(format!("{motion} is not in the motion catalogue"));
                 }
                 self.order_special(motion, config)
             }
@@ -356,7 +372,7 @@ impl Body {
     }
 
     fn order_special(&mut self, motion: SpecialMotion, config: &RobotConfig) -> Result<(), String> {
-        let is_fall = matches!(motion, SpecialMotion::Fall(_));
+        let is_fall = motion.is(MotionName::FALL);
         match self.activity {
             Activity::Special(run) => {
                 if run.motion == motion {
@@ -367,38 +383,38 @@ impl Body {
                     self.start_special(motion, config, None);
                     Ok(())
                 } else {
-                    Err(format!("{:?} is running; {motion:?} must wait", run.motion))
+                    Err(format!("{} is running; {motion} must wait", run.motion))
                 }
             }
-            Activity::Falling { .. } => match motion {
-                SpecialMotion::Fall(_) => {
+            Activity::Falling { .. } => match motion.kind {
+                MotionName::FALL => {
                     self.start_special(motion, config, None);
                     Ok(())
                 }
-                SpecialMotion::StandUp(_) => {
+                MotionName::STAND_UP => {
                     // Getting up starts once the robot lies on the ground.
                     self.pending_special = Some(motion);
                     Ok(())
                 }
-                _ => Err(format!("the robot is falling: no {motion:?}")),
+                _ => Err(format!("the robot is falling: no {motion}")),
             },
-            Activity::Fallen { .. } => match motion {
-                SpecialMotion::StandUp(_) => {
+            Activity::Fallen { .. } => match motion.kind {
+                MotionName::STAND_UP => {
                     // Whether it will fail is drawn when it starts (in `update`).
                     self.pending_special = Some(motion);
                     self.order = BodyOrder::Special { motion };
                     Ok(())
                 }
                 // Already down: a short sequence that ends lying, so the order completes.
-                SpecialMotion::Fall(_) => {
+                MotionName::FALL => {
                     self.start_special(motion, config, None);
                     Ok(())
                 }
-                _ => Err(format!("the robot is lying on the ground: no {motion:?}")),
+                _ => Err(format!("the robot is lying on the ground: no {motion}")),
             },
             Activity::Walking { .. } => {
                 self.order = BodyOrder::Special { motion };
-                if is_fall || matches!(motion, SpecialMotion::Dive(_)) {
+                if is_fall || motion.is(DIVE) {
                     self.start_special(motion, config, None);
                 } else {
                     // The walk ends first: kicking out of a running gait is not possible.
@@ -421,17 +437,18 @@ impl Body {
         config: &RobotConfig,
         outcome: Option<(&mut Stream, f64)>,
     ) {
+        // Orders outside the catalogue were refused when they came (`order_body`).
+        let Some(entry) = catalogue_entry(config, motion) else { return };
         self.pending_special = None;
         self.order = BodyOrder::Special { motion };
         self.velocity = Velocity::ZERO;
-        let (duration, kind) = match motion {
-            SpecialMotion::Kick(n) => {
-                let index = usize::from(n);
+        let (duration, kind) = match entry {
+            Entry::Kick(index) => {
                 let duration = config.kicks.get(index).map_or(1.0, |k| k.duration);
                 (duration, SpecialKind::Kick { index, contacted: false })
             }
-            SpecialMotion::StandUp(n) => {
-                let duration = config.stand_ups.get(usize::from(n)).map_or(4.0, |s| s.duration);
+            Entry::StandUp(index) => {
+                let duration = config.stand_ups.get(index).map_or(4.0, |s| s.duration);
                 let succeeds = match outcome {
                     Some((rng, failure)) => !rng.chance(failure),
                     None => true,
@@ -445,9 +462,8 @@ impl Body {
                     SpecialKind::StandUp { succeeds, direction, start_tilt: self.posture_tilt },
                 )
             }
-            SpecialMotion::Fall(n) => {
-                let duration =
-                    config.protective_falls.get(usize::from(n)).map_or(0.6, |s| s.duration);
+            Entry::Fall(index) => {
+                let duration = config.protective_falls.get(index).map_or(0.6, |s| s.duration);
                 let (direction, start_tilt) = match self.activity {
                     Activity::Falling { direction, .. } => (direction, self.posture_tilt),
                     Activity::Special(SpecialRun {
@@ -461,8 +477,7 @@ impl Body {
                 let left = 1.0 - (start_tilt / config.fall.lying_tilt).clamp(0.0, 1.0);
                 (duration * left.max(0.2), SpecialKind::ProtectiveFall { direction, start_tilt })
             }
-            SpecialMotion::Dive(n) => {
-                let index = usize::from(n);
+            Entry::Dive(index) => {
                 let duration = config.dives.get(index).map_or(1.8, |d| d.duration);
                 (duration, SpecialKind::Dive { index })
             }
@@ -673,7 +688,9 @@ impl Body {
                 self.velocity = Velocity::ZERO;
                 self.posture_direction = direction;
                 self.posture_tilt = config.fall.lying_tilt;
-                if let Some(motion @ SpecialMotion::StandUp(_)) = self.pending_special {
+                if let Some(motion) = self.pending_special
+                    && motion.is(MotionName::STAND_UP)
+                {
                     self.start_special(motion, config, Some((rng, noise.falls.stand_up_failure)));
                 }
             }
@@ -878,13 +895,27 @@ impl Body {
     }
 }
 
-fn catalogue_has(config: &RobotConfig, motion: SpecialMotion) -> bool {
-    match motion {
-        SpecialMotion::Kick(n) => usize::from(n) < config.kicks.len(),
-        SpecialMotion::StandUp(n) => usize::from(n) < config.stand_ups.len(),
-        SpecialMotion::Fall(n) => usize::from(n) < config.protective_falls.len(),
-        SpecialMotion::Dive(n) => usize::from(n) < config.dives.len(),
-    }
+/// A sequence of the simulator's catalogue, by the list it is in and its place there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Entry {
+    Kick(usize),
+    StandUp(usize),
+    Fall(usize),
+    Dive(usize),
+}
+
+/// The catalogue's sequence `motion` selects; `None` for a kind it has no list of (an
+/// application's own motion) or a number beyond its list.
+fn catalogue_entry(config: &RobotConfig, motion: SpecialMotion) -> Option<Entry> {
+    let index = usize::from(motion.sequence);
+    let (entry, count) = match motion.kind {
+        KICK => (Entry::Kick(index), config.kicks.len()),
+        MotionName::STAND_UP => (Entry::StandUp(index), config.stand_ups.len()),
+        MotionName::FALL => (Entry::Fall(index), config.protective_falls.len()),
+        DIVE => (Entry::Dive(index), config.dives.len()),
+        _ => return None,
+    };
+    (index < count).then_some(entry)
 }
 
 /// Limits a commanded velocity: each component to its own limit, and the three together to an
@@ -1038,9 +1069,9 @@ mod tests {
             .expect("accepted");
         run(&mut body, 0.5, &config);
         assert!(body.is_fallen());
-        let kick = BodyOrder::Special { motion: SpecialMotion::Kick(0) };
+        let kick = BodyOrder::Special { motion: kick(0) };
         assert!(body.order_body(kick, &config).is_err(), "no kicking while lying");
-        body.order_body(BodyOrder::Special { motion: SpecialMotion::StandUp(0) }, &config)
+        body.order_body(BodyOrder::Special { motion: SpecialMotion::stand_up(0) }, &config)
             .expect("accepted");
         run(&mut body, 2.0, &config);
         assert!(matches!(body.motion_state(), BodyMotionState::Special { .. }));
@@ -1057,8 +1088,7 @@ mod tests {
         body.order_body(BodyOrder::Walk { velocity: Velocity::new(0.2, 0.0, 0.0) }, &config)
             .expect("accepted");
         run(&mut body, 1.0, &config);
-        body.order_body(BodyOrder::Special { motion: SpecialMotion::Kick(0) }, &config)
-            .expect("accepted");
+        body.order_body(BodyOrder::Special { motion: kick(0) }, &config).expect("accepted");
         run(&mut body, 0.05, &config);
         assert!(matches!(
             body.motion_state(),
@@ -1067,10 +1097,7 @@ mod tests {
         let events = run(&mut body, 3.0, &config);
         assert_eq!(events.iter().filter(|e| e.kick_contact == Some(0)).count(), 1);
         assert_eq!(body.motion_state(), BodyMotionState::Standing);
-        assert!(
-            body.order_body(BodyOrder::Special { motion: SpecialMotion::Kick(9) }, &config)
-                .is_err()
-        );
+        assert!(body.order_body(BodyOrder::Special { motion: kick(9) }, &config).is_err());
     }
 
     #[test]

@@ -16,6 +16,8 @@ use strata_runtime::{Context, GraphBuilder, Module, ModuleError, ModuleId, Time,
 use strata_spl::ObjectKind;
 use strata_spl::gamecontroller::{GameControlData, GameState, Penalty};
 
+use crate::body::kick;
+
 /// Tuning of the test controller.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TestControllerConfig {
@@ -187,7 +189,7 @@ impl TestController {
         let body_order = match body {
             BodyMotionState::Fallen { direction } => {
                 let sequence = if direction == FallDirection::Back { 1 } else { 0 };
-                Some(BodyOrder::Special { motion: SpecialMotion::StandUp(sequence) })
+                Some(BodyOrder::Special { motion: SpecialMotion::stand_up(sequence) })
             }
             // Let a running sequence finish.
             BodyMotionState::Special { .. } | BodyMotionState::Limp => None,
@@ -196,9 +198,9 @@ impl TestController {
                 Some(ball)
                     if ball.range < self.config.kick_range
                         && ball.bearing.abs() < self.config.kick_bearing
-                        && self.info.motion(SpecialMotion::Kick(0)).is_some() =>
+                        && self.info.motion(kick(0)).is_some() =>
                 {
-                    BodyOrder::Special { motion: SpecialMotion::Kick(0) }
+                    BodyOrder::Special { motion: kick(0) }
                 }
                 Some(ball) => {
                     let aligned = (1.0 - ball.bearing.abs() / 0.8).clamp(0.0, 1.0);

@@ -8,7 +8,8 @@ use std::time::Duration;
 use common::*;
 use strata_robot::Vector;
 use strata_robot::platform::{
-    ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, FallDirection, LinkError, SpecialMotion,
+    ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, FallDirection, LinkError, MotionName,
+    SpecialMotion,
 };
 use strata_sim::{
     BallScript, EventKind, FallCause, GameState, NoiseConfig, NoiseLevel, Penalty, RobotId,
@@ -18,6 +19,13 @@ use strata_spl::field::BallStatus;
 use strata_spl::gamecontroller::{
     CONTROL_PACKET_SIZE, GameControlData, RobotInfo, TeamColour, TeamInfo,
 };
+
+/// The catalogue's first kick, as soccer orders it.
+const KICK: SpecialMotion = SpecialMotion::new(
+    MotionName::from_static(strata_spl::motions::KICK.name),
+    0,
+    strata_spl::motions::KICK.head,
+);
 
 fn events(sim: &Simulation) -> Vec<EventKind> {
     sim.events().iter().map(|e| e.kind.clone()).collect()
@@ -86,15 +94,12 @@ fn a_kick_sends_the_ball_only_when_it_is_within_reach() {
     only(&mut sim, &[A1]);
     place(&mut sim, A1, 0.0, 0.0, 0.0);
     sim.place_ball(point(0.18, 0.05), Vector::new(0.0, 0.0)).expect("valid ball");
-    let kick = ActuatorOrders {
-        head: None,
-        body: Some(BodyOrder::Special { motion: SpecialMotion::Kick(0) }),
-    };
+    let kick = ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion: KICK }) };
     sim.apply_orders(A1, &kick).expect("in the catalogue");
     steps(&mut sim, 0.3);
     assert!(matches!(
         sim.robot(A1).expect("a").body,
-        BodyMotionState::Special { motion: SpecialMotion::Kick(0), .. }
+        BodyMotionState::Special { motion: KICK, .. }
     ));
     steps(&mut sim, 1.5);
     let ball = sim.ball();
@@ -107,12 +112,13 @@ fn a_kick_sends_the_ball_only_when_it_is_within_reach() {
     steps(&mut sim, 2.0);
     assert_eq!(sim.ball().position, point(-1.0, 0.0));
     assert!(events(&sim).iter().any(|e| matches!(e, EventKind::Kick { hit: false, .. })));
-    // A motion outside the catalogue is refused.
-    let unknown = ActuatorOrders {
-        head: None,
-        body: Some(BodyOrder::Special { motion: SpecialMotion::Kick(42) }),
-    };
-    assert!(sim.apply_orders(A1, &unknown).is_err());
+    // A motion outside the catalogue is refused: a number beyond its kicks, a kind it lacks.
+    let wave = SpecialMotion::new(MotionName::from_static("wave"), 0, false);
+    for motion in [SpecialMotion { sequence: 42, ..KICK }, wave] {
+        let unknown = ActuatorOrders { head: None, body: Some(BodyOrder::Special { motion }) };
+        let refused = sim.apply_orders(A1, &unknown).expect_err("not in the catalogue");
+        assert!(refused.to_string().contains(&motion.to_string()), "{refused}");
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -172,7 +178,7 @@ fn falls_show_in_the_imu_and_standing_up_takes_seconds() {
     assert!(matches!(truth.body, BodyMotionState::Fallen { direction: FallDirection::Back }));
     let stand = ActuatorOrders {
         head: None,
-        body: Some(BodyOrder::Special { motion: SpecialMotion::StandUp(1) }),
+        body: Some(BodyOrder::Special { motion: SpecialMotion::stand_up(1) }),
     };
     sim.apply_orders(A1, &stand).expect("in the catalogue");
     steps(&mut sim, 3.0);
@@ -209,7 +215,7 @@ fn stand_ups_can_fail_and_collisions_and_pushes_make_robots_fall() {
     );
     let stand = ActuatorOrders {
         head: None,
-        body: Some(BodyOrder::Special { motion: SpecialMotion::StandUp(0) }),
+        body: Some(BodyOrder::Special { motion: SpecialMotion::stand_up(0) }),
     };
     sim.apply_orders(A1, &stand).expect("in the catalogue");
     steps(&mut sim, 6.0);

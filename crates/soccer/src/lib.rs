@@ -9,6 +9,7 @@ pub mod field;
 pub mod game;
 pub mod goals;
 pub mod message;
+pub mod motions;
 pub mod planning;
 pub mod primitives;
 pub mod situation;

@@ -18,6 +18,7 @@ use strata_runtime::Time;
 
 use crate::field::TeamField;
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
+use crate::motions;
 use crate::situation::{ball, head_goal_objects, obstacle_ahead, obstacles};
 
 strata_robot::primitive_ids! {
@@ -561,7 +562,7 @@ impl PrimitiveBehavior<BodyGoal, BodyCommand, WorldState> for KickBall {
         if input.actuation.is_busy(strata_robot::command::ResourceGroup::Body) {
             return None;
         }
-        Some(BodyCommand::Special(SpecialMotion::Kick(kick.sequence())))
+        Some(BodyCommand::Special(motions::kick(kick.sequence())))
     }
 }
 
@@ -793,7 +794,7 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Fall {
             WholeBodyGoal::Fall { sequence } => *sequence,
             _ => 0,
         };
-        Some(WholeBodyCommand::Special { motion: SpecialMotion::Fall(sequence) })
+        Some(WholeBodyCommand::Special { motion: SpecialMotion::fall(sequence) })
     }
 }
 
@@ -828,7 +829,7 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Dive {
         } else {
             1
         };
-        Some(WholeBodyCommand::Special { motion: SpecialMotion::Dive(sequence) })
+        Some(WholeBodyCommand::Special { motion: motions::dive(sequence) })
     }
 }
 

@@ -3,11 +3,13 @@
 //! - [`field`]: field dimensions (TOML presets `spl` and `paper2010`), landmarks, lines,
 //!   goals and referee helpers, in the field frame.
 //! - [`objects`]: what a camera can detect, with stable codes shared by simulator and robot.
+//! - [`motions`]: the names of the special motions soccer orders and the simulators run.
 //! - [`gamecontroller`]: control packets (`RGme` v18) and return packets (`RGrt` v4).
 //! - [`net`]: UDP sockets for GameController packets and team messages.
 
 pub mod field;
 pub mod gamecontroller;
+pub mod motions;
 pub mod net;
 pub mod objects;
 

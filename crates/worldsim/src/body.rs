@@ -9,7 +9,7 @@
 use strata_robot::geometry::{Odometry, Pose, Velocity};
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, FallDirection, FootContact, HeadAngles,
-    InertialData, MotionFeedback, PlatformError, SensorFrame, SpecialMotion,
+    InertialData, MotionFeedback, MotionName, PlatformError, SensorFrame, SpecialMotion,
 };
 use strata_runtime::Time;
 
@@ -146,7 +146,7 @@ impl Body {
     fn holds_head(&self) -> bool {
         match self.activity {
             Activity::Falling { .. } | Activity::Fallen => true,
-            Activity::Special { motion, .. } => motion.uses_head(),
+            Activity::Special { motion, .. } => motion.head,
             _ => false,
         }
     }
@@ -233,20 +233,20 @@ impl Body {
         let start_tilt = self.tilt;
         let special =
             |duration: f64| Activity::Special { motion, elapsed: 0.0, duration, start_tilt };
-        Ok(match (motion, self.activity) {
+        Ok(match (motion.kind, self.activity) {
             // Protecting a fall already under way takes what is left of it.
-            (SpecialMotion::Fall(_), Activity::Falling { elapsed }) => {
+            (MotionName::FALL, Activity::Falling { elapsed }) => {
                 special((config.fall_time - elapsed).max(MIN_PROTECTIVE_REST))
             }
-            (SpecialMotion::Fall(_), Activity::Standing | Activity::Walking { .. }) => {
+            (MotionName::FALL, Activity::Standing | Activity::Walking { .. }) => {
                 // Sitting down backwards is the safe way for a standing humanoid.
                 self.direction = FallDirection::Back;
                 special(config.protective_fall_time)
             }
-            (SpecialMotion::StandUp(_), Activity::Fallen) => special(config.stand_up_time),
+            (MotionName::STAND_UP, Activity::Fallen) => special(config.stand_up_time),
             // The state does not fit: actuation sees no special state and releases it.
-            (SpecialMotion::Fall(_) | SpecialMotion::StandUp(_), other) => other,
-            _ => return Err(PlatformError::Unsupported(format!("{motion:?}"))),
+            (MotionName::FALL | MotionName::STAND_UP, other) => other,
+            _ => return Err(PlatformError::Unsupported(format!("special motion {motion}"))),
         })
     }
 
@@ -285,7 +285,7 @@ impl Body {
                 let elapsed = elapsed + dt;
                 let progress = (elapsed / duration).min(1.0);
                 let going_on = Activity::Special { motion, elapsed, duration, start_tilt };
-                if let SpecialMotion::StandUp(_) = motion {
+                if motion.kind == MotionName::STAND_UP {
                     self.tilt = start_tilt * (1.0 - progress);
                     if progress >= 1.0 {
                         landing = Some(Landing::OnItsFeet);

@@ -213,9 +213,9 @@ impl WorldSim {
             max_head_speed: body.max_head_speed,
             max_velocity: body.max_velocity,
             motions: vec![
-                spec(SpecialMotion::Fall(0), "protective fall", body.protective_fall_time),
-                spec(SpecialMotion::StandUp(0), "stand up from the front", body.stand_up_time),
-                spec(SpecialMotion::StandUp(1), "stand up from the back", body.stand_up_time),
+                spec(SpecialMotion::fall(0), "protective fall", body.protective_fall_time),
+                spec(SpecialMotion::stand_up(0), "stand up from the front", body.stand_up_time),
+                spec(SpecialMotion::stand_up(1), "stand up from the back", body.stand_up_time),
             ],
             can_walk: true,
         }

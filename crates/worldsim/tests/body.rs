@@ -4,7 +4,7 @@
 use strata_robot::geometry::{Global, Point, Pose, Segment, Velocity};
 use strata_robot::platform::{
     ActuatorOrders, BodyMotionState, BodyOrder, CycleStage, FallDirection, HeadAngles, HeadOrder,
-    SpecialMotion,
+    MotionName, SpecialMotion,
 };
 use strata_runtime::Time;
 use strata_worldsim::{BodyEvent, Script, World, WorldSim, WorldSimConfig};
@@ -142,15 +142,15 @@ fn a_slip_ends_on_the_floor_unseen_by_the_walking_engine_and_a_stand_up_gets_the
     assert_eq!(sim.truth().falls, vec![(0, fell)]);
 
     // A stand-up takes its time, then the body stands with its camera back.
-    sim.apply_orders(0, &order(BodyOrder::Special { motion: SpecialMotion::StandUp(0) }))
+    sim.apply_orders(0, &order(BodyOrder::Special { motion: SpecialMotion::stand_up(0) }))
         .expect("stand up");
     let start = sim.time().as_secs_f64();
     sim.advance_to(at(start + body.stand_up_time / 2.0), &mut events);
-    let Some(BodyMotionState::Special { motion: SpecialMotion::StandUp(0), .. }) =
-        sim.body(0).map(|b| b.motion_state())
+    let Some(BodyMotionState::Special { motion, .. }) = sim.body(0).map(|b| b.motion_state())
     else {
         panic!("standing up: {:?}", sim.body(0))
     };
+    assert_eq!(motion, SpecialMotion::stand_up(0));
     sim.advance_to(at(start + body.stand_up_time + 0.04), &mut events);
     assert_eq!(sim.body(0).map(|b| b.motion_state()), Some(BodyMotionState::Standing));
     assert_eq!(sim.body(0).map(|b| b.tilt()), Some(0.0));
@@ -159,14 +159,26 @@ fn a_slip_ends_on_the_floor_unseen_by_the_walking_engine_and_a_stand_up_gets_the
 }
 
 #[test]
+fn a_motion_the_body_lacks_is_refused_by_name() {
+    let mut sim = sim(World::default());
+    let kick = SpecialMotion::new(MotionName::from_static("kick"), 0, false);
+    let refused = sim
+        .apply_orders(0, &order(BodyOrder::Special { motion: kick }))
+        .expect_err("a walking body cannot kick");
+    assert!(refused.to_string().contains("kick"), "{refused}");
+    sim.advance_to(at(0.2), &mut ());
+    assert_eq!(sim.body(0).map(|b| b.motion_state()), Some(BodyMotionState::Standing));
+}
+
+#[test]
 fn a_protective_fall_sits_down_backwards_and_a_stand_up_while_standing_is_ignored() {
     let mut sim = sim(World::default());
-    sim.apply_orders(0, &order(BodyOrder::Special { motion: SpecialMotion::StandUp(0) }))
+    sim.apply_orders(0, &order(BodyOrder::Special { motion: SpecialMotion::stand_up(0) }))
         .expect("ignored, not refused");
     sim.advance_to(at(0.2), &mut ());
     assert_eq!(sim.body(0).map(|b| b.motion_state()), Some(BodyMotionState::Standing));
 
-    sim.apply_orders(0, &order(BodyOrder::Special { motion: SpecialMotion::Fall(0) }))
+    sim.apply_orders(0, &order(BodyOrder::Special { motion: SpecialMotion::fall(0) }))
         .expect("fall");
     // The fall holds the head: a head order meanwhile changes nothing.
     let head = HeadOrder { target: HeadAngles { yaw: 1.0, pitch: 0.0 }, max_speed: 0.0 };

@@ -298,6 +298,6 @@ impl PrimitiveBehavior<WholeBodyGoal, WholeBodyCommand, WorldState> for Fall {
             WholeBodyGoal::Fall { sequence } => *sequence,
             WholeBodyGoal::StandUp { .. } => return None,
         };
-        Some(WholeBodyCommand::Special { motion: SpecialMotion::Fall(sequence) })
+        Some(WholeBodyCommand::Special { motion: SpecialMotion::fall(sequence) })
     }
 }

@@ -142,7 +142,7 @@ impl<G: Goal<Primitive: StandUpPrimitive>, W> PrimitiveBehavior<G, WholeBodyComm
             return None;
         }
         Some(WholeBodyCommand::Special {
-            motion: SpecialMotion::StandUp(StandUp::sequence_for(direction)),
+            motion: SpecialMotion::stand_up(StandUp::sequence_for(direction)),
         })
     }
 }

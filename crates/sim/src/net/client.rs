@@ -306,9 +306,9 @@ impl TcpSimPlatform {
             Some(BodyOrder::Walk { velocity }) if !velocity.is_finite() => {
                 Err(PlatformError::Unsupported(format!("non-finite walk velocity {velocity:?}")))
             }
-            Some(BodyOrder::Special { motion }) if info.motion(motion).is_none() => Err(
-                PlatformError::Unsupported(format!("{motion:?} is not in the motion catalogue")),
-            ),
+            Some(BodyOrder::Special { motion }) if info.motion(motion).is_none() => {
+                Err(PlatformError::Unsupported(format!("{motion} is not in the motion catalogue")))
+            }
             _ => Ok(()),
         }
     }

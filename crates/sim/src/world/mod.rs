@@ -21,7 +21,7 @@ use strata_runtime::Time;
 use strata_spl::Field;
 use strata_spl::gamecontroller::{GameControlData, GameState, Penalty, ReturnData, RobotInfo};
 
-use crate::body::{Body, FallCause, FallRecord, push_direction};
+use crate::body::{Body, FallCause, FallRecord, dive, kick, push_direction};
 use crate::camera::{Camera, RobotMark, RobotMarks, Scene, Scratch, Viewer, ground_band};
 use crate::comms::Broadcast;
 use crate::config::{ConfigError, DiveSide, SimConfig};
@@ -568,7 +568,7 @@ impl Simulation {
             self.ball.velocity = Vector::from_polar(speed, direction);
         }
         let id = robot.id;
-        let motion = SpecialMotion::Kick(u8::try_from(index).unwrap_or(u8::MAX));
+        let motion = kick(u8::try_from(index).unwrap_or(u8::MAX));
         if hit {
             self.touch(slot);
         }
@@ -807,18 +807,18 @@ pub(crate) fn platform_info(config: &SimConfig) -> PlatformInfo {
     };
     let number = |i: usize| u8::try_from(i).unwrap_or(u8::MAX);
     for (i, k) in r.kicks.iter().enumerate() {
-        motions.push(spec(SpecialMotion::Kick(number(i)), format!("kick {}", k.name), k.duration));
+        motions.push(spec(kick(number(i)), format!("kick {}", k.name), k.duration));
     }
     for (i, s) in r.stand_ups.iter().enumerate() {
         let name = format!("stand up {}", s.name);
-        motions.push(spec(SpecialMotion::StandUp(number(i)), name, s.duration));
+        motions.push(spec(SpecialMotion::stand_up(number(i)), name, s.duration));
     }
     for (i, s) in r.protective_falls.iter().enumerate() {
         let name = format!("fall {}", s.name);
-        motions.push(spec(SpecialMotion::Fall(number(i)), name, s.duration));
+        motions.push(spec(SpecialMotion::fall(number(i)), name, s.duration));
     }
     for (i, d) in r.dives.iter().enumerate() {
-        motions.push(spec(SpecialMotion::Dive(number(i)), format!("dive {}", d.name), d.duration));
+        motions.push(spec(dive(number(i)), format!("dive {}", d.name), d.duration));
     }
     PlatformInfo {
         name: r.name.clone(),
