@@ -18,11 +18,11 @@ use anyhow::{Result, anyhow};
 use rand::{RngExt as _, SeedableRng as _};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
+use strata_games::outputs;
 use strata_robot::command::{MotionCommands, WholeBodyCommand};
-use strata_robot::control::reactive::ReactiveReport;
 use strata_robot::geometry::{Global as FieldFrame, Point, Pose, normalize_angle};
 use strata_robot::platform::{BodyMotionState, MotionName, SpecialMotion};
-use strata_runtime::{Package, Tap, TapRecord};
+use strata_runtime::{Tap, TapRecord};
 use strata_sim::{BallScript, EventKind, FallDirection, NoiseLevel, RobotId};
 use strata_soccer::behaviors::covering_pose;
 use strata_soccer::team::TeamConfig;
@@ -258,12 +258,9 @@ struct FallTap {
 
 impl Tap for FallTap {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.sent_on.module_name == self.reactive && record.sent_on.output == "commands" {
-            let Some(p) = record.package.as_any().downcast_ref::<Package<MotionCommands>>() else {
-                return;
-            };
+        if let Some(commands) = record.value_from(&self.reactive, outputs::COMMANDS) {
             let fall = matches!(
-                p.value,
+                commands,
                 MotionCommands::WholeBody {
                     command: WholeBodyCommand::Special {
                         motion: SpecialMotion { kind: MotionName::FALL, .. }
@@ -276,12 +273,9 @@ impl Tap for FallTap {
             if r.commands.last().is_none_or(|(_, last)| *last != fall) {
                 r.commands.push((record.time.as_secs_f64(), fall));
             }
-        } else if record.sent_on.module_name == self.reactive && record.sent_on.output == "report" {
-            let Some(p) = record.package.as_any().downcast_ref::<Package<ReactiveReport>>() else {
-                return;
-            };
+        } else if let Some(report) = record.value_from(&self.reactive, outputs::REPORT) {
             let fall = matches!(
-                p.value.commands,
+                report.commands,
                 MotionCommands::WholeBody {
                     command: WholeBodyCommand::Special {
                         motion: SpecialMotion { kind: MotionName::FALL, .. }
@@ -290,12 +284,10 @@ impl Tap for FallTap {
             );
             let mut r = self.recorded.lock().unwrap_or_else(|e| e.into_inner());
             if fall && !r.last_report_fall {
-                r.fall_reports.push((record.time.as_secs_f64(), p.value.stamp.as_secs_f64()));
+                r.fall_reports.push((record.time.as_secs_f64(), report.stamp.as_secs_f64()));
             }
             r.last_report_fall = fall;
-        } else if record.sent_on.module_name == self.deliberative
-            && record.sent_on.output == "scores"
-        {
+        } else if record.value_from(&self.deliberative, outputs::SCORES).is_some() {
             self.recorded
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())

@@ -19,13 +19,12 @@ use std::time::Duration;
 
 use anyhow::{Result, anyhow};
 use serde::{Deserialize, Serialize};
-use strata_robot::control::reactive::ReactiveReport;
+use strata_games::outputs;
 use strata_robot::control::scores::Goal as _;
 use strata_robot::geometry::{Global as FieldFrame, Point, Pose};
-use strata_robot::world::WorldState;
-use strata_runtime::{Package, Tap, TapRecord};
+use strata_runtime::{Tap, TapRecord};
 use strata_sim::{BallScript, NoiseLevel};
-use strata_soccer::behaviors::{Output, covering_pose};
+use strata_soccer::behaviors::covering_pose;
 use strata_soccer::field::TeamField;
 use strata_soccer::goals::HeadGoal;
 use strata_soccer::team::TeamConfig;
@@ -311,11 +310,8 @@ struct KeeperTap {
 
 impl Tap for KeeperTap {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.sent_on.module_name == self.reactive && record.sent_on.output == "report" {
-            let Some(p) = record.package.as_any().downcast_ref::<Package<ReactiveReport>>() else {
-                return;
-            };
-            let head = &p.value.head;
+        if let Some(report) = record.value_from(&self.reactive, outputs::REPORT) {
+            let head = &report.head;
             let selected = head
                 .selected_goal
                 .as_ref()
@@ -336,26 +332,17 @@ impl Tap for KeeperTap {
             let mut latest = self.latest.lock().unwrap_or_else(|e| e.into_inner());
             latest.observe_ball = observe_ball;
             latest.scores = scores;
-            latest.head = p.value.active_path();
-        } else if record.sent_on.module_name == self.deliberative
-            && record.sent_on.output == "scores"
-        {
-            let Some(p) = record.package.as_any().downcast_ref::<Package<Output>>() else {
-                return;
-            };
+            latest.head = report.active_path();
+        } else if let Some(scores) = record.value_from(&self.deliberative, outputs::SCORES) {
             self.latest.lock().unwrap_or_else(|e| e.into_inner()).behavior =
-                p.value.behavior_path.clone();
-        } else if record.sent_on.module_name == self.world && record.sent_on.output == "world_state"
-        {
-            let Some(p) = record.package.as_any().downcast_ref::<Package<WorldState>>() else {
-                return;
-            };
-            let ball = p.value.object(BALL);
+                scores.behavior_path.clone();
+        } else if let Some(world) = record.value_from(&self.world, outputs::WORLD_STATE) {
+            let ball = world.object(BALL);
             let mut latest = self.latest.lock().unwrap_or_else(|e| e.into_inner());
             latest.ball_known = ball.is_some_and(|b| b.known);
             latest.ball_confidence = ball.map_or(0.0, |b| b.confidence);
             latest.ball_estimate = ball.filter(|b| b.known).map(|b| b.global_position);
-            latest.pose = Some(p.value.pose.pose);
+            latest.pose = Some(world.pose.pose);
         }
     }
 }

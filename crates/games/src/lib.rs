@@ -9,7 +9,8 @@
 //! - [`replay_registry`]: which modules of a logged robot `strata replay` can re-run;
 //! - [`robot`]: one robot in real time on its platform (the simulator server, a NAO, a T1 in
 //!   rcssservermj), what `strata robot` runs;
-//! - [`children`]: child processes that end with their parent.
+//! - [`children`]: child processes that end with their parent;
+//! - [`outputs`]: the typed names of the outputs taps read.
 //!
 //! The soccer application (`strata-soccer`) never imports the simulator; this crate is where
 //! the two meet.
@@ -18,6 +19,7 @@ pub mod children;
 pub mod links;
 pub mod logging;
 pub mod matches;
+pub mod outputs;
 pub mod physics;
 pub mod replay_registry;
 pub mod robot;

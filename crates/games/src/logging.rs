@@ -19,22 +19,20 @@ use strata_robot::control::reactive::{MuxReport, ReactiveReport};
 use strata_robot::platform::PlatformInfo;
 use strata_robot::world::WorldModelConfig;
 use strata_runtime::{
-    Encoding, ErasedPackage, GraphDescription, ModuleId, Package, Tap, TapOutput, TapRecord, Time,
+    Encoding, ErasedPackage, GraphDescription, ModuleId, Tap, TapOutput, TapRecord, Time,
 };
-use strata_sim::{GameTruth, GroundTruth, SimConfig};
-use strata_soccer::behaviors::{Decision, Output as DeliberativeOutput};
+use strata_sim::{GameTruth, SimConfig};
 use strata_soccer::field::TeamField;
 use strata_soccer::team::{TeamConfig, team_world_config};
 use strata_spl::field::FieldDimensions;
 
 use crate::matches::{Match, robot_name};
+use crate::outputs::{DECISION, GROUND_TRUTH, REPORT, SCORES, WORLD_STATE};
 
 /// Topic of the game-state records (written when the game state changes).
 pub const GAME_STATE_TOPIC: &str = "game/state";
 /// Topic suffix of the behavior-path records: `home/3/behavior_path`.
 pub const BEHAVIOR_PATH_TOPIC: &str = "behavior_path";
-/// Output name of the world state, the one stream that may be decimated.
-const WORLD_STATE_OUTPUT: &str = "world_state";
 
 /// The effective configuration of a match, as stored in its log (`config.json`): what the
 /// replay registry rebuilds modules from and what `--set` overrides.
@@ -225,7 +223,7 @@ impl MatchLog {
         if !modules.is_empty() {
             // Ground truth comes from the simulator module, and so do the chosen robots' sensor
             // frames and motion feedback (it is their platform).
-            modules.push("simulator/ground_truth".to_owned());
+            modules.push(format!("simulator/{GROUND_TRUTH}"));
             for (id, _) in &game.robots {
                 if settings.robots.contains(&robot_name(*id)) {
                     modules.push(format!("simulator/{}/", strata_sim::robot_port_prefix(*id)));
@@ -349,9 +347,9 @@ impl PathRecord {
         PathRecord {
             topic: format!("{robot}/{BEHAVIOR_PATH_TOPIC}"),
             sources: [
-                (format!("{robot}/deliberative/scores"), Layer::Deliberative),
-                (format!("{robot}/planning/decision"), Layer::Planning),
-                (format!("{robot}/reactive/report"), Layer::Reactive),
+                (format!("{robot}/deliberative/{SCORES}"), Layer::Deliberative),
+                (format!("{robot}/planning/{DECISION}"), Layer::Planning),
+                (format!("{robot}/reactive/{REPORT}"), Layer::Reactive),
             ],
             path: BehaviorPath::default(),
             written: BehaviorPath::default(),
@@ -370,23 +368,22 @@ impl PathRecord {
         package: &dyn ErasedPackage,
         records: &mut DerivedRecords,
     ) {
-        let any = package.as_any();
         match layer {
             Layer::Deliberative => {
-                if let Some(p) = any.downcast_ref::<Package<DeliberativeOutput>>() {
+                if let Some(p) = SCORES.downcast(package) {
                     self.path.deliberative.clone_from(&p.value.behavior_path);
                     self.changed = true;
                 }
             }
             Layer::Planning => {
-                if let Some(p) = any.downcast_ref::<Package<Decision>>() {
+                if let Some(p) = DECISION.downcast(package) {
                     let a = &p.value.assignment;
                     self.path.planning = format!("{}/{}", a.mission.name(), a.role.name());
                     self.changed = true;
                 }
             }
             Layer::Reactive => {
-                let Some(p) = any.downcast_ref::<Package<ReactiveReport>>() else { return };
+                let Some(p) = REPORT.downcast(package) else { return };
                 let reactive_changed =
                     self.reactive_key.as_ref().is_none_or(|key| !same_path(key, &p.value));
                 if reactive_changed {
@@ -431,9 +428,7 @@ impl RunRecords {
         package: &dyn ErasedPackage,
         records: &mut DerivedRecords,
     ) {
-        let Some(truth) = package.as_any().downcast_ref::<Package<GroundTruth>>() else {
-            return;
-        };
+        let Some(truth) = GROUND_TRUTH.downcast(package) else { return };
         let game = &truth.value.game;
         // The clock runs down and the message budgets shrink all the time: a change of the
         // game state is a change of anything else.
@@ -452,7 +447,8 @@ impl RunRecords {
 
 impl Derive for RunRecords {
     fn wants(&mut self, id: u32, topic: &str, _type_name: &str) -> bool {
-        let source = if topic.ends_with("/ground_truth") {
+        let truth = topic.rsplit_once('/').is_some_and(|(_, output)| output == GROUND_TRUTH.name());
+        let source = if truth {
             Some(Source::GroundTruth)
         } else {
             self.robots.iter().enumerate().find_map(|(robot, record)| {
@@ -507,7 +503,7 @@ struct WorldStateDecimation {
 
 impl WorldStateDecimation {
     fn keep(&self, output: &TapOutput<'_>, time: Time) -> bool {
-        if output.output != WORLD_STATE_OUTPUT {
+        if !output.is(WORLD_STATE) {
             return true;
         }
         let mut last = self.last.lock().unwrap_or_else(PoisonError::into_inner);

@@ -10,13 +10,12 @@ use serde::{Deserialize, Serialize};
 use strata_robot::assembly::RobotModules;
 use strata_robot::edge::RobotPlatform;
 use strata_runtime::{
-    HostConfig, HostStats, LockstepHost, Package, Tap, TapOutput, TapRecord, ThreadedHost, Time,
+    HostConfig, HostStats, LockstepHost, Tap, TapOutput, TapRecord, ThreadedHost, Time,
 };
 use strata_sim::{EventKind, RobotId};
 use strata_sim::{
     GameState, NoiseLevel, SimConfig, SimHandle, Simulation, SimulatorPorts, add_simulator,
 };
-use strata_soccer::behaviors::Decision;
 use strata_soccer::catalog::Role;
 use strata_soccer::field::TeamField;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
@@ -155,28 +154,20 @@ struct RoleTap {
     roles: Mutex<BTreeMap<String, Role>>,
 }
 
-impl RoleTap {
-    /// The planning layer's output the roles come from.
-    const OUTPUT: &'static str = "decision";
-}
-
 impl Tap for RoleTap {
     fn package(&self, record: &TapRecord<'_>) {
         // Other outputs still come when a logger shares the tap.
-        if record.sent_on.output != Self::OUTPUT {
-            return;
-        }
-        if let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() {
+        if let Some(decision) = record.value(crate::outputs::DECISION) {
             let robot = record.sent_on.module_name.trim_end_matches("/planning").to_owned();
             self.roles
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
-                .insert(robot, package.value.assignment.role);
+                .insert(robot, decision.assignment.role);
         }
     }
 
     fn wants(&self, output: &TapOutput<'_>) -> bool {
-        output.output == Self::OUTPUT
+        output.is(crate::outputs::DECISION)
     }
 }
 

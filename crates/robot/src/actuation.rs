@@ -14,7 +14,9 @@
 use std::collections::VecDeque;
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::{Context, Input, Module, ModuleError, Output, Policy, Ports, Time, Trigger};
+use strata_runtime::{
+    Context, Input, Module, ModuleError, Output, Policy, PortName, Ports, Time, Trigger,
+};
 
 use crate::command::{
     ActuationMessage, BodyCommand, BodyMotion, HeadCommand, HeadMotion, MotionCommands, Resource,
@@ -380,13 +382,13 @@ pub struct ActuationPorts {
 }
 
 impl ActuationPorts {
-    pub const COMMANDS: &'static str = "commands";
-    pub const MOTION: &'static str = "motion";
-    pub const REFUSALS: &'static str = "refusals";
-    pub const ORDERS: &'static str = "orders";
-    pub const ODOMETRY: &'static str = "odometry";
-    pub const MESSAGES: &'static str = "messages";
-    pub const FEEDBACK: &'static str = "feedback";
+    pub const COMMANDS: PortName<MotionCommands> = PortName::new("commands");
+    pub const MOTION: PortName<MotionFeedback> = PortName::new("motion");
+    pub const REFUSALS: PortName<OrderRefused> = PortName::new("refusals");
+    pub const ORDERS: PortName<ActuatorOrders> = PortName::new("orders");
+    pub const ODOMETRY: PortName<Odometry> = PortName::new("odometry");
+    pub const MESSAGES: PortName<ActuationMessage> = PortName::new("messages");
+    pub const FEEDBACK: PortName<MotionFeedback> = PortName::new("feedback");
 
     /// Declares the ports; actuation runs on every command.
     pub fn declare(p: &mut Ports<'_>) -> ActuationPorts {

@@ -7,10 +7,11 @@
 //! [`NoCodec`] and [`NoDevice`] stand in for them.
 
 use crate::control::deliberative::DeliberativePolicy;
+use crate::control::modules::{PolicyPorts, ReactivePorts};
 use crate::control::planning::PlanningPolicy;
 pub use crate::control::planning::{Alone, Solo};
-use crate::control::planning_module::PlanningDecision;
 pub use crate::control::planning_module::{ExternalDevice, NoCodec, NoDevice, TeamCodec};
+use crate::control::planning_module::{PlanningDecision, PlanningPorts};
 use crate::world::WorldState;
 
 /// One application's types. Soccer's is `strata_soccer::team::Soccer`; `examples/patrol`
@@ -43,3 +44,12 @@ pub type BodyGoalOf<A> = <<A as Application>::Deliberative as DeliberativePolicy
 /// An application's head-and-body goals (the whole-body multiplexer's).
 pub type WholeBodyGoalOf<A> =
     <<A as Application>::Deliberative as DeliberativePolicy>::WholeBodyGoal;
+
+/// The ports of an application's reactive layer: `ReactivePortsOf::<Soccer>::REPORT` names the
+/// output a tap finds the soccer robot's reactive reports on.
+pub type ReactivePortsOf<A> =
+    ReactivePorts<HeadGoalOf<A>, BodyGoalOf<A>, WholeBodyGoalOf<A>, WorldState>;
+/// The ports of an application's deliberative layer.
+pub type DeliberativePortsOf<A> = PolicyPorts<<A as Application>::Deliberative>;
+/// The ports of an application's planning layer.
+pub type PlanningPortsOf<A> = PlanningPorts<MissionOf<A>, RoleOf<A>, DirectiveOf<A>>;

@@ -23,7 +23,9 @@
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::{Context, GraphBuilder, Input, Module, ModuleError, Output, Policy, Trigger};
+use strata_runtime::{
+    Context, GraphBuilder, Input, Module, ModuleError, Output, Policy, PortName, Trigger,
+};
 
 use crate::command::Resource;
 use crate::platform::{
@@ -57,8 +59,8 @@ pub struct SensorPorts {
 }
 
 impl SensorPorts {
-    pub const FRAMES: &'static str = "frames";
-    pub const MOTION: &'static str = "motion";
+    pub const FRAMES: PortName<SensorFrame> = PortName::new("frames");
+    pub const MOTION: PortName<MotionFeedback> = PortName::new("motion");
 }
 
 /// The ports of the actuator sink.
@@ -69,8 +71,8 @@ pub struct ActuatorPorts {
 }
 
 impl ActuatorPorts {
-    pub const ORDERS: &'static str = "orders";
-    pub const REFUSALS: &'static str = "refusals";
+    pub const ORDERS: PortName<ActuatorOrders> = PortName::new("orders");
+    pub const REFUSALS: PortName<OrderRefused> = PortName::new("refusals");
     /// Orders actuation sent that the platform has not been given yet.
     pub const ORDER_QUEUE: usize = 16;
 }
@@ -289,7 +291,7 @@ pub struct LinkSourcePorts {
 }
 
 impl LinkSourcePorts {
-    pub const INBOX: &'static str = "inbox";
+    pub const INBOX: PortName<LinkInbox> = PortName::new("inbox");
 }
 
 /// The ports of the links' sink.
@@ -299,7 +301,7 @@ pub struct LinkSinkPorts {
 }
 
 impl LinkSinkPorts {
-    pub const OUTBOX: &'static str = "outbox";
+    pub const OUTBOX: PortName<LinkOutbox> = PortName::new("outbox");
 }
 
 /// A robot's links to its teammates and to an external device, either of which it may lack.

@@ -3,7 +3,7 @@
 //! [`SensorFrame`] works.
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::{Context, Input, Module, ModuleError, Output, Policy};
+use strata_runtime::{Context, Input, Module, ModuleError, Output, Policy, PortName};
 
 use crate::geometry::normalize_angle;
 use crate::percept::{CameraPercepts, Observation, Percepts, Signal, SignalKind, ViewCone};
@@ -117,9 +117,9 @@ pub struct PerceptionPorts {
 }
 
 impl PerceptionPorts {
-    pub const FRAMES: &'static str = "frames";
-    pub const PERCEPTS: &'static str = "percepts";
-    pub const SIGNALS: &'static str = "signals";
+    pub const FRAMES: PortName<SensorFrame> = PortName::new("frames");
+    pub const PERCEPTS: PortName<Percepts> = PortName::new("percepts");
+    pub const SIGNALS: PortName<Signal> = PortName::new("signals");
     /// Frames waiting for a perception cycle; more means perception falls behind the sensors.
     pub const FRAME_QUEUE: usize = 4;
 

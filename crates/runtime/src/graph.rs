@@ -40,7 +40,8 @@
 //!
 //! Wiring by typed handles makes a type mismatch impossible at compile time; tools that wire
 //! by name (replay, configuration-driven graphs) use [`GraphBuilder::connect_by_name`], which
-//! checks the types when the graph is built.
+//! checks the types when the graph is built. A module whose ports are also read from outside
+//! the graph names them with [`PortName`] constants, which carry the type too.
 
 use std::any::TypeId;
 use std::collections::HashMap;
@@ -121,6 +122,102 @@ pub struct OutputRef {
 
 port_handle_impls!(Input, InputRef);
 port_handle_impls!(Output, OutputRef);
+
+/// The name of a port with the type of what it carries, declared once by the module that has
+/// the port (`PerceptionPorts::PERCEPTS`). The module declares the port with it, so the port
+/// cannot have another type; a consumer outside the graph finds the port's packages with it
+/// ([`crate::TapRecord::value`]), so it follows a renamed port and does not compile against a
+/// retyped one.
+///
+/// ```
+/// use strata_runtime::{Output, PortName, Ports};
+/// const COUNT: PortName<u64> = PortName::new("count");
+/// fn declare(p: &mut Ports<'_>) -> Output<u64> {
+///     p.output(COUNT)
+/// }
+/// // and in a tap: `record.value_from("counter", COUNT)`, an `Option<&u64>`.
+/// ```
+///
+/// A port declared with another type than its name's does not compile:
+///
+/// ```compile_fail
+/// use strata_runtime::{Output, PortName, Ports};
+/// const COUNT: PortName<u64> = PortName::new("count");
+/// fn declare(p: &mut Ports<'_>) -> Output<f64> {
+///     p.output(COUNT)
+/// }
+/// ```
+pub struct PortName<T> {
+    name: &'static str,
+    _type: PhantomData<fn() -> T>,
+}
+
+impl<T> PortName<T> {
+    pub const fn new(name: &'static str) -> PortName<T> {
+        PortName { name, _type: PhantomData }
+    }
+
+    pub const fn name(self) -> &'static str {
+        self.name
+    }
+}
+
+impl<T: Message> PortName<T> {
+    /// `package` as this port's type, if it has it. The port's name is not checked: this is
+    /// for a package whose output is known otherwise (a log's topic); a tap has
+    /// [`crate::TapRecord::package`].
+    pub fn downcast(self, package: &dyn crate::ErasedPackage) -> Option<&crate::Package<T>> {
+        package.as_any().downcast_ref()
+    }
+}
+
+// By hand: derived impls would require `T` to have them too.
+impl<T> Clone for PortName<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<T> Copy for PortName<T> {}
+impl<T> PartialEq for PortName<T> {
+    fn eq(&self, other: &Self) -> bool {
+        self.name == other.name
+    }
+}
+impl<T> Eq for PortName<T> {}
+impl<T> std::hash::Hash for PortName<T> {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.name.hash(state);
+    }
+}
+impl<T> fmt::Debug for PortName<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "PortName<{}>({:?})", std::any::type_name::<T>(), self.name)
+    }
+}
+impl<T> fmt::Display for PortName<T> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name)
+    }
+}
+
+/// What names a port of type `T` where [`Ports`] declares one: a [`PortName<T>`], or a string
+/// for a name made at run time (the simulator's ports of each robot it serves), whose type
+/// comes from the policy or the handle's use instead.
+pub trait AsPortName<T> {
+    fn as_port_name(&self) -> &str;
+}
+
+impl<T> AsPortName<T> for PortName<T> {
+    fn as_port_name(&self) -> &str {
+        self.name
+    }
+}
+
+impl<T, S: AsRef<str> + ?Sized> AsPortName<T> for &S {
+    fn as_port_name(&self) -> &str {
+        (**self).as_ref()
+    }
+}
 
 /// When a module's cycle runs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -285,13 +382,17 @@ impl Ports<'_> {
     }
 
     /// An input that must be connected to exactly one writer.
-    pub fn input<T: Message>(&mut self, name: &str, policy: Policy<T>) -> Input<T> {
-        self.declare_input(name, policy, false)
+    pub fn input<T: Message>(&mut self, name: impl AsPortName<T>, policy: Policy<T>) -> Input<T> {
+        self.declare_input(name.as_port_name(), policy, false)
     }
 
     /// An input that may stay unconnected (e.g. team messages on a robot without a network).
-    pub fn optional_input<T: Message>(&mut self, name: &str, policy: Policy<T>) -> Input<T> {
-        self.declare_input(name, policy, true)
+    pub fn optional_input<T: Message>(
+        &mut self,
+        name: impl AsPortName<T>,
+        policy: Policy<T>,
+    ) -> Input<T> {
+        self.declare_input(name.as_port_name(), policy, true)
     }
 
     fn declare_input<T: Message>(
@@ -317,7 +418,8 @@ impl Ports<'_> {
         Input::new(self.id, port)
     }
 
-    pub fn output<T: Message>(&mut self, name: &str) -> Output<T> {
+    pub fn output<T: Message>(&mut self, name: impl AsPortName<T>) -> Output<T> {
+        let name = name.as_port_name();
         if self.decl.outputs.iter().any(|o| o.name == name) {
             self.problems.push(GraphError::DuplicatePort {
                 module: self.decl.name.clone(),

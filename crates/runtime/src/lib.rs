@@ -3,6 +3,8 @@
 //!
 //! - A [`Module`] is a part of the software with an explicit interface: typed [`Input`]s and
 //!   [`Output`]s declared when it is added to a [`GraphBuilder`].
+//!   A module names its ports once, with their types ([`PortName`]): what it declares them with
+//!   and what a [`Tap`] (a logger, a viewer) finds their packages by.
 //! - Modules exchange [`Package`]s over connections whose [`Policy`] is one of the paper's
 //!   three: overwrite ([`Policy::Latest`]), queue ([`Policy::Queue`]) or re-package
 //!   ([`Policy::Merge`]).
@@ -35,9 +37,9 @@ mod wiring;
 pub use connection::{Arrival, CombineFn, Connection, ConnectionCounters, Policy, PolicyKind};
 pub use encoding::{Encoding, EncodingError};
 pub use graph::{
-    ConnectionDescription, Graph, GraphBuilder, GraphDescription, GraphError, GraphErrors, Input,
-    InputMode, InputRef, ModuleDescription, Output, OutputRef, PortDescription, Ports,
-    ProcessingTime, Trigger,
+    AsPortName, ConnectionDescription, Graph, GraphBuilder, GraphDescription, GraphError,
+    GraphErrors, Input, InputMode, InputRef, ModuleDescription, Output, OutputRef, PortDescription,
+    PortName, Ports, ProcessingTime, Trigger,
 };
 pub use host::{DEFAULT_STOP_TIMEOUT, HostConfig, HostError};
 pub use lockstep::{LockstepHost, TraceEntry, TraceEvent};

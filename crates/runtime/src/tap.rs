@@ -1,7 +1,8 @@
 //! Taps see the packages a host delivers: the hook loggers and viewers attach to.
 
-use crate::message::ErasedPackage;
-use crate::package::ModuleId;
+use crate::graph::PortName;
+use crate::message::{ErasedPackage, Message};
+use crate::package::{ModuleId, Package};
 use crate::time::Time;
 use std::sync::Arc;
 
@@ -13,6 +14,39 @@ pub struct TapRecord<'a> {
     /// The output it was sent on.
     pub sent_on: TapOutput<'a>,
     pub package: &'a dyn ErasedPackage,
+}
+
+impl<'a> TapRecord<'a> {
+    /// The package, if it was sent on an output named `port` and has the port's type (a tap
+    /// that shares a host sees every module's outputs: several may have that name).
+    pub fn package<T: Message>(&self, port: PortName<T>) -> Option<&'a Package<T>> {
+        if self.sent_on.output != port.name() {
+            return None;
+        }
+        port.downcast(self.package)
+    }
+
+    /// The value of [`TapRecord::package`].
+    pub fn value<T: Message>(&self, port: PortName<T>) -> Option<&'a T> {
+        self.package(port).map(|p| &p.value)
+    }
+
+    /// [`TapRecord::package`], of the module named `module` only.
+    pub fn package_from<T: Message>(
+        &self,
+        module: &str,
+        port: PortName<T>,
+    ) -> Option<&'a Package<T>> {
+        if self.sent_on.module_name != module {
+            return None;
+        }
+        self.package(port)
+    }
+
+    /// [`TapRecord::value`], of the module named `module` only.
+    pub fn value_from<T: Message>(&self, module: &str, port: PortName<T>) -> Option<&'a T> {
+        self.package_from(module, port).map(|p| &p.value)
+    }
 }
 
 impl std::fmt::Debug for TapRecord<'_> {
@@ -41,6 +75,13 @@ pub struct TapOutput<'a> {
 }
 
 impl<'a> TapOutput<'a> {
+    /// Whether this output is named `port` and has its type, for [`Tap::wants`]. (The type is
+    /// compared by its name, which Rust does not promise unique: [`TapRecord::package`] still
+    /// checks the type itself.)
+    pub fn is<T: Message>(&self, port: PortName<T>) -> bool {
+        self.output == port.name() && self.type_name == std::any::type_name::<T>()
+    }
+
     /// The record of `package`, sent on this output and visible at `time`.
     pub fn record(&self, time: Time, package: &'a dyn ErasedPackage) -> TapRecord<'a> {
         TapRecord { time, sent_on: *self, package }

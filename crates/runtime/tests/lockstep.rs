@@ -441,6 +441,94 @@ fn a_tap_sees_only_the_outputs_it_wants() {
     assert_eq!(inside_taps, everything, "a tap inside `Taps` with a logger sees everything");
 }
 
+/// A tap finds an output by its typed name: not another output of the same type, not an output
+/// of the same name and another type, and, asked for one module's, not another module's.
+#[test]
+fn a_tap_finds_an_output_by_its_typed_name() {
+    use strata_runtime::{PortName, Tap, TapOutput, TapRecord};
+    const KEPT: PortName<u64> = PortName::new("kept");
+    const OTHER: PortName<u64> = PortName::new("other");
+    const KEPT_TEXT: PortName<String> = PortName::new("kept");
+    struct Twins {
+        kept: Output<u64>,
+        other: Output<u64>,
+        next: u64,
+    }
+    impl Module for Twins {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            self.next += 1;
+            ctx.send(self.kept, self.next);
+            ctx.send(self.other, self.next + 500);
+            Ok(())
+        }
+    }
+    struct Text {
+        out: Output<String>,
+    }
+    impl Module for Text {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            ctx.send(self.out, "text".to_owned());
+            Ok(())
+        }
+    }
+    #[derive(Default)]
+    struct Found {
+        kept: Mutex<Vec<u64>>,
+        from_twins: Mutex<Vec<u64>>,
+        texts: Mutex<Vec<String>>,
+        kept_outputs: Mutex<Vec<String>>,
+    }
+    impl Tap for Found {
+        fn package(&self, record: &TapRecord<'_>) {
+            if let Some(value) = record.value(KEPT) {
+                self.kept.lock().expect("lock").push(*value);
+            }
+            if let Some(value) = record.value_from("twins", KEPT) {
+                self.from_twins.lock().expect("lock").push(*value);
+            }
+            if let Some(text) = record.value(KEPT_TEXT) {
+                self.texts.lock().expect("lock").push(text.clone());
+            }
+        }
+        fn wants(&self, output: &TapOutput<'_>) -> bool {
+            if output.is(KEPT) {
+                self.kept_outputs.lock().expect("lock").push(output.module_name.to_owned());
+            }
+            true
+        }
+    }
+    let mut graph = GraphBuilder::new();
+    for (name, base) in [("twins", 0), ("copy", 1000)] {
+        graph.add(name, |p| {
+            p.trigger(Trigger::every(10 * MS));
+            let (kept, other) = (p.output(KEPT), p.output(OTHER));
+            (Twins { kept, other, next: base }, ())
+        });
+    }
+    graph.add("text", |p| {
+        p.trigger(Trigger::every(10 * MS));
+        (Text { out: p.output(KEPT_TEXT) }, ())
+    });
+    let mut host = LockstepHost::new(graph.build().expect("valid"), HostConfig::default());
+    let found = Arc::new(Found::default());
+    host.set_tap(found.clone());
+    host.run_for(Duration::from_millis(100)).expect("runs");
+
+    let from_twins = found.from_twins.lock().expect("lock").clone();
+    assert!(from_twins.len() >= 5, "{from_twins:?}");
+    assert_eq!(from_twins, (1..=from_twins.len() as u64).collect::<Vec<_>>());
+    let mut kept = found.kept.lock().expect("lock").clone();
+    kept.sort_unstable();
+    let copies: Vec<u64> = (1001..=1000 + from_twins.len() as u64).collect();
+    assert_eq!(kept, [from_twins.clone(), copies].concat(), "only the `kept` outputs");
+    let texts = found.texts.lock().expect("lock").clone();
+    assert_eq!(texts.len(), from_twins.len());
+    assert!(texts.iter().all(|t| t == "text"));
+    let mut kept_outputs = found.kept_outputs.lock().expect("lock").clone();
+    kept_outputs.sort();
+    assert_eq!(kept_outputs, ["copy", "twins"], "`is` tells the `String` output apart");
+}
+
 /// Passes each number on, times ten, on an output nobody reads.
 struct Relay {
     input: Input<u64>,

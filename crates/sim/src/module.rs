@@ -9,7 +9,8 @@ use std::time::Duration;
 use strata_robot::edge::{OrderRefused, PlatformPorts};
 use strata_robot::platform::{ActuatorOrders, PlatformError};
 use strata_runtime::{
-    Context, GraphBuilder, Input, Module, ModuleError, ModuleId, Output, Policy, Time, Trigger,
+    Context, GraphBuilder, Input, Module, ModuleError, ModuleId, Output, Policy, PortName, Time,
+    Trigger,
 };
 
 use crate::platform::SimHandle;
@@ -104,6 +105,8 @@ pub struct SimulatorPorts {
 }
 
 impl SimulatorPorts {
+    pub const GROUND_TRUTH: PortName<GroundTruth> = PortName::new("ground_truth");
+
     /// The platform of `robot`, if the simulator serves it through the graph.
     pub fn platform(&self, robot: RobotId) -> Option<PlatformPorts> {
         self.robots.iter().find(|(id, _)| *id == robot).map(|(_, ports)| ports.clone())
@@ -133,7 +136,7 @@ pub fn add_simulator(
         id = p.id();
         p.trigger(Trigger::every(period));
         p.priority(SIMULATOR_PRIORITY);
-        let ground_truth = p.output::<GroundTruth>("ground_truth");
+        let ground_truth = p.output(SimulatorPorts::GROUND_TRUTH);
         let served: Vec<RobotPorts> = robots
             .iter()
             .map(|&robot| {

@@ -10,10 +10,10 @@ use std::time::Duration;
 
 use strata_experiments::{Host, HostKind, Scene, SceneRobot};
 use strata_games::matches::{Match, MatchConfig};
+use strata_games::outputs;
 use strata_robot::geometry::{Global as FieldFrame, Point, Pose, Vector};
-use strata_runtime::{Package, Tap, TapRecord};
+use strata_runtime::{Tap, TapRecord};
 use strata_sim::{BallScript, EventKind, FallDirection, GameState, NoiseLevel, RobotId, SimHandle};
-use strata_soccer::behaviors::Decision;
 use strata_soccer::catalog::{Mission, Role};
 use strata_soccer::field::TeamField;
 use strata_soccer::team::TeamConfig;
@@ -58,19 +58,13 @@ impl Assignments {
 
 impl Tap for Assignments {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.sent_on.output != "decision" {
-            return;
-        }
-        let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() else {
-            return;
-        };
+        let Some(d) = record.value(outputs::DECISION) else { return };
         // Module names are `home/PLAYER/planning`.
         let Some(player) =
             record.sent_on.module_name.split('/').nth(1).and_then(|p| p.parse().ok())
         else {
             return;
         };
-        let d = &package.value;
         let views = d.teammates.iter().map(|t| (t.member, t.unavailable.clone())).collect();
         self.latest
             .lock()
@@ -380,10 +374,7 @@ impl Beliefs {
 
 impl Tap for Beliefs {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.sent_on.output != "decision" {
-            return;
-        }
-        if let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() {
+        if let Some(package) = record.package(outputs::DECISION) {
             let robot = record.sent_on.module_name.trim_end_matches("/planning").to_owned();
             let state = package.value.directive.state;
             let mut states = self.states.lock().unwrap_or_else(PoisonError::into_inner);
@@ -394,7 +385,7 @@ impl Tap for Beliefs {
     }
 
     fn wants(&self, output: &strata_runtime::TapOutput<'_>) -> bool {
-        output.output == "decision"
+        output.is(outputs::DECISION)
     }
 }
 

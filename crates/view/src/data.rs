@@ -14,10 +14,11 @@ use std::sync::Arc;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
+use strata_games::outputs;
 use strata_robot::control::reactive::{MuxReport, ReactiveReport};
 use strata_robot::world::WorldState;
 use strata_runtime::cdr::{self, Format};
-use strata_runtime::{Encoding, ErasedPackage, Package, Time};
+use strata_runtime::{Encoding, ErasedPackage, PortName, Time};
 use strata_spl::field::{Field, Side};
 
 /// A package as the viewer gets it.
@@ -57,13 +58,11 @@ impl Incoming<'_> {
         }
     }
 
-    /// The value as its Rust type `T`.
-    fn typed<T: strata_runtime::Message>(self) -> Option<T> {
+    /// The value as the Rust type of `port`, the output it was sent on.
+    fn typed<T: strata_runtime::Message>(self, port: PortName<T>) -> Option<T> {
         match self {
             Incoming::Logged { encoding, bytes, .. } => encoding.decode(bytes).ok(),
-            Incoming::Live(package) => {
-                package.as_any().downcast_ref::<Package<T>>().map(|p| p.value.clone())
-            }
+            Incoming::Live(package) => port.downcast(package).map(|p| p.value.clone()),
         }
     }
 }
@@ -84,22 +83,23 @@ enum Kind {
 /// The topic's robot (index into [`ViewData::robots`]) and kind; `None` for topics the viewer
 /// does not use.
 fn classify(topic: &str) -> Option<(Option<&str>, Kind)> {
-    if topic == "simulator/ground_truth" {
+    let (module, output) = topic.rsplit_once('/')?;
+    if module == "simulator" && output == outputs::GROUND_TRUTH.name() {
         return Some((None, Kind::Truth));
     }
-    let (robot, rest) = split_robot(topic)?;
-    let kind = match rest {
-        "world/world_state" => Kind::World,
-        "reactive/report" => Kind::Report,
-        "deliberative/scores" => Kind::Deliberative,
-        "planning/decision" => Kind::Planning,
+    let (robot, module) = split_robot(module)?;
+    let kind = match module {
+        "world" if output == outputs::WORLD_STATE.name() => Kind::World,
+        "reactive" if output == outputs::REPORT.name() => Kind::Report,
+        "deliberative" if output == outputs::SCORES.name() => Kind::Deliberative,
+        "planning" if output == outputs::DECISION.name() => Kind::Planning,
         _ => return None,
     };
     Some((Some(robot), kind))
 }
 
-/// `home/3/world/world_state` -> (`home/3`, `world/world_state`). A robot's own log (`strata
-/// robot --log`) names its modules by team number: `t10/3/world/world_state`.
+/// `home/3/world` -> (`home/3`, `world`). A robot's own log (`strata robot --log`) names its
+/// modules by team number: `t10/3/world`.
 fn split_robot(topic: &str) -> Option<(&str, &str)> {
     let team_end = topic.find('/')?;
     let team = &topic[..team_end];
@@ -891,14 +891,14 @@ impl ReportIn {
 
 /// A world state: as its Rust type, or (a log of another writer, a test) by its fields.
 fn world_of(value: Incoming<'_>) -> Option<WorldIn> {
-    match value.typed::<WorldState>() {
+    match value.typed(outputs::WORLD_STATE) {
         Some(state) => Some(WorldIn::of(&state)),
         None => value.json(),
     }
 }
 
 fn report_of(value: Incoming<'_>) -> Option<ReportIn> {
-    match value.typed::<ReactiveReport>() {
+    match value.typed(outputs::REPORT) {
         Some(report) => Some(ReportIn::of(&report)),
         None => value.json(),
     }

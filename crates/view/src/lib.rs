@@ -26,6 +26,16 @@ use data::ViewData;
 pub use server::ViewServer;
 use strata_games::logging::{RobotRunConfig, RunConfig};
 use strata_games::matches::Match;
+use strata_games::outputs;
+
+/// The outputs whose packages the viewer shows (`data::classify` tells which module's).
+const SHOWN_OUTPUTS: [&str; 5] = [
+    outputs::GROUND_TRUTH.name(),
+    outputs::WORLD_STATE.name(),
+    outputs::REPORT.name(),
+    outputs::SCORES.name(),
+    outputs::DECISION.name(),
+];
 
 /// How many messages the loader ingests between two releases of the lock, so that the page can
 /// be served while a long log is read.
@@ -199,10 +209,7 @@ impl LiveTap {
 impl Tap for LiveTap {
     fn package(&self, record: &TapRecord<'_>) {
         // Most packages are of no interest to the viewer: skip them before any allocation.
-        if !matches!(
-            record.sent_on.output,
-            "ground_truth" | "world_state" | "report" | "scores" | "decision"
-        ) {
+        if !SHOWN_OUTPUTS.contains(&record.sent_on.output) {
             return;
         }
         let topic = strata_log::package_topic(record.sent_on.module_name, record.sent_on.output);
@@ -215,7 +222,7 @@ impl Tap for LiveTap {
                 data::Incoming::Live(record.package),
             );
         }
-        if record.sent_on.output == "ground_truth" {
+        if record.sent_on.output == outputs::GROUND_TRUTH.name() {
             self.pace(record.time);
         }
     }

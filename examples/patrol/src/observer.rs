@@ -6,12 +6,12 @@
 use std::collections::BTreeMap;
 use std::sync::Mutex;
 
-use strata_robot::control::reactive::ReactiveReport;
-use strata_runtime::{Package, Tap, TapRecord};
+use strata_robot::application::{DeliberativePortsOf, PlanningPortsOf, ReactivePortsOf};
+use strata_runtime::{Tap, TapRecord};
 
-use crate::behaviors::{Decision, Output};
 use crate::goals::GazeKind;
 use crate::planning::{Mission, Role};
+use crate::robot::Patrol;
 
 /// What one robot did, as its layers reported it.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -77,13 +77,14 @@ impl Tap for PatrolObserver {
     fn package(&self, record: &TapRecord<'_>) {
         let Some((robot, module)) = record.sent_on.module_name.rsplit_once('/') else { return };
         let t = record.time.as_secs_f64();
-        let any = record.package.as_any();
         let mut observations =
             self.observations.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        match (module, record.sent_on.output) {
-            ("planning", "decision") => {
-                let Some(p) = any.downcast_ref::<Package<Decision>>() else { return };
-                let a = &p.value.assignment;
+        match module {
+            "planning" => {
+                let Some(decision) = record.value(PlanningPortsOf::<Patrol>::DECISION) else {
+                    return;
+                };
+                let a = &decision.assignment;
                 let log = observations.robots.entry(robot.to_owned()).or_default();
                 let changed = log
                     .assignments
@@ -93,21 +94,23 @@ impl Tap for PatrolObserver {
                     log.assignments.push((t, a.mission, a.role, a.alone));
                 }
             }
-            ("deliberative", "scores") => {
-                let Some(p) = any.downcast_ref::<Package<Output>>() else { return };
+            "deliberative" => {
+                let Some(scores) = record.value(DeliberativePortsOf::<Patrol>::SCORES) else {
+                    return;
+                };
                 let log = observations.robots.entry(robot.to_owned()).or_default();
-                if log.paths.last().is_none_or(|(_, last)| *last != p.value.behavior_path) {
-                    log.paths.push((t, p.value.behavior_path.clone()));
+                if log.paths.last().is_none_or(|(_, last)| *last != scores.behavior_path) {
+                    log.paths.push((t, scores.behavior_path.clone()));
                 }
             }
-            ("reactive", "report") => {
-                let Some(p) = any.downcast_ref::<Package<ReactiveReport>>() else { return };
+            "reactive" => {
+                let Some(report) = record.value(ReactivePortsOf::<Patrol>::REPORT) else { return };
                 let log = observations.robots.entry(robot.to_owned()).or_default();
-                if let Some(goal) = &p.value.head.selected_goal {
+                if let Some(goal) = &report.head.selected_goal {
                     let key = (log.state(), GazeKind::of_label(goal));
                     *log.gaze.entry(key).or_default() += 1;
                 }
-                if let Some(primitive) = &p.value.whole_body.primitive {
+                if let Some(primitive) = &report.whole_body.primitive {
                     *log.reflexes.entry(primitive.to_string()).or_default() += 1;
                 }
             }

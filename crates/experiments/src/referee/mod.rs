@@ -19,9 +19,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Result, bail};
 use serde::{Deserialize, Serialize};
-use strata_runtime::{Package, Tap, TapOutput, TapRecord, Time};
+use strata_runtime::{Tap, TapOutput, TapRecord, Time};
 use strata_sim::{GameState, NoiseLevel, Penalty, RobotId, Simulation};
-use strata_soccer::behaviors::Decision;
 use strata_soccer::field::TeamField;
 use strata_soccer::team::TeamConfig;
 
@@ -31,6 +30,7 @@ use super::stats::{Estimate, mean};
 use super::{Check, Ctx, ScenarioError, Validate, finish_log, parallel};
 use strata_games::logging::{LogSettings, MatchLog};
 use strata_games::matches::{Match, MatchConfig};
+use strata_games::outputs;
 
 pub const NAME: &str = "referee";
 pub const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/referee.toml");
@@ -162,20 +162,11 @@ struct BeliefTap {
     beliefs: Mutex<Beliefs>,
 }
 
-impl BeliefTap {
-    const OUTPUT: &'static str = "decision";
-}
-
 impl Tap for BeliefTap {
     fn package(&self, record: &TapRecord<'_>) {
         // Other outputs still come when a logger shares the host.
-        if record.sent_on.output != Self::OUTPUT {
-            return;
-        }
+        let Some(package) = record.package(outputs::DECISION) else { return };
         let Some(robot) = robot_of(record.sent_on.module_name) else { return };
-        let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() else {
-            return;
-        };
         let state = package.value.directive.state;
         let mut beliefs = self.beliefs.lock().unwrap_or_else(|e| e.into_inner());
         let changes = beliefs.entry(robot).or_default();
@@ -185,7 +176,7 @@ impl Tap for BeliefTap {
     }
 
     fn wants(&self, output: &TapOutput<'_>) -> bool {
-        output.output == Self::OUTPUT
+        output.is(outputs::DECISION)
     }
 }
 

@@ -5,8 +5,7 @@ use std::sync::{Mutex, PoisonError};
 
 use strata_rcssmj::platform::TruthSource;
 use strata_robot::geometry::normalize_angle;
-use strata_robot::world::WorldState;
-use strata_runtime::{Package, Tap, TapRecord};
+use strata_runtime::{Tap, TapRecord};
 use strata_soccer::behaviors::Decision;
 use strata_soccer::world_config::BALL;
 
@@ -48,13 +47,9 @@ impl Watch {
 
 impl Tap for Watch {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.sent_on.output != "decision" || record.sent_on.module_name != self.planning {
-            return;
-        }
-        let Some(package) = record.package.as_any().downcast_ref::<Package<Decision>>() else {
+        let Some(decision) = record.value_from(&self.planning, crate::outputs::DECISION) else {
             return;
         };
-        let decision = &package.value;
         let mut state = self.lock();
         // Before the first control packet the directive is a default, not the game's.
         if decision.directive.connected {
@@ -88,14 +83,11 @@ impl Accuracy {
 
 impl Tap for Accuracy {
     fn package(&self, record: &TapRecord<'_>) {
-        if record.sent_on.output != "world_state" || record.sent_on.module_name != self.world {
-            return;
-        }
-        let Some(package) = record.package.as_any().downcast_ref::<Package<WorldState>>() else {
+        let Some(world) = record.value_from(&self.world, crate::outputs::WORLD_STATE) else {
             return;
         };
         let Some(truth) = self.truth.get() else { return };
-        let estimate = &package.value.pose;
+        let estimate = &world.pose;
         let pose = estimate.pose;
         // The team frame is the server's world frame turned half a circle for a team that
         // attacks towards -x.
@@ -127,7 +119,7 @@ impl Tap for Accuracy {
         accuracy.truth = [tx, ty];
         accuracy.estimate = [pose.x, pose.y];
         accuracy.last_lost = estimate.lost;
-        accuracy.last_ball = package.value.object(BALL).map(|b| BallStatus {
+        accuracy.last_ball = world.object(BALL).map(|b| BallStatus {
             known: b.known,
             confidence: b.confidence,
             estimate: b.known.then_some([b.global_position.x, b.global_position.y]),

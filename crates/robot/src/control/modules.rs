@@ -2,7 +2,7 @@
 //! layers themselves are tested without threads and the shells only move packages.
 
 use strata_runtime::{
-    Context, Input, Message, Module, ModuleError, Output, Policy, Ports, Trigger,
+    Context, Input, Message, Module, ModuleError, Output, Policy, PortName, Ports, Trigger,
 };
 
 use crate::command::{ActuationMessage, MotionCommands};
@@ -35,13 +35,13 @@ where
     W: Message,
     DeliberativeOutput<H, B, X>: Message,
 {
-    pub const PERCEPTS: &'static str = "percepts";
-    pub const WORLD: &'static str = "world";
-    pub const DELIBERATIVE: &'static str = "deliberative";
-    pub const ACTUATION: &'static str = "actuation";
-    pub const COMMANDS: &'static str = "commands";
-    pub const REPORT: &'static str = "report";
-    pub const STABILITY: &'static str = "stability";
+    pub const PERCEPTS: PortName<Percepts> = PortName::new("percepts");
+    pub const WORLD: PortName<W> = PortName::new("world");
+    pub const DELIBERATIVE: PortName<DeliberativeOutput<H, B, X>> = PortName::new("deliberative");
+    pub const ACTUATION: PortName<ActuationMessage> = PortName::new("actuation");
+    pub const COMMANDS: PortName<MotionCommands> = PortName::new("commands");
+    pub const REPORT: PortName<ReactiveReport> = PortName::new("report");
+    pub const STABILITY: PortName<Stability> = PortName::new("stability");
 
     /// Declares the ports, once for the assembly and for replay; the layer runs on every
     /// percept.
@@ -140,10 +140,10 @@ where
     A: Message,
     DeliberativeOutput<H, B, X>: Message,
 {
-    pub const WORLD: &'static str = "world";
-    pub const ASSIGNMENT: &'static str = "assignment";
-    pub const STABILITY: &'static str = "stability";
-    pub const SCORES: &'static str = "scores";
+    pub const WORLD: PortName<W> = PortName::new("world");
+    pub const ASSIGNMENT: PortName<A> = PortName::new("assignment");
+    pub const STABILITY: PortName<Stability> = PortName::new("stability");
+    pub const SCORES: PortName<DeliberativeOutput<H, B, X>> = PortName::new("scores");
 
     /// Declares the ports, once for the assembly and for replay (the layer's period is the
     /// caller's: it is configured).

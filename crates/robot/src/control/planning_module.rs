@@ -2,7 +2,9 @@
 //! external devices (paper 3.3: a robot that loses the network loses no ability of its own).
 
 use serde::{Deserialize, Serialize};
-use strata_runtime::{Context, Input, Message, Module, ModuleError, Output, Policy, Ports, Time};
+use strata_runtime::{
+    Context, Input, Message, Module, ModuleError, Output, Policy, PortName, Ports, Time,
+};
 
 use crate::control::planning::{
     Assignment, Label, MessageBudget, OwnState, Planner, PlanningPolicy, PlanningStats,
@@ -166,14 +168,14 @@ impl<M, R, D> PlanningPorts<M, R, D>
 where
     PlanningDecision<M, R, D>: Message,
 {
-    pub const INBOX: &'static str = "inbox";
-    pub const WORLD: &'static str = "world";
-    pub const STABILITY: &'static str = "stability";
-    pub const SIGNALS: &'static str = "signals";
-    pub const DECISION: &'static str = "decision";
-    pub const TEAM_ESTIMATES: &'static str = "team_estimates";
-    pub const WORLD_COMMANDS: &'static str = "world_commands";
-    pub const OUTBOX: &'static str = "outbox";
+    pub const INBOX: PortName<LinkInbox> = PortName::new("inbox");
+    pub const WORLD: PortName<WorldState> = PortName::new("world");
+    pub const STABILITY: PortName<Stability> = PortName::new("stability");
+    pub const SIGNALS: PortName<Signal> = PortName::new("signals");
+    pub const DECISION: PortName<PlanningDecision<M, R, D>> = PortName::new("decision");
+    pub const TEAM_ESTIMATES: PortName<TeammateEstimate> = PortName::new("team_estimates");
+    pub const WORLD_COMMANDS: PortName<WorldCommand> = PortName::new("world_commands");
+    pub const OUTBOX: PortName<LinkOutbox> = PortName::new("outbox");
 
     /// Declares the ports, once for the assembly and for replay; the layer runs on every
     /// inbox, which the links' source sends at the layer's rate.

@@ -3,7 +3,9 @@
 //! world state leaves as the newest value (Latest at the readers). A thin shell: all the
 //! filtering is in [`WorldModel`].
 
-use strata_runtime::{Context, GraphBuilder, Input, Module, ModuleError, Output, Policy, Trigger};
+use strata_runtime::{
+    Context, GraphBuilder, Input, Module, ModuleError, Output, Policy, PortName, Trigger,
+};
 
 use super::config::{ConfigError, WorldModelConfig};
 use super::model::{WorldCommand, WorldModel};
@@ -30,6 +32,14 @@ pub struct WorldPorts {
     pub commands: Input<WorldCommand>,
     /// The world state, stamped with the newest percepts' measurement time.
     pub world_state: Output<WorldState>,
+}
+
+impl WorldPorts {
+    pub const PERCEPTS: PortName<Percepts> = PortName::new("percepts");
+    pub const ODOMETRY: PortName<Odometry> = PortName::new("odometry");
+    pub const TEAM: PortName<TeammateEstimate> = PortName::new("team");
+    pub const COMMANDS: PortName<WorldCommand> = PortName::new("commands");
+    pub const WORLD_STATE: PortName<WorldState> = PortName::new("world_state");
 }
 
 /// Between camera images only odometry changes the estimates, so the world state is published
@@ -106,11 +116,12 @@ pub fn add_world_module(
 ) -> Result<WorldPorts, ConfigError> {
     let model = WorldModel::new(config)?;
     Ok(graph.add(name, move |p| {
-        let percepts = p.input("percepts", Policy::queue(PERCEPT_QUEUE));
-        let odometry = p.input("odometry", Policy::merge(|a: &mut Odometry, b| *a = a.then(b)));
-        let team = p.optional_input("team", Policy::queue(TEAM_QUEUE));
-        let commands = p.optional_input("commands", Policy::queue(COMMAND_QUEUE));
-        let world_state = p.output("world_state");
+        let percepts = p.input(WorldPorts::PERCEPTS, Policy::queue(PERCEPT_QUEUE));
+        let odometry =
+            p.input(WorldPorts::ODOMETRY, Policy::merge(|a: &mut Odometry, b| *a = a.then(b)));
+        let team = p.optional_input(WorldPorts::TEAM, Policy::queue(TEAM_QUEUE));
+        let commands = p.optional_input(WorldPorts::COMMANDS, Policy::queue(COMMAND_QUEUE));
+        let world_state = p.output(WorldPorts::WORLD_STATE);
         p.trigger(Trigger::on_any([percepts.into()]));
         let ports = WorldPorts { percepts, odometry, team, commands, world_state };
         (
