@@ -162,12 +162,9 @@ impl Platform for Body {
 fn a_lone_robot_needs_no_team_planning_codec_device_or_unused_multiplexer() {
     let orders = Arc::new(Mutex::new(Vec::new()));
     let body: Arc<Mutex<dyn Platform>> = Arc::new(Mutex::new(Body { orders: orders.clone() }));
-    let strolling = Multiplexer::new(
-        ResourceGroup::Body,
-        MultiplexerConfig::default(),
-        Box::new(AlwaysStroll),
-    )
-    .with_primitive(Box::new(Strolling));
+    let strolling =
+        Multiplexer::new(ResourceGroup::Body, MultiplexerConfig::default(), Box::new(AlwaysStroll))
+            .with_primitive(Box::new(Strolling));
     let reactive = ReactiveLayer::empty(FallDetectorConfig::default()).with_body(strolling);
     assert!(reactive.unregistered().is_empty(), "{:?}", reactive.unregistered());
     let parts = RobotParts::<Lone> {
@@ -190,7 +187,8 @@ fn a_lone_robot_needs_no_team_planning_codec_device_or_unused_multiplexer() {
     let mut graph = GraphBuilder::new();
     let modules = add_robot(&mut graph, parts).expect("a valid robot");
     assert_eq!(modules.deliberative, "lone/deliberative");
-    let mut host = LockstepHost::new(graph.build().expect("a valid graph"), HostConfig::with_seed(1));
+    let mut host =
+        LockstepHost::new(graph.build().expect("a valid graph"), HostConfig::with_seed(1));
     host.run_for(Duration::from_secs(3)).expect("runs");
 
     let orders = orders.lock().unwrap_or_else(PoisonError::into_inner);
