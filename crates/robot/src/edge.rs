@@ -89,6 +89,51 @@ pub struct PlatformPorts {
     pub refusals: Output<OrderRefused>,
 }
 
+impl PlatformPorts {
+    /// Declares, on a module that is the platform of several robots (a simulator), the ports
+    /// that serve one of them: `{prefix}/frames`, `{prefix}/motion`, `{prefix}/orders` and
+    /// `{prefix}/refusals`. Orders are not a trigger: they wait for the module's next step.
+    pub fn serve(
+        p: &mut strata_runtime::Ports<'_>,
+        prefix: &str,
+        info: PlatformInfo,
+    ) -> PlatformPorts {
+        let name = |port: &str| format!("{prefix}/{port}");
+        PlatformPorts {
+            info,
+            frames: p.output(&name(SensorPorts::FRAMES.name())),
+            motion: p.output(&name(SensorPorts::MOTION.name())),
+            orders: p.optional_input(
+                &name(ActuatorPorts::ORDERS.name()),
+                Policy::queue(ActuatorPorts::ORDER_QUEUE),
+            ),
+            refusals: p.output(&name(ActuatorPorts::REFUSALS.name())),
+        }
+    }
+}
+
+/// Hands every order waiting on `orders` to `write` (the platform), and sends the ones it
+/// refuses as unsupported back on `refusals` so actuation releases them; any other error ends
+/// the cycle.
+pub fn write_orders(
+    ctx: &mut Context<'_>,
+    orders: Input<ActuatorOrders>,
+    refusals: Output<OrderRefused>,
+    mut write: impl FnMut(&ActuatorOrders) -> Result<(), PlatformError>,
+) -> Result<(), ModuleError> {
+    for package in ctx.drain(orders) {
+        let orders = package.value;
+        match write(&orders) {
+            Ok(()) => {}
+            Err(PlatformError::Unsupported(reason)) => {
+                ctx.send(refusals, OrderRefused::of(&orders, reason));
+            }
+            Err(other) => return Err(Box::new(other)),
+        }
+    }
+    Ok(())
+}
+
 /// Where a robot's platform comes from.
 pub enum RobotPlatform {
     /// A platform object: the robot's own edge modules read and write it
@@ -201,17 +246,9 @@ impl std::fmt::Debug for ActuatorSink {
 impl Module for ActuatorSink {
     fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
         let now = ctx.now();
-        for package in ctx.drain(self.ports.orders) {
-            let orders = package.value;
-            match lock_platform(&self.platform).write(now, &orders) {
-                Ok(()) => {}
-                Err(PlatformError::Unsupported(reason)) => {
-                    ctx.send(self.ports.refusals, OrderRefused::of(&orders, reason));
-                }
-                Err(other) => return Err(Box::new(other)),
-            }
-        }
-        Ok(())
+        write_orders(ctx, self.ports.orders, self.ports.refusals, |orders| {
+            lock_platform(&self.platform).write(now, orders)
+        })
     }
 }
 

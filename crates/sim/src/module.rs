@@ -6,11 +6,9 @@
 
 use std::time::Duration;
 
-use strata_robot::edge::{OrderRefused, PlatformPorts};
-use strata_robot::platform::{ActuatorOrders, PlatformError};
+use strata_robot::edge::{PlatformPorts, write_orders};
 use strata_runtime::{
-    Context, GraphBuilder, Input, Module, ModuleError, ModuleId, Output, Policy, PortName, Time,
-    Trigger,
+    Context, GraphBuilder, Module, ModuleError, ModuleId, Output, PortName, Time, Trigger,
 };
 
 use crate::platform::SimHandle;
@@ -21,24 +19,11 @@ use crate::truth::{GroundTruth, RobotId};
 /// reads it as a platform object (`SimPlatform`) rather than through the simulator's ports.
 pub const SIMULATOR_PRIORITY: i32 = -100;
 
-/// Orders a robot may send between two steps (a few per step at most).
-const ORDER_QUEUE: usize = 16;
-
-/// One simulated robot's side of the simulator module.
-#[derive(Clone, Copy, Debug)]
-struct RobotPorts {
-    robot: RobotId,
-    frames: Output<strata_robot::platform::SensorFrame>,
-    motion: Output<strata_robot::platform::MotionFeedback>,
-    orders: Input<ActuatorOrders>,
-    refusals: Output<OrderRefused>,
-}
-
 /// Steps the simulation periodically, serves its robots and publishes ground truth.
 #[derive(Debug)]
 pub struct SimulatorModule {
     sim: SimHandle,
-    robots: Vec<RobotPorts>,
+    robots: Vec<(RobotId, PlatformPorts)>,
     ground_truth: Output<GroundTruth>,
     truth_period: Duration,
     next_truth: Time,
@@ -50,25 +35,18 @@ impl Module for SimulatorModule {
         let now = ctx.now();
         let mut sim = self.sim.lock();
         // Orders take effect from the next step, as on the platform object.
-        for ports in &self.robots {
-            for package in ctx.drain(ports.orders) {
-                let orders = package.value;
-                match sim.apply_orders(ports.robot, &orders) {
-                    Ok(()) => {}
-                    Err(PlatformError::Unsupported(reason)) => {
-                        ctx.send(ports.refusals, OrderRefused::of(&orders, reason));
-                    }
-                    Err(other) => return Err(Box::new(other)),
-                }
-            }
+        for (robot, ports) in &self.robots {
+            write_orders(ctx, ports.orders, ports.refusals, |orders| {
+                sim.apply_orders(*robot, orders)
+            })?;
         }
         sim.advance_to(now);
-        for ports in &self.robots {
-            if let Some(frame) = sim.take_sensor_frame(ports.robot)? {
+        for (robot, ports) in &self.robots {
+            if let Some(frame) = sim.take_sensor_frame(*robot)? {
                 let stamp = frame.stamp;
                 ctx.send_stamped(ports.frames, frame, stamp);
             }
-            let motion = sim.read_motion(ports.robot)?;
+            let motion = sim.read_motion(*robot)?;
             ctx.send_stamped(ports.motion, motion, motion.stamp);
         }
         let truth = if now >= self.next_truth {
@@ -137,19 +115,9 @@ pub fn add_simulator(
         p.trigger(Trigger::every(period));
         p.priority(SIMULATOR_PRIORITY);
         let ground_truth = p.output(SimulatorPorts::GROUND_TRUTH);
-        let served: Vec<RobotPorts> = robots
+        let served: Vec<(RobotId, PlatformPorts)> = robots
             .iter()
-            .map(|&robot| {
-                let name = robot_port_prefix(robot);
-                RobotPorts {
-                    robot,
-                    frames: p.output(&format!("{name}/frames")),
-                    motion: p.output(&format!("{name}/motion")),
-                    // Not a trigger: orders wait for the next step.
-                    orders: p.optional_input(&format!("{name}/orders"), Policy::queue(ORDER_QUEUE)),
-                    refusals: p.output(&format!("{name}/refusals")),
-                }
-            })
+            .map(|&robot| (robot, PlatformPorts::serve(p, &robot_port_prefix(robot), info.clone())))
             .collect();
         let module = SimulatorModule {
             sim,
@@ -161,20 +129,7 @@ pub fn add_simulator(
         };
         (module, (ground_truth, served))
     });
-    let robots = served
-        .into_iter()
-        .map(|ports| {
-            let platform = PlatformPorts {
-                info: info.clone(),
-                frames: ports.frames,
-                motion: ports.motion,
-                orders: ports.orders,
-                refusals: ports.refusals,
-            };
-            (ports.robot, platform)
-        })
-        .collect();
-    SimulatorPorts { module: id, ground_truth, robots }
+    SimulatorPorts { module: id, ground_truth, robots: served }
 }
 
 /// The prefix of a robot's ports on the simulator module: `home_3` for home player 3 (its

@@ -5,32 +5,16 @@
 //! `add_robot` as `RobotPlatform::Module`), so a robot runs after the world moved because the
 //! world's step is what triggers its perception: an edge of the graph, not a priority.
 
-use strata_robot::edge::{OrderRefused, PlatformPorts};
-use strata_robot::platform::{ActuatorOrders, MotionFeedback, PlatformError, SensorFrame};
-use strata_runtime::{
-    Context, GraphBuilder, Input, Module, ModuleError, ModuleId, Output, Policy, Trigger,
-};
+use strata_robot::edge::{PlatformPorts, write_orders};
+use strata_runtime::{Context, GraphBuilder, Module, ModuleError, ModuleId, Trigger};
 
 use crate::handle::WorldHandle;
 use crate::sim::{Script, WorldSimError};
 
-/// Orders a robot may send between two steps (a few per step at most).
-const ORDER_QUEUE: usize = 16;
-
-/// One served robot's side of the module.
-#[derive(Clone, Copy, Debug)]
-struct RobotPorts {
-    robot: usize,
-    frames: Output<SensorFrame>,
-    motion: Output<MotionFeedback>,
-    orders: Input<ActuatorOrders>,
-    refusals: Output<OrderRefused>,
-}
-
 /// Steps the simulation every sensor period and serves its robots.
 pub struct WorldSimModule<S> {
     handle: WorldHandle<S>,
-    robots: Vec<RobotPorts>,
+    robots: Vec<(usize, PlatformPorts)>,
 }
 
 impl<S> std::fmt::Debug for WorldSimModule<S> {
@@ -44,25 +28,18 @@ impl<S: Script + 'static> Module for WorldSimModule<S> {
         let now = ctx.now();
         let mut simulation = self.handle.lock();
         // Orders act from the next step: actuation decided them on the previous frame.
-        for ports in &self.robots {
-            for package in ctx.drain(ports.orders) {
-                let orders = package.value;
-                match simulation.sim.apply_orders(ports.robot, &orders) {
-                    Ok(()) => {}
-                    Err(PlatformError::Unsupported(reason)) => {
-                        ctx.send(ports.refusals, OrderRefused::of(&orders, reason));
-                    }
-                    Err(other) => return Err(Box::new(other)),
-                }
-            }
+        for (robot, ports) in &self.robots {
+            write_orders(ctx, ports.orders, ports.refusals, |orders| {
+                simulation.sim.apply_orders(*robot, orders)
+            })?;
         }
         simulation.advance_to(now);
-        for ports in &self.robots {
-            if let Some(frame) = simulation.sim.take_frame(ports.robot)? {
+        for (robot, ports) in &self.robots {
+            if let Some(frame) = simulation.sim.take_frame(*robot)? {
                 let stamp = frame.stamp;
                 ctx.send_stamped(ports.frames, frame, stamp);
             }
-            let motion = simulation.sim.take_feedback(ports.robot)?;
+            let motion = simulation.sim.take_feedback(*robot)?;
             ctx.send_stamped(ports.motion, motion, motion.stamp);
         }
         Ok(())
@@ -109,35 +86,11 @@ pub fn add_world_sim<S: Script + 'static>(
     let served = graph.add(name, |p| {
         id = p.id();
         p.trigger(Trigger::every(period));
-        let served: Vec<RobotPorts> = robots
+        let served: Vec<(usize, PlatformPorts)> = robots
             .iter()
-            .map(|&robot| {
-                let prefix = robot_port_prefix(robot);
-                RobotPorts {
-                    robot,
-                    frames: p.output(&format!("{prefix}/frames")),
-                    motion: p.output(&format!("{prefix}/motion")),
-                    // Not a trigger: orders wait for the next step.
-                    orders: p
-                        .optional_input(&format!("{prefix}/orders"), Policy::queue(ORDER_QUEUE)),
-                    refusals: p.output(&format!("{prefix}/refusals")),
-                }
-            })
+            .map(|&robot| (robot, PlatformPorts::serve(p, &robot_port_prefix(robot), info.clone())))
             .collect();
         (WorldSimModule { handle, robots: served.clone() }, served)
     });
-    let robots = served
-        .into_iter()
-        .map(|ports| {
-            let platform = PlatformPorts {
-                info: info.clone(),
-                frames: ports.frames,
-                motion: ports.motion,
-                orders: ports.orders,
-                refusals: ports.refusals,
-            };
-            (ports.robot, platform)
-        })
-        .collect();
-    Ok(WorldSimPorts { module: id, robots })
+    Ok(WorldSimPorts { module: id, robots: served })
 }
