@@ -48,7 +48,7 @@ use strata_soccer::team::team_world_config;
 use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
 
 use strata_games::logging::{RobotRunConfig, open_run_log};
-use strata_games::matches::{robot_name, served_platform};
+use strata_games::matches::{robot_name, served_links, served_platform};
 use strata_games::physics::Engine;
 use strata_log::{ConfigFormat, McapTap, McapTapOptions, RunInfo, WhenFull};
 
@@ -719,8 +719,7 @@ impl Scene {
                 player: robot.player,
                 field: Arc::clone(&team_field),
                 platform: served_platform(&served, id)?,
-                team_link: Some(Box::new(sim.team_link(id)?)),
-                game_controller: Some(Box::new(sim.game_controller_link(id)?)),
+                links: served_links(&served, id)?,
                 half_duration: 600.0,
                 initial_pose: None,
                 relocations: Vec::new(),

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context as _, Result, bail};
 use serde::{Deserialize, Serialize};
 use strata_robot::assembly::RobotModules;
-use strata_robot::edge::RobotPlatform;
+use strata_robot::edge::{RobotLinks, RobotPlatform};
 use strata_runtime::{
     HostConfig, HostStats, LockstepHost, Tap, TapOutput, TapRecord, ThreadedHost, Time,
 };
@@ -243,8 +243,7 @@ impl Match {
                     player,
                     field: Arc::clone(&team_field),
                     platform: served_platform(&served, id)?,
-                    team_link: Some(Box::new(sim.team_link(id)?)),
-                    game_controller: Some(Box::new(sim.game_controller_link(id)?)),
+                    links: served_links(&served, id)?,
                     half_duration: config.half_duration,
                     initial_pose: None,
                     relocations: Vec::new(),
@@ -570,6 +569,15 @@ impl RoleSampler {
             samples: self.samples[team],
         }
     }
+}
+
+/// The links of robot `id` (team radio, GameController), as the simulator module serves them
+/// through the graph.
+pub fn served_links(served: &SimulatorPorts, id: RobotId) -> Result<RobotLinks> {
+    served
+        .links(id)
+        .map(RobotLinks::Module)
+        .ok_or_else(|| anyhow::anyhow!("robot {} is not served by the simulator", robot_name(id)))
 }
 
 /// The platform of robot `id`, as the simulator module serves it through the graph.

@@ -37,9 +37,9 @@ use crate::control::planning::{Planner, PlanningPolicy};
 use crate::control::planning_module::{ExternalDevice, PlanningModule, PlanningPorts, TeamCodec};
 use crate::control::reactive::ReactiveLayer;
 use crate::control::scores::Goal;
-use crate::edge::{EdgeModules, Links, RobotPlatform, add_link_edge};
+use crate::edge::{EdgeModules, RobotLinks, RobotPlatform, add_link_edge};
 use crate::perception::{PerceptionConfig, PerceptionModule, PerceptionPorts};
-use crate::platform::{ExternalLink, PlatformInfo, TeamLink};
+use crate::platform::PlatformInfo;
 use crate::world::{CameraNoise, ConfigError, WorldModelConfig, WorldState, add_world_module};
 
 /// How often a layer runs (for periodic layers) and how long its cycles take on the lockstep
@@ -146,8 +146,8 @@ pub struct RobotParts<A: Application> {
     pub planner: Planner<A::Planning>,
     pub codec: A::Codec,
     pub device: A::Device,
-    pub team_link: Option<Box<dyn TeamLink>>,
-    pub external_link: Option<Box<dyn ExternalLink>>,
+    /// The team link and the external device's (none for a lone robot: `RobotLinks::default()`).
+    pub links: RobotLinks,
     /// World-model object names this robot shares with teammates, most important first.
     pub shared_objects: Vec<String>,
     pub actuation: ActuationConfig,
@@ -332,9 +332,8 @@ pub fn add_robot<A: Application>(
     let deliberative =
         add_deliberative(graph, &names.deliberative, parts.deliberative, &timing.deliberative);
 
-    let links = Links { team: parts.team_link, external: parts.external_link };
     let (links_in, links_out) =
-        add_link_edge(graph, &parts.name, links, timing.planning.period(10.0));
+        add_link_edge(graph, &parts.name, parts.links, timing.planning.period(10.0));
     let (member, planner, codec, device, shared) =
         (parts.member, parts.planner, parts.codec, parts.device, parts.shared_objects);
     let planning = add_planning(graph, &names.planning, &timing.planning, |ports| {

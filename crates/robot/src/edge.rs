@@ -357,6 +357,82 @@ impl std::fmt::Debug for Links {
     }
 }
 
+impl Links {
+    /// A team link and an external link, either of which the robot may lack.
+    pub fn new(team: Option<Box<dyn TeamLink>>, external: Option<Box<dyn ExternalLink>>) -> Links {
+        Links { team, external }
+    }
+}
+
+/// A robot's links as a module of the graph serves them (the in-process simulator, which is
+/// every robot's radio and GameController): what they received, published by that module as
+/// it arrives, and what the robot sends, which it takes at its next step.
+#[derive(Clone, Copy, Debug)]
+pub struct LinkPorts {
+    pub received: Output<LinkInbox>,
+    pub sent: Input<LinkOutbox>,
+    /// Whether the robot uses its team link: a team playing without coordination has a radio
+    /// it neither listens to nor sends on.
+    pub team: bool,
+}
+
+impl LinkPorts {
+    pub const RECEIVED: PortName<LinkInbox> = PortName::new("received");
+    pub const SENT: PortName<LinkOutbox> = PortName::new("sent");
+    /// What one robot sends between two steps of the serving module: its planning layer sends
+    /// at most once per cycle.
+    pub const SENT_QUEUE: usize = 16;
+
+    /// Declares, on a module that serves the links of several robots, the ports that serve one
+    /// of them: `{prefix}/received` and `{prefix}/sent`. What a robot sends is not a trigger:
+    /// it waits for the module's next step.
+    pub fn serve(p: &mut strata_runtime::Ports<'_>, prefix: &str) -> LinkPorts {
+        LinkPorts {
+            received: p.output(&format!("{prefix}/{}", Self::RECEIVED.name())),
+            sent: p.optional_input(
+                &format!("{prefix}/{}", Self::SENT.name()),
+                Policy::queue(Self::SENT_QUEUE),
+            ),
+            team: true,
+        }
+    }
+}
+
+/// Where a robot's links come from.
+pub enum RobotLinks {
+    /// Link objects: the robot's own `links_in` and `links_out` read and write them.
+    Shared(Links),
+    /// A module already in the graph serves them: the robot's `links_in` gathers what it
+    /// publishes once per planning period, `links_out` passes on what planning sends.
+    Module(LinkPorts),
+}
+
+impl Default for RobotLinks {
+    /// No links at all (a lone robot).
+    fn default() -> RobotLinks {
+        RobotLinks::Shared(Links::default())
+    }
+}
+
+impl std::fmt::Debug for RobotLinks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RobotLinks::Shared(links) => f.debug_tuple("RobotLinks::Shared").field(links).finish(),
+            RobotLinks::Module(ports) => f.debug_tuple("RobotLinks::Module").field(ports).finish(),
+        }
+    }
+}
+
+impl RobotLinks {
+    /// The same links without the team link: the robot neither hears nor tells its teammates.
+    pub fn without_team(self) -> RobotLinks {
+        match self {
+            RobotLinks::Shared(links) => RobotLinks::Shared(Links { team: None, ..links }),
+            RobotLinks::Module(ports) => RobotLinks::Module(LinkPorts { team: false, ..ports }),
+        }
+    }
+}
+
 type SharedLinks = Arc<Mutex<Links>>;
 
 fn lock_links(links: &SharedLinks) -> MutexGuard<'_, Links> {
@@ -442,9 +518,99 @@ impl Module for LinkSink {
     }
 }
 
+/// Gathers what a module serving the robot's links published since the previous planning
+/// period and wakes the planning layer with it, as [`LinkSource`] does for link objects.
+#[derive(Debug)]
+pub struct LinkGather {
+    received: Input<LinkInbox>,
+    team: bool,
+    ports: LinkSourcePorts,
+}
+
+impl LinkGather {
+    pub const RECEIVED: PortName<LinkInbox> = LinkPorts::RECEIVED;
+}
+
+impl Module for LinkGather {
+    fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+        let mut inbox = ctx.take(self.received).map(|package| package.value).unwrap_or_default();
+        if !self.team {
+            inbox.team.clear();
+        }
+        ctx.send(self.ports.inbox, inbox);
+        Ok(())
+    }
+}
+
+/// Passes what the planning layer sends on to the module serving the robot's links.
+#[derive(Debug)]
+pub struct LinkPass {
+    ports: LinkSinkPorts,
+    sent: Output<LinkOutbox>,
+    team: bool,
+}
+
+impl LinkPass {
+    pub const SENT: PortName<LinkOutbox> = LinkPorts::SENT;
+}
+
+impl Module for LinkPass {
+    fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+        for package in ctx.drain(self.ports.outbox) {
+            let mut outbox = package.value;
+            if !self.team {
+                outbox.team = None;
+            }
+            if outbox.team.is_some() || outbox.external.is_some() {
+                ctx.send(self.sent, outbox);
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Adds the links' source (every `period`, the planning layer's) and sink of one robot, named
-/// `{prefix}/links_in` and `{prefix}/links_out`.
+/// `{prefix}/links_in` and `{prefix}/links_out`: over link objects they receive and send, over
+/// a module that serves the links they gather what it published and pass on what to send.
 pub fn add_link_edge(
+    graph: &mut GraphBuilder,
+    prefix: &str,
+    links: RobotLinks,
+    period: std::time::Duration,
+) -> (LinkSourcePorts, LinkSinkPorts) {
+    match links {
+        RobotLinks::Shared(links) => add_link_objects(graph, prefix, links, period),
+        RobotLinks::Module(served) => {
+            let names = EdgeModules::new(prefix);
+            let source = graph.add(&names.links_in, |p| {
+                p.trigger(Trigger::every(period));
+                // Merged, never dropped: however many steps of the serving module fall in one
+                // planning period, every packet reaches planning.
+                let received = p.input(
+                    LinkGather::RECEIVED,
+                    Policy::merge(|into: &mut LinkInbox, more: LinkInbox| {
+                        into.team.extend(more.team);
+                        into.external.extend(more.external);
+                    }),
+                );
+                let ports = LinkSourcePorts { inbox: p.output(LinkSourcePorts::INBOX) };
+                (LinkGather { received, team: served.team, ports }, (ports, received))
+            });
+            let sink = graph.add(&names.links_out, |p| {
+                let ports =
+                    LinkSinkPorts { outbox: p.input(LinkSinkPorts::OUTBOX, Policy::queue(8)) };
+                p.trigger(Trigger::on_any([ports.outbox.into()]));
+                let sent = p.output(LinkPass::SENT);
+                (LinkPass { ports, sent, team: served.team }, (ports, sent))
+            });
+            graph.connect(served.received, source.1);
+            graph.connect(sink.1, served.sent);
+            (source.0, sink.0)
+        }
+    }
+}
+
+fn add_link_objects(
     graph: &mut GraphBuilder,
     prefix: &str,
     links: Links,
@@ -639,7 +805,8 @@ mod tests {
             external: None,
         };
         let mut graph = GraphBuilder::new();
-        let (source, sink) = add_link_edge(&mut graph, "r", links, Duration::from_millis(100));
+        let (source, sink) =
+            add_link_edge(&mut graph, "r", RobotLinks::Shared(links), Duration::from_millis(100));
         let inboxes = collect(&mut graph, "inboxes", source.inbox);
         graph.external(sink.outbox);
         let mut host = LockstepHost::new(graph.build().expect("graph"), HostConfig::with_seed(1));
@@ -660,5 +827,86 @@ mod tests {
             *sent.lock().unwrap_or_else(PoisonError::into_inner),
             vec![vec![0], vec![1], vec![2], vec![3], vec![4]]
         );
+    }
+
+    /// A module that serves one robot's links: every 30 ms it publishes one team packet and
+    /// one external packet (numbered), and keeps what the robot sent.
+    struct Radio {
+        ports: LinkPorts,
+        cycles: u8,
+        sent: Arc<Mutex<Vec<LinkOutbox>>>,
+    }
+
+    impl Module for Radio {
+        fn cycle(&mut self, ctx: &mut Context<'_>) -> Result<(), ModuleError> {
+            let sent = ctx.drain(self.ports.sent);
+            self.sent
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .extend(sent.into_iter().map(|p| p.value));
+            let packet = |bytes| vec![ReceivedPacket { received: ctx.now(), bytes }];
+            let inbox = LinkInbox {
+                team: packet(vec![self.cycles]),
+                external: packet(vec![100 + self.cycles]),
+            };
+            ctx.send(self.ports.received, inbox);
+            self.cycles += 1;
+            Ok(())
+        }
+    }
+
+    fn served_links(team: bool) -> (Vec<LinkInbox>, Vec<LinkOutbox>) {
+        let sent = Arc::new(Mutex::new(Vec::new()));
+        let mut graph = GraphBuilder::new();
+        let ports = graph.add("radio", |p| {
+            p.trigger(Trigger::every(Duration::from_millis(30)));
+            let ports = LinkPorts::serve(p, "r");
+            (Radio { ports, cycles: 0, sent: Arc::clone(&sent) }, ports)
+        });
+        let links = RobotLinks::Module(ports);
+        let links = if team { links } else { links.without_team() };
+        let (source, sink) = add_link_edge(&mut graph, "r", links, Duration::from_millis(100));
+        let inboxes = collect(&mut graph, "inboxes", source.inbox);
+        graph.external(sink.outbox);
+        let mut host = LockstepHost::new(graph.build().expect("graph"), HostConfig::with_seed(1));
+        let at = |ms: u64| Time::from_nanos(ms * 1_000_000);
+        let both = LinkOutbox { team: Some(vec![1]), external: Some(vec![2]) };
+        let team_only = LinkOutbox { team: Some(vec![3]), external: None };
+        host.inject(sink.outbox, both, at(50), at(50)).expect("inject");
+        host.inject(sink.outbox, team_only, at(150), at(150)).expect("inject");
+        host.run_for(Duration::from_millis(450)).expect("runs");
+        let sent = sent.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        (taken(&inboxes), sent)
+    }
+
+    #[test]
+    fn links_a_module_serves_gather_everything_it_published_once_a_period_and_pass_on_what_planning_sends()
+     {
+        let (inboxes, sent) = served_links(true);
+        assert_eq!(inboxes.len(), 5, "an inbox at 0, 100, ..., 400 ms, empty or not");
+        // Published at 0, 30, ..., 390 ms: every packet in one of the inboxes, in order.
+        let team: Vec<u8> =
+            inboxes.iter().flat_map(|i| i.team.iter().map(|p| p.bytes[0])).collect();
+        let external: Vec<u8> =
+            inboxes.iter().flat_map(|i| i.external.iter().map(|p| p.bytes[0])).collect();
+        assert_eq!(team, (0..14).collect::<Vec<u8>>());
+        assert_eq!(external, (100..114).collect::<Vec<u8>>());
+        assert_eq!(
+            sent,
+            vec![
+                LinkOutbox { team: Some(vec![1]), external: Some(vec![2]) },
+                LinkOutbox { team: Some(vec![3]), external: None },
+            ]
+        );
+    }
+
+    #[test]
+    fn a_robot_without_its_team_link_neither_hears_nor_tells_teammates_through_a_serving_module() {
+        let (inboxes, sent) = served_links(false);
+        assert_eq!(inboxes.len(), 5);
+        assert!(inboxes.iter().all(|inbox| inbox.team.is_empty()));
+        assert_eq!(inboxes.iter().map(|inbox| inbox.external.len()).sum::<usize>(), 14);
+        // The team message is dropped; an outbox with nothing else is not passed on at all.
+        assert_eq!(sent, vec![LinkOutbox { team: None, external: Some(vec![2]) }]);
     }
 }

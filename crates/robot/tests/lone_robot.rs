@@ -20,7 +20,7 @@ use strata_robot::control::reactive::{
     ReactiveInput, ReactiveLayer,
 };
 use strata_robot::control::scores::{Goal, GoalScore, NoGoal, ScoreVector};
-use strata_robot::edge::RobotPlatform;
+use strata_robot::edge::{RobotLinks, RobotPlatform};
 use strata_robot::geometry::{Odometry, Velocity};
 use strata_robot::perception::PerceptionConfig;
 use strata_robot::platform::{
@@ -178,8 +178,7 @@ fn a_lone_robot_needs_no_team_planning_codec_device_or_unused_multiplexer() {
         planner: Planner::new(Alone::default(), PlanningConfig::default()),
         codec: NoCodec,
         device: NoDevice,
-        team_link: None,
-        external_link: None,
+        links: RobotLinks::default(),
         shared_objects: Vec::new(),
         actuation: ActuationConfig::default(),
         timing: RobotTiming::default(),

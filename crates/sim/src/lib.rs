@@ -6,9 +6,10 @@
 //!   broadcast emulation — with every noise and error level in one config section and one seed
 //!   for everything. `step` is deterministic, bit for bit.
 //! - In process: [`add_simulator`] steps the world as a module of the graph and is the
-//!   platform of the robots it is given (their frames, motion feedback and orders through its
-//!   ports); a [`SimHandle`] gives each robot a [`SimTeamLink`] and a [`SimGameControllerLink`],
-//!   and a [`SimPlatform`] (the `robot::Platform` trait) to code that drives a robot directly.
+//!   platform and the links of the robots it is given (their frames, motion feedback and
+//!   orders, their team messages and GameController packets through its ports); to code that
+//!   drives a robot directly, a [`SimHandle`] gives a [`SimPlatform`] (the `robot::Platform`
+//!   trait), a [`SimTeamLink`] and a [`SimGameControllerLink`].
 //! - Over TCP ([`net`]): a real-time server and one process per robot, with the same traits on
 //!   the client side.
 //! - Ground truth ([`GroundTruth`]) and experiment controls (kidnap, push, place or script the
@@ -61,9 +62,7 @@ mod world;
 
 pub use body::FallCause;
 pub use config::{ConfigError, SimConfig};
-pub use module::{
-    SIMULATOR_PRIORITY, SimulatorModule, SimulatorPorts, add_simulator, robot_port_prefix,
-};
+pub use module::{ServedRobot, SimulatorModule, SimulatorPorts, add_simulator, robot_port_prefix};
 pub use noise::{NoiseConfig, NoiseLevel, NoiseParams};
 pub use physics::BallScript;
 pub use platform::{SimGameControllerLink, SimHandle, SimPlatform, SimTeamLink};

@@ -17,9 +17,9 @@ use strata_robot::control::reactive::{
     FallDetectorConfig, Multiplexer, MultiplexerConfig, ReactiveLayer,
 };
 use strata_robot::control::scores::{GoalScore, ScoreVector};
-use strata_robot::edge::RobotPlatform;
+use strata_robot::edge::{RobotLinks, RobotPlatform};
 use strata_robot::perception::PerceptionConfig;
-use strata_robot::platform::{ExternalLink, ObjectClass, PlatformInfo, TeamLink};
+use strata_robot::platform::{ObjectClass, PlatformInfo};
 use strata_robot::world::{CameraNoise, PosePrior, SymmetryHint, WorldModelConfig, WorldState};
 use strata_runtime::GraphBuilder;
 use strata_spl::ObjectKind;
@@ -274,8 +274,8 @@ pub struct SoccerRobotSpec {
     pub player: u8,
     pub field: Arc<TeamField>,
     pub platform: RobotPlatform,
-    pub team_link: Option<Box<dyn TeamLink>>,
-    pub game_controller: Option<Box<dyn ExternalLink>>,
+    /// The team link and the GameController's.
+    pub links: RobotLinks,
     pub half_duration: f64,
     /// Where the robot knows it starts (a platform that places it), in the team frame; `None`:
     /// the pose is lost until landmarks fix it.
@@ -485,8 +485,7 @@ pub fn add_soccer_robot(
         planner,
         codec: SoccerCodec,
         device: referee,
-        team_link: if config.coordination { spec.team_link } else { None },
-        external_link: spec.game_controller,
+        links: if config.coordination { spec.links } else { spec.links.without_team() },
         shared_objects: shared_objects(),
         actuation: config.actuation.clone(),
         timing: config.timing.clone(),

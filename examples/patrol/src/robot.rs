@@ -16,7 +16,7 @@ use strata_robot::control::reactive::{
     FallDetectorConfig, Multiplexer, MultiplexerConfig, ReactiveLayer,
 };
 use strata_robot::control::scores::{GoalScore, ScoreVector};
-use strata_robot::edge::RobotPlatform;
+use strata_robot::edge::{Links, RobotLinks, RobotPlatform};
 use strata_robot::geometry::Pose;
 use strata_robot::platform::{ExternalLink, TeamLink};
 use strata_robot::world::WorldState;
@@ -167,8 +167,7 @@ pub fn add_patrol_robot(
         planner,
         codec: PatrolCodec,
         device: OperatorConsole::new(spec.player, board),
-        team_link: spec.team_link,
-        external_link: spec.console_link,
+        links: RobotLinks::Shared(Links::new(spec.team_link, spec.console_link)),
         shared_objects: vec![INTRUDER.to_owned()],
         actuation: config.actuation.clone(),
         timing: config.timing.clone(),

@@ -15,7 +15,7 @@ use super::{PlatformKind, RobotOptions};
 use crate::links::{self, Counted, LinkCounters, NetConfig, Prefetched};
 
 /// A robot's links and what the start line and the report say of them.
-pub(crate) struct RobotLinks {
+pub(crate) struct OpenLinks {
     pub(crate) team: Option<Box<dyn TeamLink>>,
     pub(crate) game_controller: Box<dyn ExternalLink>,
     pub(crate) team_counters: Arc<LinkCounters>,
@@ -32,7 +32,7 @@ pub(crate) fn open_links(
     opts: &RobotOptions,
     platform_links: Option<PlatformLinks>,
     early_clock: MonotonicClock,
-) -> Result<RobotLinks> {
+) -> Result<OpenLinks> {
     let net = opts.net || opts.platform == PlatformKind::Nao;
     let mut unused_sim_links: Vec<Box<dyn FnMut() + Send>> = Vec::new();
     let (team, game_controller, team_counters, gc_counters, endpoints) = if net {
@@ -103,7 +103,7 @@ pub(crate) fn open_links(
         let endpoints = Endpoints { game_controller: label.to_owned(), team: team_label };
         (team, gc, team_counters, gc_counters, endpoints)
     };
-    Ok(RobotLinks {
+    Ok(OpenLinks {
         team,
         game_controller,
         team_counters,

@@ -43,7 +43,7 @@ use strata_log::{
 use strata_rcssmj::referee::penalty_spots;
 use strata_robot::assembly::RobotModules;
 use strata_robot::control::reactive::FallDetectorConfig;
-use strata_robot::edge::RobotPlatform;
+use strata_robot::edge::{Links, RobotLinks, RobotPlatform};
 use strata_robot::geometry::Pose;
 use strata_robot::platform::{ExternalLink, TeamLink};
 use strata_robot::world::PosePrior;
@@ -58,7 +58,7 @@ use strata_spl::Field;
 
 use crate::links::{LinkCounters, LinkStats};
 use crate::logging::{RobotRunConfig, open_run_log};
-use links::{RobotLinks, learn_attack_sign, open_links};
+use links::{OpenLinks, learn_attack_sign, open_links};
 use platform::{OpenPlatform, PlatformCounters, open_platform, sit_down};
 use report::LayerMeter;
 pub use report::{
@@ -279,7 +279,7 @@ pub fn run(opts: &RobotOptions, out: &Arc<dyn RobotOutput>) -> Result<()> {
     let info = platform.info.clone();
 
     // The radio and the referee.
-    let RobotLinks {
+    let OpenLinks {
         team: team_link,
         game_controller: gc_link,
         team_counters,
@@ -452,8 +452,7 @@ fn robot_graph(
         player: opts.player,
         field: Arc::clone(team_field),
         platform: RobotPlatform::Shared(Arc::clone(&platform.shared)),
-        team_link,
-        game_controller: Some(gc_link),
+        links: RobotLinks::Shared(Links::new(team_link, Some(gc_link))),
         half_duration: opts.half_duration,
         initial_pose,
         relocations: relocations.clone(),
