@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result};
 use strata_log::LogReader;
-use strata_runtime::{Tap, TapRecord, Time};
+use strata_runtime::{Tap, TapOutput, TapRecord, Time};
 use strata_spl::field::Field;
 
 use data::ViewData;
@@ -207,6 +207,12 @@ impl LiveTap {
 }
 
 impl Tap for LiveTap {
+    /// The host then shows the viewer only the outputs it draws: a match sends thousands of
+    /// packages per simulated second, most of which it would look at only to skip.
+    fn wants(&self, output: &TapOutput<'_>) -> bool {
+        SHOWN_OUTPUTS.contains(&output.output)
+    }
+
     fn package(&self, record: &TapRecord<'_>) {
         // Most packages are of no interest to the viewer: skip them before any allocation.
         if !SHOWN_OUTPUTS.contains(&record.sent_on.output) {
