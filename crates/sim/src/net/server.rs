@@ -22,8 +22,8 @@ use strata_runtime::Time;
 use strata_spl::gamecontroller::GameState;
 
 use super::protocol::{
-    self, Bytes, ClientMessage, ErrorCode, FrameError, MAX_CLIENT_FRAME, PROTOCOL, ServerMessage,
-    VERSION,
+    self, Bytes, ClientMessage, Deadline, ErrorCode, FrameError, MAX_CLIENT_FRAME, PROTOCOL,
+    ServerMessage, VERSION,
 };
 use crate::platform::SimHandle;
 use crate::truth::RobotId;
@@ -758,30 +758,11 @@ fn linger(reader: &mut TcpStream) {
     }
 }
 
-/// Reads from a stream until a deadline over all reads together: each read may wait only for
-/// what is left.
-struct Deadline<'a> {
-    stream: &'a TcpStream,
-    deadline: Instant,
-}
-
-impl Read for Deadline<'_> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let left = self.deadline.saturating_duration_since(Instant::now());
-        if left.is_zero() {
-            return Err(std::io::ErrorKind::TimedOut.into());
-        }
-        self.stream.set_read_timeout(Some(left))?;
-        let mut stream = self.stream;
-        stream.read(buf)
-    }
-}
-
 /// Reads `hello` within the handshake deadline, counted once from now: a peer that trickles its
 /// bytes cannot hold the connection longer.
 fn read_hello(reader: &TcpStream, shared: &Shared) -> Result<(u8, u8), Box<ServerMessage>> {
     let limit = shared.limits().handshake_deadline;
-    let mut deadline = Deadline { stream: reader, deadline: Instant::now() + limit };
+    let mut deadline = Deadline::new(reader, Instant::now() + limit);
     let hello = protocol::read_message::<ClientMessage>(&mut deadline, MAX_CLIENT_FRAME);
     let _ = reader.set_read_timeout(None);
     match hello {
