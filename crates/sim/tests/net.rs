@@ -552,3 +552,28 @@ fn a_server_that_trickles_its_welcome_fails_the_connect_at_the_timeout() {
         Err(_) => panic!("connect still waiting after 10 s with a 0.5 s timeout"),
     }
 }
+
+/// A zero limit is a mistake, never a setting: a zero write timeout means "no timeout" to the
+/// OS, which would take the bound off every write (and off stopping the server) without a word,
+/// and a server that admits no connection, hello or message serves nobody.
+#[test]
+fn limits_that_would_switch_themselves_off_are_refused_by_name() {
+    let zero = Duration::ZERO;
+    let cases = [
+        (ServerLimits { write_timeout: zero, ..ServerLimits::DEFAULT }, "write_timeout"),
+        (ServerLimits { handshake_deadline: zero, ..ServerLimits::DEFAULT }, "handshake_deadline"),
+        (ServerLimits { max_connections: 0, ..ServerLimits::DEFAULT }, "max_connections"),
+        (
+            ServerLimits { max_messages_per_second: 0, ..ServerLimits::DEFAULT },
+            "max_messages_per_second",
+        ),
+    ];
+    for (limits, field) in cases {
+        let sim = SimHandle::new(Simulation::new(SimConfig::default()).expect("valid config"));
+        let options = ServerOptions { limits, ..ServerOptions::default() };
+        match Server::bind("127.0.0.1:0", sim, options) {
+            Ok(_) => panic!("a server with {field} = 0 was started"),
+            Err(error) => assert!(error.to_string().contains(field), "{field}: {error}"),
+        }
+    }
+}

@@ -41,6 +41,8 @@ pub enum ServerError {
     Io(#[from] std::io::Error),
     #[error("cannot start a server thread: {0}")]
     Spawn(std::io::Error),
+    #[error("invalid server limit: {0}")]
+    Limits(String),
 }
 
 /// How the server runs.
@@ -98,6 +100,29 @@ impl ServerLimits {
         max_messages_per_second: 500,
         write_timeout: Duration::from_secs(2),
     };
+}
+
+impl ServerLimits {
+    /// Refuses a zero limit, naming it. The OS takes a zero write timeout for none at all, so a
+    /// zero there would lift the bound on every write silently; a zero elsewhere refuses every
+    /// peer.
+    pub fn validate(&self) -> Result<(), String> {
+        let zero = if self.max_connections == 0 {
+            Some("max_connections")
+        } else if self.handshake_deadline.is_zero() {
+            Some("handshake_deadline")
+        } else if self.max_messages_per_second == 0 {
+            Some("max_messages_per_second")
+        } else if self.write_timeout.is_zero() {
+            Some("write_timeout")
+        } else {
+            None
+        };
+        match zero {
+            Some(field) => Err(format!("{field} is 0; it must be positive")),
+            None => Ok(()),
+        }
+    }
 }
 
 impl Default for ServerLimits {
@@ -248,6 +273,7 @@ impl Server {
         sim: SimHandle,
         options: ServerOptions,
     ) -> Result<Server, ServerError> {
+        options.limits.validate().map_err(ServerError::Limits)?;
         let listener = TcpListener::bind(&addr)
             .map_err(|source| ServerError::Bind { addr: addr.to_string(), source })?;
         let local = listener.local_addr()?;
