@@ -100,9 +100,7 @@ impl ServerLimits {
         max_messages_per_second: 500,
         write_timeout: Duration::from_secs(2),
     };
-}
 
-impl ServerLimits {
     /// Refuses a zero limit, naming it. The OS takes a zero write timeout for none at all, so a
     /// zero there would lift the bound on every write silently; a zero elsewhere refuses every
     /// peer.
