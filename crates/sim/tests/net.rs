@@ -497,3 +497,83 @@ fn a_robot_whose_server_stops_reading_gets_a_write_timeout_error_and_drops_promp
     assert!(error.contains("write timeout"), "{error}");
     assert!(dropped, "dropping the robot did not return");
 }
+
+/// A server that reads `hello` and then sends its welcome one byte every 100 ms: each read
+/// gets a byte well within any timeout, so only a deadline for the whole handshake ends it.
+fn trickling_server() -> SocketAddr {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("binds");
+    let addr = listener.local_addr().expect("an address");
+    let info = Simulation::new(SimConfig::default()).expect("valid config").platform_info();
+    std::thread::spawn(move || {
+        let (mut stream, _) = listener.accept().expect("a robot connects");
+        let hello =
+            protocol::read_message::<ClientMessage>(&mut stream, protocol::MAX_CLIENT_FRAME);
+        assert!(matches!(hello, Ok(ClientMessage::Hello { .. })));
+        let welcome = ServerMessage::Welcome {
+            version: protocol::VERSION,
+            team: 10,
+            player: 1,
+            team_index: 0,
+            info,
+            max_team_message: 128,
+            time: Time::ZERO,
+        };
+        for byte in protocol::encode(&welcome) {
+            // Ends when the robot gives up and closes the connection.
+            if stream.write_all(&[byte]).is_err() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    });
+    addr
+}
+
+#[test]
+fn a_server_that_trickles_its_welcome_fails_the_connect_at_the_timeout() {
+    let addr = trickling_server();
+    let options = ClientOptions {
+        timeout: Duration::from_millis(500),
+        write_timeout: Duration::from_secs(2),
+    };
+    let (result_tx, result) = std::sync::mpsc::channel();
+    // On another thread, so that a connect that never returns fails the test instead of
+    // hanging it.
+    std::thread::spawn(move || {
+        let _ = result_tx.send(connect_with(addr, 10, 1, options).map(|_| ()));
+    });
+    // The welcome would take minutes at this pace; the whole handshake gets half a second.
+    let outcome = result.recv_timeout(Duration::from_secs(10));
+    match outcome {
+        Ok(Err(ConnectError::Handshake { error, .. })) => {
+            assert!(error.to_string().contains("0.5 s"), "the error names the timeout: {error}");
+        }
+        Ok(other) => panic!("expected a handshake timeout, got {other:?}"),
+        Err(_) => panic!("connect still waiting after 10 s with a 0.5 s timeout"),
+    }
+}
+
+/// A zero limit is a mistake, never a setting: a zero write timeout means "no timeout" to the
+/// OS, which would take the bound off every write (and off stopping the server) without a word,
+/// and a server that admits no connection, hello or message serves nobody.
+#[test]
+fn limits_that_would_switch_themselves_off_are_refused_by_name() {
+    let zero = Duration::ZERO;
+    let cases = [
+        (ServerLimits { write_timeout: zero, ..ServerLimits::DEFAULT }, "write_timeout"),
+        (ServerLimits { handshake_deadline: zero, ..ServerLimits::DEFAULT }, "handshake_deadline"),
+        (ServerLimits { max_connections: 0, ..ServerLimits::DEFAULT }, "max_connections"),
+        (
+            ServerLimits { max_messages_per_second: 0, ..ServerLimits::DEFAULT },
+            "max_messages_per_second",
+        ),
+    ];
+    for (limits, field) in cases {
+        let sim = SimHandle::new(Simulation::new(SimConfig::default()).expect("valid config"));
+        let options = ServerOptions { limits, ..ServerOptions::default() };
+        match Server::bind("127.0.0.1:0", sim, options) {
+            Ok(_) => panic!("a server with {field} = 0 was started"),
+            Err(error) => assert!(error.to_string().contains(field), "{field}: {error}"),
+        }
+    }
+}

@@ -30,7 +30,10 @@ pub enum SplCommand {
         /// Local address to bind (the port is shared with robots on this machine).
         #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::UNSPECIFIED))]
         bind: IpAddr,
-        /// Decode every datagram as this type instead of detecting it.
+        /// Decode every datagram as this type. By default the port decides: everything on 3838
+        /// is judged as a control packet and everything on 3939 as a return packet, as the
+        /// robots and GameController3 judge what arrives there; on other ports the type is
+        /// detected by header.
         #[arg(long, value_enum)]
         kind: Option<Kind>,
         /// Stop after this many datagrams.
@@ -51,6 +54,19 @@ pub enum Kind {
     Team,
 }
 
+impl Kind {
+    /// What a datagram on `port` is taken for whatever its first bytes: GameController3 judges
+    /// every datagram on its return port as a return packet (one with a wrong header is dropped
+    /// for that), and a robot every datagram on its control port as a control packet.
+    fn received_on(port: u16) -> Option<Kind> {
+        match port {
+            net::GAMECONTROLLER_DATA_PORT => Some(Kind::Control),
+            net::GAMECONTROLLER_RETURN_PORT => Some(Kind::Return),
+            _ => None,
+        }
+    }
+}
+
 /// Runs an `spl` subcommand.
 pub fn run(cmd: SplCommand) -> Result<()> {
     match cmd {
@@ -64,7 +80,7 @@ pub fn run(cmd: SplCommand) -> Result<()> {
             Ok(())
         }
         SplCommand::Listen { port, bind, kind, count } => {
-            listen(SocketAddr::new(bind, port), kind, count)
+            listen(SocketAddr::new(bind, port), kind.or_else(|| Kind::received_on(port)), count)
         }
     }
 }

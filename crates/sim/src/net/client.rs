@@ -9,7 +9,7 @@
 
 use std::net::{Shutdown, SocketAddr, TcpStream, ToSocketAddrs};
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use strata_robot::Odometry;
 use strata_robot::platform::{
@@ -19,8 +19,8 @@ use strata_robot::platform::{
 use strata_runtime::Time;
 
 use super::protocol::{
-    self, Bytes, ClientMessage, ErrorCode, FrameError, MAX_SERVER_FRAME, PROTOCOL, ServerMessage,
-    VERSION,
+    self, Bytes, ClientMessage, Deadline, ErrorCode, FrameError, MAX_SERVER_FRAME, PROTOCOL,
+    ServerMessage, VERSION,
 };
 
 /// Why connecting to the server failed.
@@ -47,7 +47,7 @@ pub enum ConnectError {
 /// How long the robot waits for the server. [`connect`] uses the default write timeout.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClientOptions {
-    /// For connecting, and for each step of the handshake.
+    /// For connecting, for sending `hello`, and for the whole welcome to arrive.
     pub timeout: Duration,
     /// How long sending one message may block. A server that reads nothing for this long is
     /// taken as gone: the send fails, the connection closes and the platform reports it
@@ -188,12 +188,28 @@ pub fn connect_with(
     let _ = stream.set_nodelay(true);
     let handshake =
         |e: std::io::Error| ConnectError::Handshake { addr: target, error: FrameError::Io(e) };
-    stream.set_read_timeout(Some(timeout)).map_err(handshake)?;
     stream.set_write_timeout(Some(timeout)).map_err(handshake)?;
     let hello =
         ClientMessage::Hello { protocol: PROTOCOL.to_owned(), version: VERSION, team, player };
     protocol::write_message(&mut stream, &hello).map_err(handshake)?;
-    let reply = protocol::read_message::<ServerMessage>(&mut stream, MAX_SERVER_FRAME)
+    // One deadline for the whole welcome: a server that sends a byte now and then would pass
+    // a timeout per read, and keep the robot from starting (or failing) for as long as it likes.
+    let mut deadline = Deadline::new(&stream, Instant::now() + timeout);
+    let reply = protocol::read_message::<ServerMessage>(&mut deadline, MAX_SERVER_FRAME)
+        .map_err(|error| match error {
+            FrameError::Io(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) =>
+            {
+                FrameError::Io(std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    format!("no complete welcome within {} s, the timeout", timeout.as_secs_f64()),
+                ))
+            }
+            error => error,
+        })
         .map_err(|error| ConnectError::Handshake { addr: target, error })?;
     let welcome = match reply {
         ServerMessage::Welcome {

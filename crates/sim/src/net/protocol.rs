@@ -6,6 +6,8 @@
 //! `error` and closes. Byte payloads (team messages, GameController packets) are hex strings.
 
 use std::io::{self, Read, Write};
+use std::net::TcpStream;
+use std::time::Instant;
 
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -188,6 +190,32 @@ pub fn read_frame(reader: &mut impl Read, limit: usize) -> Result<Vec<u8>, Frame
         }
     })?;
     Ok(payload)
+}
+
+/// Reads from a stream until a deadline over all reads together: each read may wait only for
+/// what is left, so a peer that sends a byte now and then cannot stretch a handshake past it as
+/// it could a timeout per read.
+pub(crate) struct Deadline<'a> {
+    stream: &'a TcpStream,
+    deadline: Instant,
+}
+
+impl<'a> Deadline<'a> {
+    pub(crate) fn new(stream: &'a TcpStream, deadline: Instant) -> Deadline<'a> {
+        Deadline { stream, deadline }
+    }
+}
+
+impl Read for Deadline<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let left = self.deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(io::ErrorKind::TimedOut.into());
+        }
+        self.stream.set_read_timeout(Some(left))?;
+        let mut stream = self.stream;
+        stream.read(buf)
+    }
 }
 
 /// Decodes a frame's payload.

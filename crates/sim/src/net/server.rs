@@ -22,8 +22,8 @@ use strata_runtime::Time;
 use strata_spl::gamecontroller::GameState;
 
 use super::protocol::{
-    self, Bytes, ClientMessage, ErrorCode, FrameError, MAX_CLIENT_FRAME, PROTOCOL, ServerMessage,
-    VERSION,
+    self, Bytes, ClientMessage, Deadline, ErrorCode, FrameError, MAX_CLIENT_FRAME, PROTOCOL,
+    ServerMessage, VERSION,
 };
 use crate::platform::SimHandle;
 use crate::truth::RobotId;
@@ -41,6 +41,8 @@ pub enum ServerError {
     Io(#[from] std::io::Error),
     #[error("cannot start a server thread: {0}")]
     Spawn(std::io::Error),
+    #[error("invalid server limit: {0}")]
+    Limits(String),
 }
 
 /// How the server runs.
@@ -98,6 +100,27 @@ impl ServerLimits {
         max_messages_per_second: 500,
         write_timeout: Duration::from_secs(2),
     };
+
+    /// Refuses a zero limit, naming it. The OS takes a zero write timeout for none at all, so a
+    /// zero there would lift the bound on every write silently; a zero elsewhere refuses every
+    /// peer.
+    pub fn validate(&self) -> Result<(), String> {
+        let zero = if self.max_connections == 0 {
+            Some("max_connections")
+        } else if self.handshake_deadline.is_zero() {
+            Some("handshake_deadline")
+        } else if self.max_messages_per_second == 0 {
+            Some("max_messages_per_second")
+        } else if self.write_timeout.is_zero() {
+            Some("write_timeout")
+        } else {
+            None
+        };
+        match zero {
+            Some(field) => Err(format!("{field} is 0; it must be positive")),
+            None => Ok(()),
+        }
+    }
 }
 
 impl Default for ServerLimits {
@@ -248,6 +271,7 @@ impl Server {
         sim: SimHandle,
         options: ServerOptions,
     ) -> Result<Server, ServerError> {
+        options.limits.validate().map_err(ServerError::Limits)?;
         let listener = TcpListener::bind(&addr)
             .map_err(|source| ServerError::Bind { addr: addr.to_string(), source })?;
         let local = listener.local_addr()?;
@@ -758,30 +782,11 @@ fn linger(reader: &mut TcpStream) {
     }
 }
 
-/// Reads from a stream until a deadline over all reads together: each read may wait only for
-/// what is left.
-struct Deadline<'a> {
-    stream: &'a TcpStream,
-    deadline: Instant,
-}
-
-impl Read for Deadline<'_> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        let left = self.deadline.saturating_duration_since(Instant::now());
-        if left.is_zero() {
-            return Err(std::io::ErrorKind::TimedOut.into());
-        }
-        self.stream.set_read_timeout(Some(left))?;
-        let mut stream = self.stream;
-        stream.read(buf)
-    }
-}
-
 /// Reads `hello` within the handshake deadline, counted once from now: a peer that trickles its
 /// bytes cannot hold the connection longer.
 fn read_hello(reader: &TcpStream, shared: &Shared) -> Result<(u8, u8), Box<ServerMessage>> {
     let limit = shared.limits().handshake_deadline;
-    let mut deadline = Deadline { stream: reader, deadline: Instant::now() + limit };
+    let mut deadline = Deadline::new(reader, Instant::now() + limit);
     let hello = protocol::read_message::<ClientMessage>(&mut deadline, MAX_CLIENT_FRAME);
     let _ = reader.set_read_timeout(None);
     match hello {
