@@ -1,6 +1,6 @@
 //! Figures of the experiment reports, each written as PNG and SVG: stacked time series (the
 //! style of the paper's Fig. 5), grouped bars with confidence intervals and the paper's values,
-//! and paths on the field (Fig. 4).
+//! paths on the field (Fig. 4), and trade-offs between two measures with a third as point size.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -363,6 +363,123 @@ impl Figure for FieldPaths {
     }
 }
 
+/// One point of a [`Tradeoff`]: a method's two measures with their confidence intervals, and a
+/// third measure shown as the point's size.
+#[derive(Clone, Debug)]
+pub struct TradeoffPoint {
+    pub name: String,
+    pub x: Estimate,
+    pub y: Estimate,
+    pub size: f64,
+    pub colour: usize,
+}
+
+/// Two measures where lower is better on both, one point per method with 95% confidence
+/// intervals as whiskers, a third measure as the point's size: the points nearest the origin
+/// are the Pareto front.
+#[derive(Clone, Debug)]
+pub struct Tradeoff {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    /// What the size shows, for the legend ("goal coverage").
+    pub size_label: String,
+    /// How a point's size value is written in the legend.
+    pub size_unit: (f64, String),
+    pub points: Vec<TradeoffPoint>,
+}
+
+impl Tradeoff {
+    /// The radius of each point, px: the size values' span mapped onto 5..=22 px, so that
+    /// differences of a few percent stay visible (the legend gives the values).
+    fn radii(&self) -> Vec<i32> {
+        let (lo, hi) = range_of(self.points.iter().map(|p| p.size));
+        self.points
+            .iter()
+            .map(|p| {
+                let t = if p.size.is_finite() && hi > lo { (p.size - lo) / (hi - lo) } else { 0.5 };
+                (5.0 + 17.0 * t.clamp(0.0, 1.0)).round() as i32
+            })
+            .collect()
+    }
+}
+
+impl Figure for Tradeoff {
+    fn size(&self) -> (u32, u32) {
+        (900, 650)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        root.fill(&WHITE).map_err(s)?;
+        let pad = |(lo, hi): (f64, f64)| {
+            let span = (hi - lo).max(1e-6);
+            ((lo - 0.15 * span).min(0.0).max(lo - span), hi + 0.35 * span)
+        };
+        let finite = |e: &Estimate| e.mean.is_finite();
+        let (x0, x1) = pad(range_of(
+            self.points
+                .iter()
+                .filter(|p| finite(&p.x))
+                .flat_map(|p| [p.x.low(), p.x.high(), p.x.mean]),
+        ));
+        let (y0, y1) = pad(range_of(
+            self.points
+                .iter()
+                .filter(|p| finite(&p.y))
+                .flat_map(|p| [p.y.low(), p.y.high(), p.y.mean]),
+        ));
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, (FAMILY, 20))
+            .margin(14)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(s)?;
+        chart
+            .configure_mesh()
+            .x_desc(self.x_label.as_str())
+            .y_desc(self.y_label.as_str())
+            .label_style((FAMILY, 12))
+            .axis_desc_style((FAMILY, 13))
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(s)?;
+        for (point, radius) in self.points.iter().zip(self.radii()) {
+            if !finite(&point.x) || !finite(&point.y) {
+                continue;
+            }
+            let c = colour(point.colour);
+            let (x, y) = (point.x.mean, point.y.mean);
+            let mut whiskers = Vec::new();
+            if point.x.n >= 2 && point.x.ci95.is_finite() {
+                whiskers.push(PathElement::new(vec![(point.x.low(), y), (point.x.high(), y)], c));
+            }
+            if point.y.n >= 2 && point.y.ci95.is_finite() {
+                whiskers.push(PathElement::new(vec![(x, point.y.low()), (x, point.y.high())], c));
+            }
+            chart.draw_series(whiskers).map_err(s)?;
+            let (scale, unit) = &self.size_unit;
+            let label =
+                format!("{} ({} {:.1}{unit})", point.name, self.size_label, point.size * scale);
+            chart
+                .draw_series([Circle::new((x, y), radius, c.mix(0.55).filled())])
+                .map_err(s)?
+                .label(label)
+                .legend(move |(x, y)| Circle::new((x + 7, y), 6, c.filled()));
+            chart.draw_series([Circle::new((x, y), radius, c.stroke_width(2))]).map_err(s)?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.4))
+            .label_font((FAMILY, 12))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(s)?;
+        Ok(())
+    }
+}
+
 /// Histogram-like bars of discrete distributions (strikers per team), one group per condition.
 pub fn distribution_bars(
     title: &str,
@@ -424,7 +541,34 @@ mod tests {
             targets: None,
         };
         let more = save(&bars, &dir, "bars").expect("written");
-        for file in files.iter().chain(&more) {
+        let tradeoff = Tradeoff {
+            title: "pareto".into(),
+            x_label: "ball unknown (%)".into(),
+            y_label: "pose error (cm)".into(),
+            size_label: "coverage".into(),
+            size_unit: (100.0, " %".into()),
+            points: vec![
+                TradeoffPoint {
+                    name: "value-function".into(),
+                    x: Estimate::of(&[1.0, 2.0, 3.0]),
+                    y: Estimate::of(&[2.5, 2.9]),
+                    size: 0.55,
+                    colour: 0,
+                },
+                TradeoffPoint {
+                    name: "entropy".into(),
+                    x: Estimate::of(&[0.5]),
+                    y: Estimate::of(&[f64::NAN]),
+                    size: 0.5,
+                    colour: 1,
+                },
+            ],
+        };
+        let tradeoffs = save(&tradeoff, &dir, "tradeoff").expect("written");
+        let svg = std::fs::read_to_string(dir.join("tradeoff.svg")).expect("svg");
+        // A point without a mean is left out rather than drawn at the origin.
+        assert!(svg.contains("value-function (coverage 55.0 %)") && !svg.contains("entropy ("));
+        for file in files.iter().chain(&more).chain(&tradeoffs) {
             let len = std::fs::metadata(file).expect("exists").len();
             assert!(len > 1000, "{}: {len} bytes", file.display());
         }
