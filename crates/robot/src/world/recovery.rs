@@ -61,9 +61,6 @@ pub(crate) struct RecoveryInput<'a> {
     pub min_landmarks: usize,
     pub margin: f64,
     pub max_hypotheses: usize,
-    /// A fix whose position is more uncertain than this (major sigma, m) is a guess, not
-    /// accepted.
-    pub max_sigma: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -176,14 +173,6 @@ pub(crate) fn recover(input: &RecoveryInput<'_>) -> RecoveryOutcome {
     refined.sort_by(|a, b| a.cost.total_cmp(&b.cost));
     let Some(best) = refined.first().cloned() else { return RecoveryOutcome::Insufficient };
     if support(input, &best) < input.min_landmarks {
-        return RecoveryOutcome::Insufficient;
-    }
-    // Two landmarks close together seen from afar (the centre mark and a crossing of the
-    // centre circle from a touch line) fix the heading to a few tenths of a radian and the
-    // position to a metre: the mirror image a metre away fits them as well, and the hints
-    // that tell the two apart are then weighed at the wrong places. Waiting for a landmark
-    // that fixes the pose costs a moment; a pose on the wrong side of the field costs the game.
-    if major_sigma(&best.covariance.fixed_view::<2, 2>(0, 0).into_owned()) > input.max_sigma {
         return RecoveryOutcome::Insufficient;
     }
     match refined.iter().skip(1).find(|h| !same_pose(&h.pose, &best.pose)) {
@@ -442,7 +431,6 @@ mod tests {
             min_landmarks: 2,
             margin: 6.0,
             max_hypotheses: 600,
-            max_sigma: 0.75,
         }
     }
 
@@ -575,52 +563,5 @@ mod tests {
         };
         assert!(h.pose.position().distance(truth.position()) < 1e-6, "{:?}", h.pose);
         assert!(normalize_angle(h.pose.theta - truth.theta).abs() < 1e-6);
-    }
-
-    /// A camera's sighting of `at` from `truth`: range sigma 10 % of the range, bearing sigma
-    /// 0.035 rad, as the simulator's camera model at a few metres.
-    fn camera_sighting(truth: Pose, at: Point<Global>, group: usize, slot: usize) -> Sighting {
-        let p = truth.to_robot(at);
-        let (r, b) = (p.x.hypot(p.y), p.y.atan2(p.x));
-        let j = Matrix2::new(b.cos(), -r * b.sin(), b.sin(), r * b.cos());
-        let polar = Matrix2::new((0.1 * r).powi(2), 0.0, 0.0, 0.035f64.powi(2));
-        Sighting {
-            group,
-            slot,
-            position: Vector2::new(p.x, p.y),
-            covariance: j * polar * j.transpose(),
-        }
-    }
-
-    #[test]
-    fn two_landmarks_close_together_far_away_leave_the_robot_lost_until_one_tells() {
-        // The centre mark (group 1) and the centre circle's crossings with the halfway line
-        // (group 2), seen from a touch line near the halfway line: the pose's mirror image in
-        // the same half, a metre off, fits them as well.
-        let mut map = map();
-        map.push(MapInstance { group: 1, slot: 4, position: Point::new(0.0, 0.0) });
-        map.push(MapInstance { group: 2, slot: 5, position: Point::new(0.0, 0.75) });
-        map.push(MapInstance { group: 2, slot: 6, position: Point::new(0.0, -0.75) });
-        // The penalty marks (group 3).
-        map.push(MapInstance { group: 3, slot: 7, position: Point::new(-3.2, 0.0) });
-        map.push(MapInstance { group: 3, slot: 8, position: Point::new(3.2, 0.0) });
-        let truth = Pose::new(-0.68, 3.0, -std::f64::consts::FRAC_PI_2);
-        let hints = [SymmetryHint::Region {
-            region: Region { min_x: -5.2, max_x: 0.0, min_y: -3.7, max_y: 3.7 },
-        }];
-        let close = [
-            camera_sighting(truth, Point::new(0.0, 0.0), 1, 10),
-            camera_sighting(truth, Point::new(0.0, -0.75), 2, 11),
-        ];
-        let outcome = recover(&input(&close, &map, &hints));
-        assert!(matches!(outcome, RecoveryOutcome::Insufficient), "{outcome:?}");
-        // Its own penalty mark tells.
-        let mut telling = close.to_vec();
-        telling.push(camera_sighting(truth, Point::new(-3.2, 0.0), 3, 12));
-        let outcome = recover(&input(&telling, &map, &hints));
-        let RecoveryOutcome::Found(h) = outcome else {
-            panic!("three landmarks fix the pose: {outcome:?}")
-        };
-        assert!(h.pose.position().distance(truth.position()) < 0.3, "{:?}", h.pose);
     }
 }
