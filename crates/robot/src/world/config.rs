@@ -362,6 +362,10 @@ pub struct PoseConfig {
     /// A recovery hypothesis is accepted only if every clearly different hypothesis costs this
     /// much more (negative log-likelihood).
     pub recovery_margin: f64,
+    /// A recovered pose is accepted only if its position is at least this sure (major sigma,
+    /// m): landmarks that fix it worse (two close together, far away) leave the robot lost
+    /// until it sees one that tells.
+    pub recovery_max_sigma: f64,
     /// Hypotheses tried per recovery attempt (pairs of landmarks times map instances).
     pub recovery_max_hypotheses: usize,
     /// Time between two recovery attempts while lost, s (an attempt costs about 0.15 ms on a
@@ -388,6 +392,7 @@ impl Default for PoseConfig {
             recovery_max_age: 3.0,
             recovery_min_landmarks: 2,
             recovery_margin: 6.0,
+            recovery_max_sigma: 0.75,
             recovery_max_hypotheses: 600,
             recovery_period: 0.1,
             correct_odometry: false,
@@ -604,6 +609,9 @@ impl WorldModelConfig {
             return Err(err("pose.recovery_min_landmarks", "must be at least 2"));
         }
         non_negative("pose.recovery_margin", p.recovery_margin)?;
+        if !(p.recovery_max_sigma > 0.0 && p.recovery_max_sigma.is_finite()) {
+            return Err(err("pose.recovery_max_sigma", "must be positive and finite"));
+        }
         if p.recovery_max_hypotheses == 0 {
             return Err(err("pose.recovery_max_hypotheses", "must be at least 1"));
         }

@@ -61,6 +61,9 @@ pub(crate) struct RecoveryInput<'a> {
     pub min_landmarks: usize,
     pub margin: f64,
     pub max_hypotheses: usize,
+    /// A fix whose position is more uncertain than this (major sigma, m) is a guess, not
+    /// accepted.
+    pub max_sigma: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -179,8 +182,32 @@ pub(crate) fn recover(input: &RecoveryInput<'_>) -> RecoveryOutcome {
         Some(competitor) if competitor.cost - best.cost < input.margin => {
             RecoveryOutcome::Ambiguous { best, competitor: competitor.clone() }
         }
+        // Two landmarks close together seen from afar (the centre mark and a crossing of the
+        // centre circle from a touch line) fix the heading to a few tenths of a radian and the
+        // position to a metre: a rotated mirror image inside the hinted half fits them as well
+        // as the truth, and the hints that tell the mirror images apart are then weighed at
+        // the wrong places. Where only the hints decide, the landmarks must fix the pose well
+        // enough for the hints to be weighed where the robot is; otherwise waiting for a
+        // landmark that tells costs a moment, a pose on the wrong side of the field the game.
+        _ if hints_decide(input, &best, &refined)
+            && major_sigma(&best.covariance.fixed_view::<2, 2>(0, 0).into_owned())
+                > input.max_sigma =>
+        {
+            RecoveryOutcome::Insufficient
+        }
         _ => RecoveryOutcome::Found(best),
     }
+}
+
+/// Whether the landmarks alone leave a clearly different pose about as likely as `best`, so that
+/// only the hints (the hinted half, the prior, the relocations, the teammates) chose it.
+fn hints_decide(input: &RecoveryInput<'_>, best: &Hypothesis, refined: &[Hypothesis]) -> bool {
+    let landmarks_only = |h: &Hypothesis| h.cost - hint_cost(input, &h.pose);
+    let own = landmarks_only(best);
+    refined
+        .iter()
+        .filter(|h| !same_pose(&h.pose, &best.pose))
+        .any(|h| landmarks_only(h) - own < input.margin)
 }
 
 /// Hypotheses from one landmark estimate and a relocation: for each map instance the estimate
@@ -431,6 +458,7 @@ mod tests {
             min_landmarks: 2,
             margin: 6.0,
             max_hypotheses: 600,
+            max_sigma: 0.75,
         }
     }
 
@@ -563,5 +591,52 @@ mod tests {
         };
         assert!(h.pose.position().distance(truth.position()) < 1e-6, "{:?}", h.pose);
         assert!(normalize_angle(h.pose.theta - truth.theta).abs() < 1e-6);
+    }
+
+    /// A camera's sighting of `at` from `truth`: range sigma 10 % of the range, bearing sigma
+    /// 0.035 rad, as the simulator's camera model at a few metres.
+    fn camera_sighting(truth: Pose, at: Point<Global>, group: usize, slot: usize) -> Sighting {
+        let p = truth.to_robot(at);
+        let (r, b) = (p.x.hypot(p.y), p.y.atan2(p.x));
+        let j = Matrix2::new(b.cos(), -r * b.sin(), b.sin(), r * b.cos());
+        let polar = Matrix2::new((0.1 * r).powi(2), 0.0, 0.0, 0.035f64.powi(2));
+        Sighting {
+            group,
+            slot,
+            position: Vector2::new(p.x, p.y),
+            covariance: j * polar * j.transpose(),
+        }
+    }
+
+    #[test]
+    fn two_landmarks_close_together_far_away_leave_the_robot_lost_until_one_tells() {
+        // The centre mark (group 1) and the centre circle's crossings with the halfway line
+        // (group 2), seen from a touch line near the halfway line: the pose's mirror image in
+        // the same half, a metre off, fits them as well.
+        let mut map = map();
+        map.push(MapInstance { group: 1, slot: 4, position: Point::new(0.0, 0.0) });
+        map.push(MapInstance { group: 2, slot: 5, position: Point::new(0.0, 0.75) });
+        map.push(MapInstance { group: 2, slot: 6, position: Point::new(0.0, -0.75) });
+        // The penalty marks (group 3).
+        map.push(MapInstance { group: 3, slot: 7, position: Point::new(-3.2, 0.0) });
+        map.push(MapInstance { group: 3, slot: 8, position: Point::new(3.2, 0.0) });
+        let truth = Pose::new(-0.68, 3.0, -std::f64::consts::FRAC_PI_2);
+        let hints = [SymmetryHint::Region {
+            region: Region { min_x: -5.2, max_x: 0.0, min_y: -3.7, max_y: 3.7 },
+        }];
+        let close = [
+            camera_sighting(truth, Point::new(0.0, 0.0), 1, 10),
+            camera_sighting(truth, Point::new(0.0, -0.75), 2, 11),
+        ];
+        let outcome = recover(&input(&close, &map, &hints));
+        assert!(matches!(outcome, RecoveryOutcome::Insufficient), "{outcome:?}");
+        // Its own penalty mark tells.
+        let mut telling = close.to_vec();
+        telling.push(camera_sighting(truth, Point::new(-3.2, 0.0), 3, 12));
+        let outcome = recover(&input(&telling, &map, &hints));
+        let RecoveryOutcome::Found(h) = outcome else {
+            panic!("three landmarks fix the pose: {outcome:?}")
+        };
+        assert!(h.pose.position().distance(truth.position()) < 0.3, "{:?}", h.pose);
     }
 }

@@ -221,6 +221,7 @@ impl WorldModel {
             gate: self.gate,
             min_landmarks: self.config.pose.recovery_min_landmarks,
             margin: self.config.pose.recovery_margin,
+            max_sigma: self.config.pose.recovery_max_sigma,
             max_hypotheses: self.config.pose.recovery_max_hypotheses,
         };
         let h = match recover(&input) {
