@@ -257,8 +257,13 @@ fn the_message_budget_is_never_exceeded_and_lasts_the_game() {
         },
     );
     // 5 robots share 1200 messages over a 600 s game: 240 each, 4 kept for instant messages.
-    planner.budget =
-        MessageBudget { team_remaining: 1200, robots: 5, time_left: 600.0, reserve: 4 };
+    planner.budget = MessageBudget {
+        team_remaining: 1200,
+        robots: 5,
+        time_left: 600.0,
+        reserve: 4,
+        vital_reserve: 0,
+    };
     assert!((planner.budget.sustainable_interval() - 600.0 / 240.0).abs() < 1e-9);
     let mut sent = 0;
     let mut time = 0.0;

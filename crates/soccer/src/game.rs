@@ -234,6 +234,12 @@ pub struct GameControllerReferee {
 /// Messages of each robot's share kept for instant messages.
 const MESSAGE_RESERVE: u32 = 10;
 
+/// Messages of each robot's share, within the reserve, kept for the referee's signals: late in a
+/// game falls and claims spend the rest, and a whistle the team cannot share is a kick-off
+/// its robots start only when the packets catch up, 15 s late. Two whistle reports per kick-off
+/// make the quorum; a team of seven keeps 14 messages, a few kick-offs' worth.
+const VITAL_RESERVE: u32 = 2;
+
 /// The time left the message budget is paced over once the GameController's clock has run out
 /// outside the first half, s.
 const CLOCK_OUT_PACING_SECS: f64 = 60.0;
@@ -415,6 +421,7 @@ impl GameControllerReferee {
             // through when pacing over the clock (which stops through Ready and Set) has
             // spent the rest.
             reserve: MESSAGE_RESERVE,
+            vital_reserve: VITAL_RESERVE,
         });
         self.last = Some(data);
     }

@@ -19,7 +19,9 @@
 //! - Communication lives only here: a periodic message, plus an instant message when this
 //!   robot's status changes (falls, stands up, loses or finds the ball), its role changes or a
 //!   role conflict is detected, always within the message budget; part of the budget is kept
-//!   for the urgent ones (a claim or release of the mission's first role, a fall). The
+//!   for the urgent ones (a claim or release of the mission's first role, a fall), and the last
+//!   part of that for the vital ones (what the whole team must act on together: in soccer, the
+//!   referee's signals). The
 //!   deliberative layer is told only when the mission, the role or the application's
 //!   directive change.
 
@@ -364,13 +366,38 @@ pub struct MessageBudget {
     pub robots: u32,
     /// Time left in the game, s.
     pub time_left: f64,
-    /// Messages kept back for instant messages.
+    /// Messages of each robot's share kept back for urgent and vital messages.
     pub reserve: u32,
+    /// Messages of each robot's share, within `reserve`, kept back for vital messages.
+    #[serde(default)]
+    pub vital_reserve: u32,
+}
+
+/// How much of the message budget a message may use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Urgency {
+    /// Waits behind the reserve (periodic messages, news teammates can live without for a
+    /// while: a role further down the mission, the ball found).
+    #[default]
+    Ordinary,
+    /// May use the reserve, but not its vital part: a claim or release of the mission's first
+    /// role, a robot that cannot play or can again.
+    Urgent,
+    /// May use the whole reserve: what the whole team must act on together and at once (in
+    /// soccer, the referee's signals). Late in a game falls and claims have spent the rest.
+    Vital,
 }
 
 impl MessageBudget {
     pub fn unlimited() -> MessageBudget {
-        MessageBudget { team_remaining: u32::MAX, robots: 1, time_left: f64::INFINITY, reserve: 0 }
+        MessageBudget {
+            team_remaining: u32::MAX,
+            robots: 1,
+            time_left: f64::INFINITY,
+            reserve: 0,
+            vital_reserve: 0,
+        }
     }
 
     fn own_share(&self) -> f64 {
@@ -396,9 +423,13 @@ impl MessageBudget {
         }
     }
 
-    pub fn can_send(&self, instant: bool) -> bool {
-        let share = self.own_share();
-        if instant { share >= 1.0 } else { share >= 1.0 + f64::from(self.reserve) }
+    pub fn can_send(&self, urgency: Urgency) -> bool {
+        let kept = match urgency {
+            Urgency::Ordinary => self.reserve,
+            Urgency::Urgent => self.vital_reserve.min(self.reserve),
+            Urgency::Vital => 0,
+        };
+        self.own_share() >= 1.0 + f64::from(kept)
     }
 
     pub fn spend(&mut self) {
@@ -446,9 +477,9 @@ pub struct Planner<P: PlanningPolicy> {
     last_received: Option<Time>,
     received_since_sent: bool,
     instant_pending: bool,
-    /// The pending instant message must not wait behind the reserve: it changes who holds
-    /// the mission's first role (or whether this robot can play at all).
-    urgent_pending: bool,
+    /// How much of the reserve the pending instant message may use: more when it changes who
+    /// holds the mission's first role (or whether this robot can play at all).
+    urgency: Urgency,
     conflict_pending: bool,
     pub budget: MessageBudget,
     pub stats: PlanningStats,
@@ -490,7 +521,7 @@ impl<P: PlanningPolicy> Planner<P> {
             last_received: None,
             received_since_sent: false,
             instant_pending: false,
-            urgent_pending: false,
+            urgency: Urgency::Ordinary,
             conflict_pending: false,
             budget: MessageBudget::unlimited(),
             stats: PlanningStats::default(),
@@ -543,7 +574,7 @@ impl<P: PlanningPolicy> Planner<P> {
         let paced = self.budget.sustainable_interval() * self.config.silence_intervals;
         // Once the budget is down to its reserve, teammates speak only of falls and claims:
         // their silence is the rule's, not a lost link, and their last word stands.
-        let muted = !self.budget.can_send(false);
+        let muted = !self.budget.can_send(Urgency::Ordinary);
         let timeout = if muted {
             f64::INFINITY
         } else if paced.is_finite() {
@@ -594,7 +625,7 @@ impl<P: PlanningPolicy> Planner<P> {
             // while it cannot is no matter to them.
             let playing = |s: &OwnState| s.status == StandingStatus::Stable && !s.penalized;
             if playing(previous) != playing(&own) {
-                self.urgent_pending = true;
+                self.urgency = self.urgency.max(Urgency::Urgent);
             }
         }
         self.own = Some(own.clone());
@@ -641,7 +672,7 @@ impl<P: PlanningPolicy> Planner<P> {
         let (mission, role, utility) = if !out
             && !alone
             && Self::leads(catalog, mission, role) != self.heard_claiming()
-            && self.budget.can_send(true)
+            && self.budget.can_send(Urgency::Urgent)
             && !self.can_announce(now)
         {
             let teammate_claims =
@@ -668,7 +699,9 @@ impl<P: PlanningPolicy> Planner<P> {
             self.conflict_pending = true;
             self.instant_pending = true;
             // The budget cannot settle every conflict at once: the first role's can.
-            self.urgent_pending |= Self::leads(catalog, mission, role);
+            if Self::leads(catalog, mission, role) {
+                self.urgency = self.urgency.max(Urgency::Urgent);
+            }
         }
         if !out {
             // Back in: the role just computed, without the old claim, is the claim from now on.
@@ -682,7 +715,7 @@ impl<P: PlanningPolicy> Planner<P> {
                 if Self::leads(catalog, next.mission, next.role)
                     || Self::leads(catalog, self.assignment.mission, self.assignment.role)
                 {
-                    self.urgent_pending = true;
+                    self.urgency = self.urgency.max(Urgency::Urgent);
                 }
             }
             self.assignment = next.clone();
@@ -711,7 +744,7 @@ impl<P: PlanningPolicy> Planner<P> {
         };
         let spacing = self.config.min_message_spacing.max(0.0);
         tokens >= 1.0
-            && self.budget.can_send(true)
+            && self.budget.can_send(Urgency::Urgent)
             && self.last_sent.is_none_or(|t| (now - t).as_secs_f64() >= spacing)
     }
 
@@ -867,10 +900,11 @@ impl<P: PlanningPolicy> Planner<P> {
     /// that makes this robot's share of the budget last the game: a burst of instant messages
     /// (a fall, a role change) is allowed from what was saved, never beyond.
     /// Asks for a message at once (within the budget and the spacing): something the robot
-    /// perceived that teammates should act on now. `urgent` lets it use the team's reserve.
-    pub fn request_instant(&mut self, urgent: bool) {
+    /// perceived that teammates should act on now, with as much of the reserve as `urgency`
+    /// allows.
+    pub fn request_instant(&mut self, urgency: Urgency) {
         self.instant_pending = true;
-        self.urgent_pending |= urgent;
+        self.urgency = self.urgency.max(urgency);
     }
 
     pub fn message_due(&mut self, now: Time) -> Option<MessageKind> {
@@ -898,9 +932,13 @@ impl<P: PlanningPolicy> Planner<P> {
         } else {
             return None;
         };
-        let reserve = if self.urgent_pending { 0.0 } else { self.config.urgent_reserve.max(0.0) };
+        let reserve = if self.urgency > Urgency::Ordinary {
+            0.0
+        } else {
+            self.config.urgent_reserve.max(0.0)
+        };
         // The team's reserve is for urgent messages too.
-        if self.tokens < 1.0 + reserve || !self.budget.can_send(self.urgent_pending) {
+        if self.tokens < 1.0 + reserve || !self.budget.can_send(self.urgency) {
             self.stats.withheld += 1;
             // An instant message that cannot go now is merged into the next one that can.
             return None;
@@ -943,7 +981,7 @@ impl<P: PlanningPolicy> Planner<P> {
         ));
         self.received_since_sent = false;
         self.instant_pending = false;
-        self.urgent_pending = false;
+        self.urgency = Urgency::Ordinary;
         self.conflict_pending = false;
         self.tokens -= 1.0;
         self.budget.spend();
@@ -1114,7 +1152,13 @@ mod tests {
             PlanningConfig { message_burst: 1.0, ..PlanningConfig::default() },
         );
         // Seven robots sharing 1200 messages over 1200 s: a token every 7 s.
-        p.budget = MessageBudget { team_remaining: 1200, robots: 7, time_left: 1200.0, reserve: 3 };
+        p.budget = MessageBudget {
+            team_remaining: 1200,
+            robots: 7,
+            time_left: 1200.0,
+            reserve: 3,
+            vital_reserve: 0,
+        };
         p.receive(t(0.0), message(3, -3.0, Role::Striker, -4.0));
         p.evaluate(t(0.0), own(2, -3.5));
         assert_eq!(p.assignment().role, Role::StrikerCover);
@@ -1156,7 +1200,13 @@ mod tests {
     fn teammates_are_silent_only_beyond_what_their_budget_allows() {
         let mut p = planner();
         // Seven robots sharing 1200 messages over 1200 s: one message every 7 s each.
-        p.budget = MessageBudget { team_remaining: 1200, robots: 7, time_left: 1200.0, reserve: 3 };
+        p.budget = MessageBudget {
+            team_remaining: 1200,
+            robots: 7,
+            time_left: 1200.0,
+            reserve: 3,
+            vital_reserve: 0,
+        };
         p.receive(t(0.0), message(3, -3.0, Role::StrikerCover, -4.0));
         p.evaluate(t(10.0), own(2, 0.5));
         assert!(!p.assignment().alone, "heard 10 s ago, within the budget's pace");
@@ -1180,7 +1230,13 @@ mod tests {
                 ..PlanningConfig::default()
             },
         );
-        p.budget = MessageBudget { team_remaining: 10, robots: 1, time_left: 1000.0, reserve: 0 };
+        p.budget = MessageBudget {
+            team_remaining: 10,
+            robots: 1,
+            time_left: 1000.0,
+            reserve: 0,
+            vital_reserve: 0,
+        };
         p.receive(t(0.0), message(3, -3.0, Role::StrikerCover, -4.0));
         for time in [0.0, 1.0] {
             p.evaluate(t(time), own(2, 0.5));
@@ -1194,5 +1250,31 @@ mod tests {
         p.evaluate(t(2.5), own(2, 0.5));
         assert_eq!(p.assignment().role, Role::StrikerCover);
         assert_eq!(p.message_due(t(2.5)), Some(MessageKind::Instant));
+    }
+
+    #[test]
+    fn the_vital_part_of_the_reserve_outlasts_falls_and_claims() {
+        let mut p = planner();
+        // Seven robots, two messages each left: the reserve's vital part.
+        p.budget = MessageBudget {
+            team_remaining: 14,
+            robots: 7,
+            time_left: 100.0,
+            reserve: 10,
+            vital_reserve: 2,
+        };
+        assert!(!p.budget.can_send(Urgency::Ordinary));
+        assert!(!p.budget.can_send(Urgency::Urgent));
+        assert!(p.budget.can_send(Urgency::Vital));
+        p.evaluate(t(0.0), own(2, 0.5));
+        p.compose(t(0.0), MessageKind::Periodic);
+        p.request_instant(Urgency::Urgent);
+        assert_eq!(p.message_due(t(1.0)), None, "a fall waits behind the vital part");
+        p.request_instant(Urgency::Vital);
+        assert_eq!(p.message_due(t(2.0)), Some(MessageKind::Instant), "a signal goes out");
+        // Below one message each, nobody speaks: seven at once would overrun the budget.
+        p.budget.team_remaining = 6;
+        p.request_instant(Urgency::Vital);
+        assert_eq!(p.message_due(t(3.0)), None);
     }
 }

@@ -8,7 +8,7 @@ use strata_runtime::{
 
 use crate::control::planning::{
     Assignment, Label, MessageBudget, OwnState, Planner, PlanningPolicy, PlanningStats,
-    SharedObject, SharedSignal, StandingStatus, TeamMessage,
+    SharedObject, SharedSignal, StandingStatus, TeamMessage, Urgency,
 };
 use crate::control::reactive::Stability;
 use crate::edge::{LinkInbox, LinkOutbox};
@@ -406,8 +406,8 @@ where
         self.device.update(now, self.world.as_ref());
         if self.device.take_signal_news() {
             // Teammates that missed the signal follow this robot: the sooner the better, so
-            // it may use the team's reserve.
-            self.planner.request_instant(true);
+            // it may use the team's whole reserve.
+            self.planner.request_instant(Urgency::Vital);
         }
         let own = self.own_state();
         self.planner.evaluate(now, own.clone());
