@@ -52,14 +52,16 @@ fn read_with_foxglove(script: &Path, path: &Path) -> Value {
     report
 }
 
+/// Equal but for the scene's rounding to a tenth of a millimetre.
 fn close(a: f64, b: f64) -> bool {
-    (a - b).abs() < 1e-6
+    (a - b).abs() < 1e-4
 }
 
-/// The same heading, a whole number of turns apart.
+/// The same heading, a whole number of turns apart (the scene's quaternions are rounded to
+/// 1e-4: about 2e-4 rad).
 fn same_angle(a: f64, b: f64) -> bool {
     let d = (a - b).rem_euclid(std::f64::consts::TAU);
-    d < 1e-6 || std::f64::consts::TAU - d < 1e-6
+    d < 5e-4 || std::f64::consts::TAU - d < 5e-4
 }
 
 /// Every scene channel was decoded with Foxglove's schemas, and the scene Foxglove read holds

@@ -50,6 +50,13 @@ impl Duration {
     }
 }
 
+/// `value` to a tenth of a millimetre (or of a ten-thousandth for unitless numbers): the
+/// scene is for the eye, and JSON writes the shortest text that reads back as the number, so a
+/// rounded coordinate takes a few characters instead of seventeen digits.
+pub fn round(value: f64) -> f64 {
+    (value * 1e4).round() / 1e4
+}
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct Vector3 {
     pub x: f64,
@@ -60,6 +67,11 @@ pub struct Vector3 {
 impl Vector3 {
     pub const fn new(x: f64, y: f64, z: f64) -> Vector3 {
         Vector3 { x, y, z }
+    }
+
+    /// A vector with its coordinates [rounded](round).
+    pub fn rounded(x: f64, y: f64, z: f64) -> Vector3 {
+        Vector3 { x: round(x), y: round(y), z: round(z) }
     }
 }
 
@@ -78,15 +90,17 @@ impl Quaternion {
     pub const IDENTITY: Quaternion = Quaternion { x: 0.0, y: 0.0, z: 0.0, w: 1.0 };
 
     /// A turn by `angle` about the z axis (yaw, counter-clockwise seen from above).
+    /// Its components [rounded](round): within about 2e-4 rad of the angle.
     pub fn about_z(angle: f64) -> Quaternion {
         let (s, c) = (angle / 2.0).sin_cos();
-        Quaternion { x: 0.0, y: 0.0, z: s, w: c }
+        Quaternion { x: 0.0, y: 0.0, z: round(s), w: round(c) }
     }
 
-    /// A turn by `angle` about the y axis (a head pitching down is a positive turn).
+    /// A turn by `angle` about the y axis (a head pitching down is a positive turn), its
+    /// components [rounded](round).
     pub fn about_y(angle: f64) -> Quaternion {
         let (s, c) = (angle / 2.0).sin_cos();
-        Quaternion { x: 0.0, y: s, z: 0.0, w: c }
+        Quaternion { x: 0.0, y: round(s), z: 0.0, w: round(c) }
     }
 
     /// The yaw of a turn about z (the inverse of [`Quaternion::about_z`]).
@@ -105,9 +119,9 @@ impl Pose {
     pub const IDENTITY: Pose =
         Pose { position: Vector3::new(0.0, 0.0, 0.0), orientation: Quaternion::IDENTITY };
 
-    /// At `(x, y, z)`, turned by `yaw` about z.
+    /// At `(x, y, z)`, turned by `yaw` about z ([rounded](round)).
     pub fn planar(x: f64, y: f64, z: f64, yaw: f64) -> Pose {
-        Pose { position: Vector3::new(x, y, z), orientation: Quaternion::about_z(yaw) }
+        Pose { position: Vector3::rounded(x, y, z), orientation: Quaternion::about_z(yaw) }
     }
 }
 
@@ -770,9 +784,12 @@ mod tests {
     #[test]
     fn quaternions_turn_about_their_axes() {
         let q = Quaternion::about_z(1.0);
-        assert!((q.yaw() - 1.0).abs() < 1e-12);
-        assert!((q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w - 1.0).abs() < 1e-12);
+        assert!((q.yaw() - 1.0).abs() < 2e-4);
+        assert!((q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w - 1.0).abs() < 2e-4);
         let p = Quaternion::about_y(0.5);
-        assert!((2.0 * p.y.atan2(p.w) - 0.5).abs() < 1e-12);
+        assert!((2.0 * p.y.atan2(p.w) - 0.5).abs() < 2e-4);
+        // Rounded, a coordinate is short in JSON.
+        let v = Vector3::rounded(-3.8249999999999997, 1.0 / 3.0, 0.0);
+        assert_eq!(serde_json::to_string(&v).expect("JSON"), r#"{"x":-3.825,"y":0.3333,"z":0.0}"#);
     }
 }

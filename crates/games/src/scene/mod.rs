@@ -171,7 +171,7 @@ fn normalize(angle: f64) -> f64 {
 }
 
 fn p3(x: f64, y: f64, z: f64) -> Point3 {
-    Vector3::new(x, y, z)
+    Vector3::rounded(x, y, z)
 }
 
 /// The field's carpet, lines, centre circle, penalty marks and goals, in the field frame,
@@ -236,7 +236,8 @@ pub fn field_update(field: &Field, time: Timestamp) -> SceneUpdate {
     SceneUpdate { deletions: Vec::new(), entities: vec![entity] }
 }
 
-/// The points of the ellipse `sigmas` standard deviations around `(x, y)` for a covariance.
+/// The points of the ellipse `sigmas` standard deviations around `(x, y)` for a covariance
+/// (24 points, [rounded](foxglove::round)).
 pub fn covariance_ellipse(x: f64, y: f64, covariance: [[f64; 2]; 2], sigmas: f64) -> Vec<Point3> {
     let [[a, b], [_, c]] = covariance;
     let mean = (a + c) / 2.0;
@@ -244,9 +245,9 @@ pub fn covariance_ellipse(x: f64, y: f64, covariance: [[f64; 2]; 2], sigmas: f64
     let (major, minor) = ((mean + spread).max(0.0).sqrt(), (mean - spread).max(0.0).sqrt());
     let angle = 0.5 * (2.0 * b).atan2(a - c);
     let (s, co) = angle.sin_cos();
-    (0..32)
+    (0..24)
         .map(|k| {
-            let t = f64::from(k) / 32.0 * std::f64::consts::TAU;
+            let t = f64::from(k) / 24.0 * std::f64::consts::TAU;
             let (u, v) = (sigmas * major * t.cos(), sigmas * minor * t.sin());
             p3(x + co * u - s * v, y + s * u + co * v, 0.02)
         })
@@ -412,7 +413,7 @@ pub fn transforms(robots: &[RobotState], time: Timestamp) -> FrameTransforms {
             transforms.push(transform(
                 FIELD_FRAME,
                 name.clone(),
-                Vector3::new(x, y, 0.0),
+                Vector3::rounded(x, y, 0.0),
                 Quaternion::about_z(theta),
             ));
             let head = format!("{name}/head");
@@ -433,7 +434,7 @@ pub fn transforms(robots: &[RobotState], time: Timestamp) -> FrameTransforms {
             transforms.push(transform(
                 FIELD_FRAME,
                 format!("{}/estimate", robot.name),
-                Vector3::new(e.x, e.y, 0.0),
+                Vector3::rounded(e.x, e.y, 0.0),
                 Quaternion::about_z(e.theta),
             ));
         }
