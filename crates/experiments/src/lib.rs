@@ -635,7 +635,17 @@ impl ExperimentLog {
         let config = serde_json::to_string_pretty(&config)
             .context("serializing the experiment's configuration")?;
         let run = RunInfo::current(seed).with_config(ConfigFormat::Json, config);
-        open_run_log(&self.path, options, &run, &graph.describe(), robots.keys().cloned())
+        // The scene is drawn on the first robot's field; the ground truth, where the run has
+        // it, says which way each team attacks.
+        let scene = robots.values().next().map(|first| {
+            let mut scene = first.scene();
+            for (name, robot) in robots {
+                let team = usize::from(name.starts_with("away/"));
+                scene.attack_sign[team] = robot.attack_sign;
+            }
+            scene
+        });
+        open_run_log(&self.path, options, &run, &graph.describe(), robots.keys().cloned(), scene)
     }
 }
 

@@ -23,3 +23,4 @@ pub mod outputs;
 pub mod physics;
 pub mod replay_registry;
 pub mod robot;
+pub mod scene;

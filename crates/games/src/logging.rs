@@ -28,6 +28,11 @@ use strata_spl::field::FieldDimensions;
 
 use crate::matches::{Match, robot_name};
 use crate::outputs::{DECISION, GROUND_TRUTH, REPORT, SCORES, WORLD_STATE};
+use crate::scene::foxglove::{frame_transforms_schema, log_schema, scene_update_schema};
+use crate::scene::{
+    EVENTS_TOPIC, FIELD_TOPIC, OBJECTS_TOPIC, SceneConfig, SceneOutput, SceneRecorder,
+    TRANSFORMS_TOPIC,
+};
 
 /// Topic of the game-state records (written when the game state changes).
 pub const GAME_STATE_TOPIC: &str = "game/state";
@@ -80,6 +85,20 @@ pub struct RobotRunConfig {
     pub platform: PlatformInfo,
 }
 
+impl RobotRunConfig {
+    /// What the scene channels of the robot's log are drawn with (its team attacks as it
+    /// did; the other team the other way).
+    pub fn scene(&self) -> SceneConfig {
+        SceneConfig {
+            field: self.field.clone(),
+            camera_fov: self.platform.camera_fov,
+            camera_range: self.platform.camera_range,
+            attack_sign: [self.attack_sign, -self.attack_sign],
+            period: SceneConfig::DEFAULT_PERIOD,
+        }
+    }
+}
+
 /// One world-model configuration per team.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TeamWorldConfigs {
@@ -116,6 +135,17 @@ impl RunConfig {
         }
     }
 
+    /// What the scene channels of the match's log are drawn with.
+    pub fn scene(&self) -> SceneConfig {
+        SceneConfig {
+            field: self.field.clone(),
+            camera_fov: self.platform.camera_fov,
+            camera_range: self.platform.camera_range,
+            attack_sign: self.attack_sign,
+            period: SceneConfig::DEFAULT_PERIOD,
+        }
+    }
+
     /// `home` or `away`, from a robot name such as `home/3`.
     pub fn team_of(robot: &str) -> Option<&'static str> {
         match robot.split('/').next() {
@@ -137,6 +167,9 @@ pub struct LogSettings {
     pub world_state_hz: Option<f64>,
     pub compression: LogCompression,
     pub encoding: Encoding,
+    /// Whether the log holds the scene channels Foxglove draws (`scene/...`,
+    /// `docs/foxglove.md`).
+    pub scene: bool,
 }
 
 impl LogSettings {
@@ -149,6 +182,7 @@ impl LogSettings {
             world_state_hz: None,
             compression: defaults.compression,
             encoding: defaults.encoding,
+            scene: true,
         }
     }
 }
@@ -177,23 +211,27 @@ pub fn parse_robots(text: &str, players: u8) -> Result<Vec<String>> {
 
 /// Creates a log and writes what a reader needs besides the packages: the run (seed, command
 /// line, configuration) and the graph; the log derives the behavior paths of `robots` (module
-/// prefixes: `home/3`, `t10/3`) and, where the simulator's ground truth is logged, the game
-/// state. What matches, robots and experiments share.
+/// prefixes: `home/3`, `t10/3`), where the simulator's ground truth is logged the game state,
+/// and with a `scene` configuration the scene channels Foxglove draws
+/// ([`crate::scene`]). What matches, robots and experiments share.
 pub fn open_run_log(
     path: &Path,
     options: McapTapOptions,
     run: &RunInfo,
     graph: &GraphDescription,
     robots: impl IntoIterator<Item = String>,
+    scene: Option<SceneConfig>,
 ) -> Result<Arc<McapTap>> {
     let tap = McapTap::create(path, options)
         .with_context(|| format!("creating the log {}", path.display()))?;
     tap.write_run_info(run)?;
     tap.write_graph("", graph)?;
+    let robots: Vec<String> = robots.into_iter().collect();
     tap.set_derive(Box::new(RunRecords {
-        robots: robots.into_iter().map(|robot| PathRecord::new(&robot)).collect(),
+        robots: robots.iter().map(|robot| PathRecord::new(robot)).collect(),
         sources: Vec::new(),
         last_game: None,
+        scene: scene.map(|config| SceneRecorder::new(config, robots.iter().cloned())),
     }));
     Ok(Arc::new(tap))
 }
@@ -239,13 +277,15 @@ impl MatchLog {
             encoding: settings.encoding,
             ..McapTapOptions::default()
         };
-        let config = serde_json::to_string_pretty(&RunConfig::of(game))
+        let run_config = RunConfig::of(game);
+        let config = serde_json::to_string_pretty(&run_config)
             .context("serializing the match configuration")?;
         let run = RunInfo::current(game.config.seed).with_config(ConfigFormat::Json, config);
         let chosen =
             |name: &str| settings.robots.is_empty() || settings.robots.iter().any(|r| r == name);
         let robots = game.robots.iter().map(|(id, _)| robot_name(*id)).filter(|r| chosen(r));
-        let tap = open_run_log(&settings.path, options, &run, &graph, robots)?;
+        let scene = settings.scene.then(|| run_config.scene());
+        let tap = open_run_log(&settings.path, options, &run, &graph, robots, scene)?;
         let world_period = settings
             .world_state_hz
             .filter(|hz| hz.is_finite() && *hz > 0.0)
@@ -329,6 +369,10 @@ enum Layer {
 }
 
 struct PathRecord {
+    /// The robot's module prefix: `home/3`.
+    robot: String,
+    /// Its world states' topic, for the scene.
+    world: String,
     /// Where the robot's path records go: `home/3/behavior_path`.
     topic: String,
     /// The topics of the robot's deliberative scores, planning decisions and reactive reports.
@@ -345,6 +389,8 @@ struct PathRecord {
 impl PathRecord {
     fn new(robot: &str) -> PathRecord {
         PathRecord {
+            robot: robot.to_owned(),
+            world: format!("{robot}/world/{WORLD_STATE}"),
             topic: format!("{robot}/{BEHAVIOR_PATH_TOPIC}"),
             sources: [
                 (format!("{robot}/deliberative/{SCORES}"), Layer::Deliberative),
@@ -408,6 +454,8 @@ enum Source {
     GroundTruth,
     /// A layer's output of the robot with this index: its behavior path.
     Layer(usize, Layer),
+    /// The world states of the robot with this index: its estimates, for the scene.
+    World(usize),
 }
 
 /// The records of a log that are not packages, derived on the log's writer thread (see
@@ -419,6 +467,24 @@ struct RunRecords {
     /// By topic id.
     sources: Vec<Option<Source>>,
     last_game: Option<GameTruth>,
+    /// The scene channels' state, when the log has them.
+    scene: Option<SceneRecorder>,
+}
+
+/// Writes what the scene says to write, at `time` (the package's log time).
+fn write_scene(out: SceneOutput, time: Time, records: &mut DerivedRecords) {
+    if let Some(field) = &out.field {
+        records.record_json(FIELD_TOPIC, time, scene_update_schema(), field);
+    }
+    if let Some(objects) = &out.objects {
+        records.record_json(OBJECTS_TOPIC, time, scene_update_schema(), objects);
+    }
+    if let Some(transforms) = &out.transforms {
+        records.record_json(TRANSFORMS_TOPIC, time, frame_transforms_schema(), transforms);
+    }
+    for line in &out.logs {
+        records.record_json(EVENTS_TOPIC, time, log_schema(), line);
+    }
 }
 
 impl RunRecords {
@@ -429,6 +495,9 @@ impl RunRecords {
         records: &mut DerivedRecords,
     ) {
         let Some(truth) = GROUND_TRUTH.downcast(package) else { return };
+        if let Some(scene) = self.scene.as_mut() {
+            write_scene(scene.truth(time, &truth.value), time, records);
+        }
         let game = &truth.value.game;
         // The clock runs down and the message budgets shrink all the time: a change of the
         // game state is a change of anything else.
@@ -451,7 +520,11 @@ impl Derive for RunRecords {
         let source = if truth {
             Some(Source::GroundTruth)
         } else {
+            let scene = self.scene.is_some();
             self.robots.iter().enumerate().find_map(|(robot, record)| {
+                if scene && record.world == topic {
+                    return Some(Source::World(robot));
+                }
                 let (_, layer) = record.sources.iter().find(|(name, _)| name == topic)?;
                 Some(Source::Layer(robot, *layer))
             })
@@ -474,8 +547,23 @@ impl Derive for RunRecords {
         match self.sources.get(topic as usize).copied().flatten() {
             Some(Source::GroundTruth) => self.game_state(time, package, records),
             Some(Source::Layer(robot, layer)) => {
-                if let Some(record) = self.robots.get_mut(robot) {
-                    record.update(layer, time, package, records);
+                let Some(record) = self.robots.get_mut(robot) else { return };
+                record.update(layer, time, package, records);
+                if layer == Layer::Planning
+                    && let Some(scene) = self.scene.as_mut()
+                    && let Some(decision) = DECISION.downcast(package)
+                {
+                    let role = decision.value.assignment.role.name();
+                    write_scene(scene.role(&record.robot, time, role), time, records);
+                }
+            }
+            Some(Source::World(robot)) => {
+                let (Some(record), Some(scene)) = (self.robots.get(robot), self.scene.as_mut())
+                else {
+                    return;
+                };
+                if let Some(state) = WORLD_STATE.downcast(package) {
+                    write_scene(scene.world(&record.robot, time, &state.value), time, records);
                 }
             }
             None => {}
@@ -487,6 +575,9 @@ impl Derive for RunRecords {
     /// missing from it until then.
     fn next_file(&mut self) {
         self.last_game = None;
+        if let Some(scene) = self.scene.as_mut() {
+            scene.restart();
+        }
         for robot in &mut self.robots {
             robot.written = BehaviorPath::default();
             robot.changed = true;

@@ -38,7 +38,7 @@ pub use reader::{
 pub use schema::infer_json_schema;
 pub use writer::{
     ConfigFormat, Derive, DerivedRecords, LogCompression, LogSummary, McapTap, McapTapOptions,
-    RunInfo, ScopedTap, WhenFull,
+    RecordSchema, RunInfo, ScopedTap, WhenFull,
 };
 
 /// Metadata record holding [`RunInfo`] (seed, version, command line, configuration format).

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use strata_log::{
     Derive, DerivedRecords, LogCompression, LogError, LogInfo, LogReader, McapTap, McapTapOptions,
-    WhenFull,
+    RecordSchema, WhenFull,
 };
 use strata_runtime::{Encoding, ErasedPackage, HostConfig, Package, Tap as _, ThreadedHost, Time};
 use support::{CONFIG, SEED, record_demo, scratch};
@@ -654,6 +654,87 @@ fn derived_records_come_just_ahead_of_their_package() {
     }
     assert!(even > 10, "{even} estimates with an even count");
     assert_eq!(derived, even);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}
+
+/// Records each estimate's sample count as a message of a schema of its own, given by name
+/// and JSON Schema text (as Foxglove's `foxglove.Log` is).
+struct NamedSamples;
+
+const SAMPLES_SCHEMA: RecordSchema = RecordSchema {
+    name: "demo.Samples",
+    json_schema: r#"{"title":"demo.Samples","type":"object","properties":{"samples":{"type":"integer"}}}"#,
+};
+
+impl Derive for NamedSamples {
+    fn wants(&mut self, _id: u32, topic: &str, _type_name: &str) -> bool {
+        topic == "filter/estimate"
+    }
+
+    fn package(
+        &mut self,
+        _topic: u32,
+        time: Time,
+        package: &dyn ErasedPackage,
+        records: &mut DerivedRecords,
+    ) {
+        if let Some(estimate) = package.as_any().downcast_ref::<Package<support::Estimate>>() {
+            let record = serde_json::json!({ "samples": estimate.value.samples });
+            records.record_json("derived/samples", time, SAMPLES_SCHEMA, &record);
+        }
+    }
+}
+
+/// A derived record with a named schema is JSON on a channel with that schema (encoding
+/// `jsonschema`), whatever the log's encoding of packages (CDR here); a new file of a log
+/// split at its size cap defines the channel and schema again.
+#[test]
+fn derived_records_with_a_named_schema_are_json_with_that_schema() {
+    let dir = scratch("derive-named");
+    let path = dir.join("named.mcap");
+    let graph = support::demo_graph("", &support::config_value());
+    let options = McapTapOptions {
+        when_full: WhenFull::Wait,
+        max_file_size: Some(20_000),
+        ..McapTapOptions::default()
+    };
+    let log = Arc::new(McapTap::create(&path, options).expect("create"));
+    log.set_derive(Box::new(NamedSamples));
+    let mut host = strata_runtime::LockstepHost::new(graph, HostConfig::with_seed(SEED));
+    host.set_tap(log.clone());
+    host.run_until(Time::from_secs_f64(2.0)).expect("run");
+    let summary = log.finish().expect("finish");
+    assert_eq!((summary.dropped, summary.serialize_errors), (0, 0));
+    assert!(summary.files.len() > 1, "{:?}", summary.files);
+
+    for file in &summary.files {
+        let bytes = std::fs::read(file).expect("read");
+        let mut named = 0;
+        for message in mcap::MessageStream::new(&bytes).expect("stream") {
+            let message = message.expect("message");
+            if message.channel.topic != "derived/samples" {
+                continue;
+            }
+            named += 1;
+            assert_eq!(message.channel.message_encoding, "json");
+            let schema = message.channel.schema.as_ref().expect("a schema");
+            assert_eq!(
+                (schema.name.as_str(), schema.encoding.as_str()),
+                ("demo.Samples", "jsonschema")
+            );
+            assert_eq!(&*schema.data, SAMPLES_SCHEMA.json_schema.as_bytes());
+            let value: serde_json::Value = serde_json::from_slice(&message.data).expect("JSON");
+            assert!(value["samples"].is_u64(), "{value}");
+        }
+        assert!(named > 0, "{} holds no named record", file.display());
+    }
+    let reader = LogReader::open(&summary.files[0]).expect("open");
+    let first = reader
+        .messages()
+        .map(|m| m.expect("readable"))
+        .find(|m| &*m.topic == "derived/samples")
+        .expect("a record");
+    assert!(first.json().expect("json")["samples"].is_u64());
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
 

@@ -86,6 +86,9 @@ pub struct MatchArgs {
     /// msgpack or json (self-describing, larger and slower to write).
     #[arg(long, value_name = "cdr|msgpack|json", default_value = "cdr", requires = "log")]
     pub log_encoding: Encoding,
+    /// Leave out the scene channels Foxglove's 3D panel draws (`scene/...`, docs/foxglove.md).
+    #[arg(long, requires = "log")]
+    pub log_no_scene: bool,
     /// Show the match live in the web viewer (prints its address; docs/viewer.md).
     #[arg(long)]
     pub view: bool,
@@ -153,6 +156,7 @@ pub fn run(args: MatchArgs) -> Result<()> {
                 world_state_hz: (args.log_world_hz > 0.0).then_some(args.log_world_hz),
                 compression: args.log_compression,
                 encoding: args.log_encoding,
+                scene: !args.log_no_scene,
             };
             Some(MatchLog::attach(&mut game, &settings)?)
         }

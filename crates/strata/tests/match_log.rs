@@ -42,7 +42,7 @@ impl Tap for Collect {
 }
 
 fn is_record_topic(topic: &str) -> bool {
-    topic == GAME_STATE_TOPIC || topic.ends_with(BEHAVIOR_PATH_TOPIC)
+    topic == GAME_STATE_TOPIC || topic.ends_with(BEHAVIOR_PATH_TOPIC) || topic.starts_with("scene/")
 }
 
 #[test]
@@ -113,6 +113,12 @@ fn a_match_log_holds_every_package_and_survives_truncation() {
     for robot in ["home/1", "home/2", "away/1", "away/2"] {
         assert!(records.contains_key(&format!("{robot}/{BEHAVIOR_PATH_TOPIC}")), "{records:?}");
     }
+    // The scene Foxglove draws (docs/foxglove.md; checked with Foxglove's own schemas in
+    // generic_tools.rs): the field once, the objects and frames ten times a second.
+    assert_eq!(records.get("scene/field"), Some(&1), "{records:?}");
+    let objects = records.get("scene/objects").copied().unwrap_or_default();
+    assert!((45..=52).contains(&objects), "{objects} scene updates in 5 s");
+    assert_eq!(records.get("scene/tf"), Some(&objects));
     let config = reader.config().expect("config").expect("a configuration");
     assert_eq!(config["players"], 2);
     assert!(config["world"]["home"]["objects"].is_array());
@@ -153,6 +159,7 @@ fn logged_robots_can_be_chosen_and_the_world_state_decimated() {
             || t.starts_with("shared/")
             || *t == "simulator/ground_truth"
             || t.starts_with("simulator/home_2/")
+            || t.starts_with("scene/")
             || *t == GAME_STATE_TOPIC),
         "{topics:?}"
     );

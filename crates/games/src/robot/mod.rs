@@ -512,7 +512,14 @@ fn open_log(
     let text =
         serde_json::to_string_pretty(config).context("serializing the robot's configuration")?;
     let run = RunInfo::current(seed).with_config(ConfigFormat::Json, text);
-    open_run_log(path, options, &run, &graph.describe(), [config.robot.clone()])
+    open_run_log(
+        path,
+        options,
+        &run,
+        &graph.describe(),
+        [config.robot.clone()],
+        Some(config.scene()),
+    )
 }
 
 /// What a finished log holds: `log: robot.mcap (N messages, D dropped, X MB)`, or

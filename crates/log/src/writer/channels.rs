@@ -14,7 +14,7 @@ use crate::mcap_file::McapFile;
 use crate::schema::infer_json_schema;
 use crate::{FORMAT_KEY, PUBLISH_TIME_KEY, SHARED_KEY, WRAP_FIELD, WRAPPED_KEY};
 
-use super::{CdrSchema, Topic, WriterThread, is_map};
+use super::{CdrSchema, RecordSchema, Topic, WriterThread, is_map};
 
 /// A topic's channel in one encoding, and whether its messages are wrapped.
 #[derive(Clone, Copy, Debug)]
@@ -64,6 +64,29 @@ pub(super) fn shared_channel(
 }
 
 impl WriterThread {
+    /// Creates the JSON channel of a topic whose records have a schema of their own (see
+    /// [`RecordSchema`]), unless it exists in this file.
+    pub(super) fn named_channel(&mut self, topic: &Topic, named: RecordSchema) {
+        if self.topic(topic.id).channel(Encoding::Json).is_some() {
+            return;
+        }
+        let Some(writer) = self.writer.as_mut() else { return };
+        let key = (named.name.to_owned(), Encoding::Json, false);
+        let schema_id = match self.schemas.get(&key) {
+            Some(&id) => id,
+            None => {
+                let id = writer.add_schema(named.name, "jsonschema", named.json_schema.as_bytes());
+                self.schemas.insert(key, id);
+                id
+            }
+        };
+        let metadata = BTreeMap::from([("type_name".to_owned(), named.name.to_owned())]);
+        let id = writer.add_channel(schema_id, &topic.name, Encoding::Json.mcap_name(), &metadata);
+        let state = self.topic(topic.id);
+        *state.channel(Encoding::Json) = Some(ChannelState { id, wrapped: false });
+        state.logged = true;
+    }
+
     /// The CDR schema of a topic's type (a package's or a record's), worked out from `format`
     /// on its first value.
     pub(super) fn cdr_schema(

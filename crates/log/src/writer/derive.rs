@@ -3,7 +3,7 @@
 use serde::Serialize;
 use strata_runtime::{Encoding, ErasedPackage, Time};
 
-use super::EncodedRecord;
+use super::{EncodedRecord, RecordSchema};
 
 /// Records a log derives from its packages on the writer thread: what it holds besides the
 /// packages (a robot's active behavior path, the game state), worked out where it costs the
@@ -70,5 +70,28 @@ impl DerivedRecords {
         };
         let type_name = std::any::type_name::<T>();
         self.records.push(DerivedRecord { topic: topic.to_owned(), type_name, time, value });
+    }
+
+    /// Records `value` on `topic` at `time` in JSON (message encoding `json`), on a channel
+    /// whose schema is `schema` (encoding `jsonschema`) whatever the log's encoding: for
+    /// messages of another project's definitions, such as Foxglove's `foxglove.SceneUpdate`,
+    /// which its tools recognize by the schema's name. The value's JSON must follow the schema.
+    pub fn record_json<T: Serialize + ?Sized>(
+        &mut self,
+        topic: &str,
+        time: Time,
+        schema: RecordSchema,
+        value: &T,
+    ) {
+        let Some(value) = EncodedRecord::json_with_schema(value, schema) else {
+            self.unencodable += 1;
+            return;
+        };
+        self.records.push(DerivedRecord {
+            topic: topic.to_owned(),
+            type_name: schema.name,
+            time,
+            value,
+        });
     }
 }

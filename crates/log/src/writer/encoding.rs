@@ -39,7 +39,23 @@ pub(super) struct EncodedRecord {
     pub(super) encoding: Encoding,
     /// The type's format, for a CDR record's channel schema (traced once per type).
     pub(super) format: fn() -> Option<Format>,
+    /// The schema the record's channel is given instead of one worked out from its type: a
+    /// message of another project's schema (`foxglove.SceneUpdate`), which generic tools
+    /// recognize by its name.
+    pub(super) named: Option<RecordSchema>,
     pub(super) bytes: Vec<u8>,
+}
+
+/// A schema given by name and text rather than traced from a Rust type: for records of
+/// another project's message definitions, which tools recognize by their schema's name
+/// (Foxglove draws `foxglove.SceneUpdate` in its 3D panel). See
+/// [`DerivedRecords::record_json`](crate::DerivedRecords::record_json).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RecordSchema {
+    /// The schema's name (MCAP schema `name`), e.g. `foxglove.SceneUpdate`.
+    pub name: &'static str,
+    /// The schema in JSON Schema (MCAP schema encoding `jsonschema`).
+    pub json_schema: &'static str,
 }
 
 impl EncodedRecord {
@@ -59,7 +75,22 @@ impl EncodedRecord {
             bytes.clear();
             encoding.encode(value, &mut bytes).ok()?;
         }
-        Some(EncodedRecord { encoding, format, bytes })
+        Some(EncodedRecord { encoding, format, named: None, bytes })
+    }
+
+    /// `value` in JSON, for a channel with the given schema.
+    pub(super) fn json_with_schema<T: Serialize + ?Sized>(
+        value: &T,
+        schema: RecordSchema,
+    ) -> Option<EncodedRecord> {
+        let mut bytes = Vec::with_capacity(1024);
+        serde_json::to_writer(&mut bytes, value).ok()?;
+        Some(EncodedRecord {
+            encoding: Encoding::Json,
+            format: || None,
+            named: Some(schema),
+            bytes,
+        })
     }
 
     /// A value without a type to trace (a `serde_json::Value`), in a self-describing encoding.
@@ -69,7 +100,7 @@ impl EncodedRecord {
     ) -> Option<EncodedRecord> {
         let mut bytes = Vec::with_capacity(256);
         encoding.encode(value, &mut bytes).ok()?;
-        Some(EncodedRecord { encoding, format: || None, bytes })
+        Some(EncodedRecord { encoding, format: || None, named: None, bytes })
     }
 }
 

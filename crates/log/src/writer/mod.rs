@@ -29,6 +29,7 @@ mod write;
 
 use channels::{ChannelState, shared_channel};
 pub use derive::{Derive, DerivedRecords};
+pub use encoding::RecordSchema;
 pub(crate) use encoding::wrap_frame;
 use encoding::{CdrSchema, EncodedRecord, is_map};
 use gather::{

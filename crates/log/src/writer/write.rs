@@ -41,6 +41,9 @@ impl WriterThread {
         seq: u64,
         record: &EncodedRecord,
     ) {
+        if let Some(named) = record.named {
+            self.named_channel(topic, named);
+        }
         let schema = match record.encoding {
             Encoding::Cdr => self.cdr_schema(topic, record.format),
             _ => None,
