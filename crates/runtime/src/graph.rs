@@ -262,9 +262,16 @@ impl Trigger {
     }
 
     pub(crate) fn triggered_by(&self, port: u16) -> bool {
+        self.mode_of(port).is_some()
+    }
+
+    /// The mode of the trigger `port` is an input of, if it is one.
+    pub(crate) fn mode_of(&self, port: u16) -> Option<InputMode> {
         match self {
-            Trigger::Periodic { .. } => false,
-            Trigger::OnInput { inputs, .. } => inputs.iter().any(|i| i.port == port),
+            Trigger::Periodic { .. } => None,
+            Trigger::OnInput { mode, inputs } => {
+                inputs.iter().any(|i| i.port == port).then_some(*mode)
+            }
         }
     }
 }
