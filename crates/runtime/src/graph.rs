@@ -262,9 +262,16 @@ impl Trigger {
     }
 
     pub(crate) fn triggered_by(&self, port: u16) -> bool {
+        self.mode_of(port).is_some()
+    }
+
+    /// The mode of the trigger `port` is an input of, if it is one.
+    pub(crate) fn mode_of(&self, port: u16) -> Option<InputMode> {
         match self {
-            Trigger::Periodic { .. } => false,
-            Trigger::OnInput { inputs, .. } => inputs.iter().any(|i| i.port == port),
+            Trigger::Periodic { .. } => None,
+            Trigger::OnInput { mode, inputs } => {
+                inputs.iter().any(|i| i.port == port).then_some(*mode)
+            }
         }
     }
 }
@@ -339,6 +346,11 @@ pub(crate) struct InputDecl {
     pub(crate) type_name: &'static str,
     pub(crate) optional: bool,
     pub(crate) slot: Arc<dyn ErasedInput>,
+    /// Whether the output writing this input asked to be woken when its readers took what it
+    /// sent ([`Ports::wake_when_receivers_ready`]; set by [`GraphBuilder::build`]): a take
+    /// that empties the input tells the host only then, instead of every time for the host to
+    /// look the writer up.
+    pub(crate) wakes_writer: bool,
 }
 
 pub(crate) struct OutputDecl {
@@ -414,6 +426,7 @@ impl Ports<'_> {
             type_name: std::any::type_name::<T>(),
             optional,
             slot: Arc::new(InputSlot::new(policy)),
+            wakes_writer: false,
         });
         Input::new(self.id, port)
     }
@@ -805,6 +818,9 @@ impl GraphBuilder {
                     readers[output.module.index()][usize::from(output.port)]
                         .push(InputRef { module: ModuleId(m as u32), port: p as u16 });
                     writers[m][p] = Some(output);
+                    let writer = &self.modules[output.module.index()].outputs;
+                    let wake = writer[usize::from(output.port)].wake_on_ready;
+                    self.modules[m].inputs[p].wakes_writer = wake;
                 }
             }
         }

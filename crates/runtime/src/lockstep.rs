@@ -25,7 +25,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::encoding::Encoding;
-use crate::graph::{Graph, Input, InputRef, Trigger};
+use crate::graph::{Graph, Input, InputMode, InputRef, Trigger};
 use crate::host::{HostConfig, HostError, panic_message};
 use crate::message::{ErasedPackage, Message};
 use crate::module::{Backend, Context, Wake};
@@ -268,8 +268,9 @@ pub struct LockstepHost {
     /// match runs tens of thousands of cycles per simulated minute.
     published: Vec<(u16, Box<dyn ErasedPackage>)>,
     emptied: Vec<u16>,
-    /// Each triggering input a package arrived on, and whether it was stored there.
-    arrivals: Vec<(InputRef, bool)>,
+    /// Each triggering input a package arrived on, its trigger's mode, and whether the package
+    /// was stored there.
+    arrivals: Vec<(InputRef, InputMode, bool)>,
 }
 
 #[derive(Clone, Copy)]
@@ -645,17 +646,23 @@ impl LockstepHost {
         if let Some((last, others)) = output.readers.split_last() {
             for reader in others {
                 let stored = reader.slot.push_cloned(package.as_any()).is_some();
-                if reader.triggers {
-                    arrivals.push((reader.input, stored));
+                if let Some(mode) = reader.trigger {
+                    arrivals.push((reader.input, mode, stored));
                 }
             }
             let stored = last.slot.push_owned(package.into_any()).is_some();
-            if last.triggers {
-                arrivals.push((last.input, stored));
+            if let Some(mode) = last.trigger {
+                arrivals.push((last.input, mode, stored));
             }
         }
-        for (input, stored) in arrivals.drain(..) {
-            self.after_arrival(input, stored);
+        for (input, mode, stored) in arrivals.drain(..) {
+            // A package stored on an input of an `Any` trigger starts a cycle whatever the other
+            // inputs hold: the module's trigger, which lies apart in memory, need not be read.
+            if mode == InputMode::Any && stored {
+                self.request_cycle(input.module.0, Wake::Input(input.port), self.now);
+            } else {
+                self.after_arrival(input, stored);
+            }
         }
         self.arrivals = arrivals;
     }

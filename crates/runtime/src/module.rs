@@ -39,7 +39,7 @@ pub enum Wake {
 /// Where a cycle's sends and takes go; each host provides its own.
 pub(crate) trait Backend {
     fn publish(&mut self, port: u16, package: Box<dyn ErasedPackage>);
-    /// The pending packages of an input were all taken.
+    /// The pending packages of an input whose writer wants to be woken were all taken.
     fn input_emptied(&mut self, port: u16);
     fn receivers_ready(&self, port: u16) -> bool;
 }
@@ -105,7 +105,7 @@ impl Context<'_> {
     }
 
     fn after_take<T: Message>(&mut self, input: Input<T>, now_empty: bool) {
-        if now_empty {
+        if now_empty && self.inputs[usize::from(input.port)].wakes_writer {
             self.backend.input_emptied(input.port);
         }
     }

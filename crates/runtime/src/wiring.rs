@@ -2,7 +2,9 @@
 
 use std::sync::Arc;
 
-use crate::graph::{Graph, InputDecl, InputRef, ModuleDecl, OutputRef, ProcessingTime, Trigger};
+use crate::graph::{
+    Graph, InputDecl, InputMode, InputRef, ModuleDecl, OutputRef, ProcessingTime, Trigger,
+};
 use crate::message::ErasedInput;
 use crate::module::Module;
 use crate::package::ModuleId;
@@ -12,8 +14,9 @@ use crate::tap::TapOutput;
 pub(crate) struct Reader {
     pub(crate) input: InputRef,
     pub(crate) slot: Arc<dyn ErasedInput>,
-    /// Whether this input triggers its module.
-    pub(crate) triggers: bool,
+    /// The mode of the trigger this input is part of (`None`: it triggers nothing), beside the
+    /// slot so that a delivery need not look at the reading module's trigger.
+    pub(crate) trigger: Option<InputMode>,
 }
 
 pub(crate) struct OutputWiring {
@@ -127,10 +130,7 @@ pub(crate) fn split(graph: Graph) -> (Wiring, Vec<ModuleParts>) {
                             Reader {
                                 input: *r,
                                 slot: Arc::clone(&reader.inputs[usize::from(r.port)].slot),
-                                triggers: reader
-                                    .trigger
-                                    .as_ref()
-                                    .is_some_and(|t| t.triggered_by(r.port)),
+                                trigger: reader.trigger.as_ref().and_then(|t| t.mode_of(r.port)),
                             }
                         })
                         .collect(),
