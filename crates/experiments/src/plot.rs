@@ -7,6 +7,7 @@ use std::sync::OnceLock;
 
 use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::stats::Estimate;
@@ -101,6 +102,24 @@ fn range_of(points: impl Iterator<Item = f64>) -> (f64, f64) {
     if hi - lo < 1e-9 { (lo - 0.5, hi + 0.5) } else { (lo, hi) }
 }
 
+/// Axes with their descriptions and the grid's minor lines hidden, as every line plot here has
+/// them.
+fn draw_axes<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    x_label: &str,
+    y_label: &str,
+) -> Result<(), String> {
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .label_style((FAMILY, 12))
+        .axis_desc_style((FAMILY, 13))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(s)
+}
+
 impl Figure for Stack {
     fn size(&self) -> (u32, u32) {
         (1000, 60 + 230 * self.panels.len().max(1) as u32)
@@ -126,15 +145,7 @@ impl Figure for Stack {
                 .y_label_area_size(55)
                 .build_cartesian_2d(x0..x1, y0..y1)
                 .map_err(s)?;
-            chart
-                .configure_mesh()
-                .x_desc(self.x_label.as_str())
-                .y_desc(panel.y_label.as_str())
-                .label_style((FAMILY, 12))
-                .axis_desc_style((FAMILY, 13))
-                .light_line_style(WHITE.mix(0.0))
-                .draw()
-                .map_err(s)?;
+            draw_axes(&mut chart, &self.x_label, &panel.y_label)?;
             for series in &panel.series {
                 let c = colour(series.colour);
                 chart
@@ -435,15 +446,7 @@ impl Figure for Tradeoff {
             .y_label_area_size(60)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(s)?;
-        chart
-            .configure_mesh()
-            .x_desc(self.x_label.as_str())
-            .y_desc(self.y_label.as_str())
-            .label_style((FAMILY, 12))
-            .axis_desc_style((FAMILY, 13))
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(s)?;
+        draw_axes(&mut chart, &self.x_label, &self.y_label)?;
         for (point, radius) in self.points.iter().zip(self.radii()) {
             if !finite(&point.x) || !finite(&point.y) {
                 continue;

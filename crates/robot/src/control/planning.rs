@@ -374,8 +374,7 @@ pub struct MessageBudget {
 }
 
 /// How much of the message budget a message may use.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Urgency {
     /// Waits behind the reserve (periodic messages, news teammates can live without for a
     /// while: a role further down the mission, the ball found).
@@ -1087,6 +1086,17 @@ mod tests {
         Time::from_secs_f64(s)
     }
 
+    /// Seven robots sharing 1200 messages over 1200 s: one message every 7 s each.
+    fn seven_robots_sharing_1200() -> MessageBudget {
+        MessageBudget {
+            team_remaining: 1200,
+            robots: 7,
+            time_left: 1200.0,
+            reserve: 3,
+            vital_reserve: 0,
+        }
+    }
+
     fn planner() -> Planner<Nearest> {
         Planner::new(Nearest::new(), PlanningConfig::default())
     }
@@ -1152,13 +1162,7 @@ mod tests {
             PlanningConfig { message_burst: 1.0, ..PlanningConfig::default() },
         );
         // Seven robots sharing 1200 messages over 1200 s: a token every 7 s.
-        p.budget = MessageBudget {
-            team_remaining: 1200,
-            robots: 7,
-            time_left: 1200.0,
-            reserve: 3,
-            vital_reserve: 0,
-        };
+        p.budget = seven_robots_sharing_1200();
         p.receive(t(0.0), message(3, -3.0, Role::Striker, -4.0));
         p.evaluate(t(0.0), own(2, -3.5));
         assert_eq!(p.assignment().role, Role::StrikerCover);
@@ -1200,13 +1204,7 @@ mod tests {
     fn teammates_are_silent_only_beyond_what_their_budget_allows() {
         let mut p = planner();
         // Seven robots sharing 1200 messages over 1200 s: one message every 7 s each.
-        p.budget = MessageBudget {
-            team_remaining: 1200,
-            robots: 7,
-            time_left: 1200.0,
-            reserve: 3,
-            vital_reserve: 0,
-        };
+        p.budget = seven_robots_sharing_1200();
         p.receive(t(0.0), message(3, -3.0, Role::StrikerCover, -4.0));
         p.evaluate(t(10.0), own(2, 0.5));
         assert!(!p.assignment().alone, "heard 10 s ago, within the budget's pace");
