@@ -1,6 +1,10 @@
 //! What the viewer shows, as compact time series built from logged (or live) packages: ground
 //! truth, each robot's estimates, behavior paths and scores.
 //!
+//! The robots' true states and estimates are the scene's ([`strata_games::scene`]): the same
+//! conversion of ground truth and world states, the same team-to-field frames and the same
+//! covariance ellipses that the logs' Foxglove channels draw, sampled over time for scrubbing.
+//!
 //! Packages come from a log (encoded) or from a live match's tap (the packages themselves):
 //! world states and reactive reports are read as their Rust types (a log holds them compactly,
 //! what they derive is worked out when they are read), the rest as JSON. Only the fields the
@@ -15,8 +19,8 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use strata_games::outputs;
+use strata_games::scene::{self, Estimate, TrueRobot};
 use strata_robot::control::reactive::{MuxReport, ReactiveReport};
-use strata_robot::world::WorldState;
 use strata_runtime::cdr::{self, Format};
 use strata_runtime::{Encoding, ErasedPackage, PortName, Time};
 use strata_spl::field::{Field, Side};
@@ -143,6 +147,8 @@ struct RobotIdIn {
 #[derive(Deserialize)]
 struct HeadIn {
     yaw: f64,
+    #[serde(default)]
+    pitch: f64,
 }
 
 #[derive(Deserialize)]
@@ -275,28 +281,16 @@ struct TruthSample {
     t: f64,
     game: GameView,
     ball: Xy,
-    /// By robot name.
-    robots: Vec<(String, RobotTruth)>,
+    /// By robot name: the scene's true state and the penalty's name.
+    robots: Vec<(String, TrueRobot, String)>,
 }
 
-#[derive(Clone, Debug)]
-struct RobotTruth {
-    pose: Pose,
-    head_yaw: f64,
-    present: bool,
-    fallen: bool,
-    penalty: String,
-}
-
-/// Positions are in the robot's team frame (own goal at -x), as the robot estimates them.
 #[derive(Clone, Debug)]
 struct WorldSample {
     t: f64,
-    pose: Pose,
-    confidence: f64,
-    lost: bool,
-    ball: Option<(Xy, f64, bool)>,
-    team_ball: Option<Xy>,
+    /// In the robot's team frame (own goal at -x), as the robot estimates it: turned into the
+    /// field frame with the attack sign of the instant shown.
+    estimate: Estimate,
 }
 
 #[derive(Clone, Debug)]
@@ -471,12 +465,14 @@ pub struct RobotFrame {
     pub reactive_path: Option<String>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BallEstimate {
     pub x: f64,
     pub y: f64,
     pub confidence: f64,
     pub known: bool,
+    /// The estimate's 2-sigma covariance ellipse (field frame), as the scene draws it.
+    pub ellipse: Vec<[f64; 2]>,
 }
 
 /// Everything at one instant.
@@ -670,28 +666,16 @@ impl ViewData {
     }
 
     fn ingest_truth(&mut self, t: f64, value: Incoming<'_>) -> bool {
-        let Some(truth) = value.json::<TruthIn>() else { return false };
-        let mut robots = Vec::with_capacity(truth.robots.len());
-        for r in truth.robots {
-            let name = format!("{}/{}", if r.id.team == 0 { "home" } else { "away" }, r.id.player);
-            self.robot_index(&name);
-            robots.push((
-                name,
-                RobotTruth {
-                    pose: r.pose,
-                    head_yaw: r.head.yaw,
-                    present: r.present,
-                    fallen: r.fallen,
-                    penalty: label(&r.penalty),
-                },
-            ));
+        let Some(truth) = truth_of(value) else { return false };
+        for (name, _, _) in &truth.robots {
+            self.robot_index(name);
         }
         if self.truth.is_empty() {
             self.info.start = t;
             self.info.end = t;
         }
         self.info.end = self.info.end.max(t);
-        self.truth.push(TruthSample { t, game: truth.game, ball: truth.ball.position, robots });
+        self.truth.push(TruthSample { t, ..truth });
         true
     }
 
@@ -710,13 +694,17 @@ impl ViewData {
             .iter()
             .map(|series| {
                 let true_state = truth.and_then(|s| {
-                    s.robots.iter().find(|(n, _)| *n == series.name).map(|(_, r)| r.clone())
+                    s.robots.iter().find(|(n, _, _)| *n == series.name).map(|(_, r, p)| (r, p))
                 });
                 let sign = truth.map_or(1.0, |s| {
                     if series.team == 0 { s.game.attack_sign[0] } else { s.game.attack_sign[1] }
                 });
-                let to_global = |p: Xy| to_global(p, sign);
+                let to_global = |p: Xy| {
+                    let (x, y) = scene::team_to_field(p.x, p.y, sign);
+                    Xy { x, y }
+                };
                 let world = latest(&series.world, t, |s| s.t);
+                let estimate = world.map(|w| w.estimate.to_field(sign));
                 let report = latest(&series.reports, t, |s| s.t);
                 let planning = latest(&series.planning, t, |s| s.t);
                 let deliberative = latest(&series.deliberative, t, |s| s.t);
@@ -724,19 +712,25 @@ impl ViewData {
                     name: series.name.clone(),
                     team: series.team,
                     player: series.player,
-                    present: true_state.as_ref().is_none_or(|r| r.present),
-                    fallen: true_state.as_ref().is_some_and(|r| r.fallen),
-                    penalty: true_state.as_ref().map(|r| r.penalty.clone()).unwrap_or_default(),
-                    pose: true_state.as_ref().map(|r| r.pose),
-                    head_yaw: true_state.as_ref().map_or(0.0, |r| r.head_yaw),
-                    estimate: world.map(|w| pose_to_field(w.pose, sign)),
-                    pose_confidence: world.map(|w| w.confidence),
-                    lost: world.is_some_and(|w| w.lost),
-                    ball: world.and_then(|w| w.ball).map(|(p, confidence, known)| {
-                        let p = to_global(p);
-                        BallEstimate { x: p.x, y: p.y, confidence, known }
+                    present: true_state.is_none_or(|(r, _)| r.present),
+                    fallen: true_state.is_some_and(|(r, _)| r.fallen),
+                    penalty: true_state.map(|(_, p)| p.clone()).unwrap_or_default(),
+                    pose: true_state.map(|(r, _)| Pose { x: r.x, y: r.y, theta: r.theta }),
+                    head_yaw: true_state.map_or(0.0, |(r, _)| r.head_yaw),
+                    estimate: estimate.map(|e| Pose { x: e.x, y: e.y, theta: e.theta }),
+                    pose_confidence: estimate.map(|e| e.confidence),
+                    lost: estimate.is_some_and(|e| e.lost),
+                    ball: estimate.and_then(|e| e.ball).map(|b| BallEstimate {
+                        x: b.x,
+                        y: b.y,
+                        confidence: b.confidence,
+                        known: b.known,
+                        ellipse: scene::covariance_ellipse(b.x, b.y, b.covariance, 2.0)
+                            .iter()
+                            .map(|p| [p.x, p.y])
+                            .collect(),
                     }),
-                    team_ball: world.and_then(|w| w.team_ball).map(to_global),
+                    team_ball: estimate.and_then(|e| e.team_ball).map(|(x, y)| Xy { x, y }),
                     gaze: report
                         .map(|r| r.gaze.iter().map(|p| to_global(*p)).collect())
                         .unwrap_or_default(),
@@ -804,7 +798,7 @@ impl ViewData {
         let ball_confidence = series.world[a..b]
             .iter()
             .step_by(stride)
-            .map(|w| [w.t, w.ball.map_or(0.0, |b| b.1)])
+            .map(|w| [w.t, w.estimate.ball.map_or(0.0, |b| b.confidence)])
             .collect();
         Some(Series { robot: robot.to_owned(), from, to, goals, ball_confidence })
     }
@@ -816,49 +810,31 @@ fn latest<S>(samples: &[S], t: f64, time: impl Fn(&S) -> f64) -> Option<&S> {
     i.checked_sub(1).and_then(|i| samples.get(i))
 }
 
-/// A point of a robot's team frame (own goal at -x) in the field frame: the frames agree for
-/// the team attacking +x, and are turned by half a turn for the other.
-fn to_global(p: Xy, attack_sign: f64) -> Xy {
-    if attack_sign < 0.0 { Xy { x: -p.x, y: -p.y } } else { p }
-}
-
-fn pose_to_field(p: Pose, attack_sign: f64) -> Pose {
-    if attack_sign < 0.0 {
-        let theta = p.theta + std::f64::consts::PI;
-        Pose { x: -p.x, y: -p.y, theta: theta.sin().atan2(theta.cos()) }
-    } else {
-        p
-    }
-}
-
 impl WorldIn {
-    fn of(state: &WorldState) -> WorldIn {
-        let p = state.pose.pose;
-        WorldIn {
-            pose: PoseEstimateIn {
-                pose: Pose { x: p.x, y: p.y, theta: p.theta },
-                confidence: state.pose.confidence,
-                lost: state.pose.lost,
-            },
-            objects: state
-                .objects
-                .iter()
-                .map(|o| ObjectIn {
-                    name: o.name.to_string(),
-                    group: o.group.to_string(),
+    /// The estimates of a world state read by its fields: the scene's, with no covariance
+    /// (a writer other than Strata's need not log one).
+    fn estimate(&self) -> Estimate {
+        let p = self.pose.pose;
+        Estimate {
+            x: p.x,
+            y: p.y,
+            theta: p.theta,
+            confidence: self.pose.confidence,
+            lost: self.pose.lost,
+            ball: self.objects.iter().find(|o| o.group == "ball" || o.name == "ball").map(|o| {
+                scene::BallEstimate {
+                    x: o.global_position.x,
+                    y: o.global_position.y,
+                    covariance: [[0.0; 2]; 2],
                     known: o.known,
                     confidence: o.confidence,
-                    global_position: Xy { x: o.global_position.x, y: o.global_position.y },
-                })
-                .collect(),
-            team: state
+                }
+            }),
+            team_ball: self
                 .team
                 .iter()
-                .map(|o| TeamObjectIn {
-                    name: o.name.to_string(),
-                    position: Xy { x: o.position.x, y: o.position.y },
-                })
-                .collect(),
+                .find(|o| o.name == "ball")
+                .map(|o| (o.position.x, o.position.y)),
         }
     }
 }
@@ -889,12 +865,66 @@ impl ReportIn {
     }
 }
 
+/// A world state read: the scene's estimates (team frame) and where each object is estimated.
+struct WorldRead {
+    estimate: Estimate,
+    objects: BTreeMap<String, Xy>,
+}
+
 /// A world state: as its Rust type, or (a log of another writer, a test) by its fields.
-fn world_of(value: Incoming<'_>) -> Option<WorldIn> {
-    match value.typed(outputs::WORLD_STATE) {
-        Some(state) => Some(WorldIn::of(&state)),
-        None => value.json(),
+fn world_of(value: Incoming<'_>) -> Option<WorldRead> {
+    if let Some(state) = value.typed(outputs::WORLD_STATE) {
+        let objects = state
+            .objects
+            .iter()
+            .map(|o| (o.name.to_string(), Xy { x: o.global_position.x, y: o.global_position.y }))
+            .collect();
+        return Some(WorldRead { estimate: Estimate::team_frame(&state), objects });
     }
+    let world: WorldIn = value.json()?;
+    let objects = world.objects.iter().map(|o| (o.name.clone(), o.global_position)).collect();
+    Some(WorldRead { estimate: world.estimate(), objects })
+}
+
+/// A ground truth: as its Rust type (the scene's true states), or by its fields.
+fn truth_of(value: Incoming<'_>) -> Option<TruthSample> {
+    let name =
+        |team: usize, player: u8| format!("{}/{}", if team == 0 { "home" } else { "away" }, player);
+    if let Some(truth) = value.typed(outputs::GROUND_TRUTH) {
+        let game =
+            serde_json::to_value(&truth.game).ok().and_then(|v| serde_json::from_value(v).ok())?;
+        let robots = truth
+            .robots
+            .iter()
+            .map(|r| {
+                let penalty =
+                    serde_json::to_value(r.penalty).map(|v| label(&v)).unwrap_or_default();
+                (name(r.id.team, r.id.player), TrueRobot::of(r), penalty)
+            })
+            .collect();
+        let ball = Xy { x: truth.ball.position.x, y: truth.ball.position.y };
+        return Some(TruthSample { t: 0.0, game, ball, robots });
+    }
+    let truth: TruthIn = value.json()?;
+    let robots = truth
+        .robots
+        .into_iter()
+        .map(|r| {
+            let penalty = label(&r.penalty);
+            let state = TrueRobot {
+                x: r.pose.x,
+                y: r.pose.y,
+                theta: r.pose.theta,
+                head_yaw: r.head.yaw,
+                head_pitch: r.head.pitch,
+                present: r.present,
+                fallen: r.fallen,
+                penalized: !penalty.is_empty() && penalty != "None",
+            };
+            (name(r.id.team, r.id.player), state, penalty)
+        })
+        .collect();
+    Some(TruthSample { t: 0.0, game: truth.game, ball: truth.ball.position, robots })
 }
 
 fn report_of(value: Incoming<'_>) -> Option<ReportIn> {
@@ -906,22 +936,9 @@ fn report_of(value: Incoming<'_>) -> Option<ReportIn> {
 
 fn ingest_world(series: &mut RobotSeries, t: f64, value: Incoming<'_>) -> bool {
     let Some(world) = world_of(value) else { return false };
-    let ball = world
-        .objects
-        .iter()
-        .find(|o| o.group == "ball" || o.name == "ball")
-        .map(|o| (o.global_position, o.confidence, o.known));
-    let team_ball = world.team.iter().find(|o| o.name == "ball").map(|o| o.position);
-    series.objects = world.objects.iter().map(|o| (o.name.clone(), o.global_position)).collect();
+    series.objects = world.objects;
     series.last_world = Some(t);
-    series.world.push(WorldSample {
-        t,
-        pose: world.pose.pose,
-        confidence: world.pose.confidence,
-        lost: world.pose.lost,
-        ball,
-        team_ball,
-    });
+    series.world.push(WorldSample { t, estimate: world.estimate });
     true
 }
 
@@ -1021,17 +1038,9 @@ mod tests {
         let robot = &frame.robots[0];
         assert!(robot.pose.is_none(), "no ground truth");
         assert_eq!(robot.estimate.map(|p| (p.x, p.y)), Some((-1.0, 1.0)));
-        assert_eq!(robot.ball.map(|b| (b.x, b.y)), Some((2.0, 0.0)));
+        assert_eq!(robot.ball.as_ref().map(|b| (b.x, b.y)), Some((2.0, 0.0)));
         let later = data.frame(None);
         assert_eq!(later.robots[0].estimate.map(|p| p.x), Some(0.5));
-    }
-
-    #[test]
-    fn team_frames_turn_for_the_team_attacking_minus_x() {
-        let p = pose_to_field(Pose { x: -3.0, y: 2.0, theta: 0.5 }, -1.0);
-        assert!((p.x - 3.0).abs() < 1e-12 && (p.y + 2.0).abs() < 1e-12);
-        assert!((p.theta - (0.5 - std::f64::consts::PI)).abs() < 1e-12);
-        assert_eq!(to_global(Xy { x: 1.0, y: 2.0 }, 1.0), Xy { x: 1.0, y: 2.0 });
     }
 
     #[test]

@@ -23,5 +23,18 @@ fn a_live_match_shows_every_robot_with_its_own_estimate_and_the_true_ball() {
         assert!(robot.pose.is_some(), "{}: its true pose", robot.name);
         assert!(robot.estimate.is_some(), "{}: its world model's pose", robot.name);
         assert!(robot.mission.is_some(), "{}: its planning decision", robot.name);
+        // The scene's team-to-field turn: the away team's estimates land where its robots
+        // are, not mirrored through the centre.
+        let (truth, estimate) =
+            (robot.pose.unwrap_or_default(), robot.estimate.unwrap_or_default());
+        if !robot.lost {
+            let error = (truth.x - estimate.x).hypot(truth.y - estimate.y);
+            assert!(error < 1.0, "{}: estimate {error:.2} m from the truth", robot.name);
+        }
+        let ball = robot.ball.as_ref().expect("a ball estimate");
+        assert_eq!(ball.ellipse.len(), 24, "{}: the scene's covariance ellipse", robot.name);
+        let (cx, cy) = ball.ellipse.iter().fold((0.0, 0.0), |(x, y), p| (x + p[0], y + p[1]));
+        let centre = (cx / 24.0 - ball.x).hypot(cy / 24.0 - ball.y);
+        assert!(centre < 1e-3, "{}: the ellipse around the estimate ({centre})", robot.name);
     }
 }

@@ -50,6 +50,7 @@ const HEAD_HEIGHT: f64 = 0.45;
 /// The camera in the head frame, m.
 const CAMERA_OFFSET: Vector3 = Vector3::new(0.05, 0.0, 0.06);
 const BALL_DIAMETER: f64 = 0.1;
+const TEAM_BALL_DIAMETER: f64 = 0.25;
 
 const WHITE: Color = Color::rgba(1.0, 1.0, 1.0, 1.0);
 const GRASS: Color = Color::rgba(0.13, 0.45, 0.18, 1.0);
@@ -101,7 +102,8 @@ pub struct BallEstimate {
     pub confidence: f64,
 }
 
-/// A robot's own estimates, in the field frame.
+/// A robot's own estimates: in its team frame (own goal at -x) as its world model holds
+/// them, or in the field frame after [`Estimate::to_field`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
     pub x: f64,
@@ -110,30 +112,74 @@ pub struct Estimate {
     pub confidence: f64,
     pub lost: bool,
     pub ball: Option<BallEstimate>,
+    /// The team's fused ball (MAWM), where the robot has one.
+    pub team_ball: Option<(f64, f64)>,
+}
+
+/// A point of a team frame (own goal at -x) in the field frame of a team attacking
+/// `attack_sign`: the frames agree for +1 and are half a turn apart for -1.
+pub fn team_to_field(x: f64, y: f64, attack_sign: f64) -> (f64, f64) {
+    if attack_sign < 0.0 { (-x, -y) } else { (x, y) }
 }
 
 impl Estimate {
-    /// A world state's pose and ball (team frame: own goal at -x) in the field frame of a team
-    /// attacking `attack_sign` (the frames agree for +1 and are half a turn apart for -1).
-    pub fn of(state: &WorldState, attack_sign: f64) -> Estimate {
-        let turn = attack_sign < 0.0;
-        let flip = |x: f64, y: f64| if turn { (-x, -y) } else { (x, y) };
+    /// A world state's pose, ball and team ball as the robot holds them (team frame).
+    pub fn team_frame(state: &WorldState) -> Estimate {
         let p = state.pose.pose;
-        let (x, y) = flip(p.x, p.y);
-        let theta = if turn { normalize(p.theta + std::f64::consts::PI) } else { p.theta };
         let ball = state.object("ball").map(|ball| {
-            let (bx, by) = flip(ball.global_position.x, ball.global_position.y);
             let c = &ball.global_covariance;
-            // Half a turn leaves a covariance as it is.
             BallEstimate {
-                x: bx,
-                y: by,
+                x: ball.global_position.x,
+                y: ball.global_position.y,
                 covariance: [[c[(0, 0)], c[(0, 1)]], [c[(1, 0)], c[(1, 1)]]],
                 known: ball.known,
                 confidence: ball.confidence,
             }
         });
-        Estimate { x, y, theta, confidence: state.pose.confidence, lost: state.pose.lost, ball }
+        Estimate {
+            x: p.x,
+            y: p.y,
+            theta: p.theta,
+            confidence: state.pose.confidence,
+            lost: state.pose.lost,
+            ball,
+            team_ball: state.team_object("ball").map(|b| (b.position.x, b.position.y)),
+        }
+    }
+
+    /// A team-frame estimate in the field frame of a team attacking `attack_sign`.
+    pub fn to_field(self, attack_sign: f64) -> Estimate {
+        let turn = attack_sign < 0.0;
+        let (x, y) = team_to_field(self.x, self.y, attack_sign);
+        let theta = if turn { normalize(self.theta + std::f64::consts::PI) } else { self.theta };
+        // Half a turn leaves a covariance as it is.
+        let ball = self.ball.map(|b| {
+            let (x, y) = team_to_field(b.x, b.y, attack_sign);
+            BallEstimate { x, y, ..b }
+        });
+        let team_ball = self.team_ball.map(|(x, y)| team_to_field(x, y, attack_sign));
+        Estimate { x, y, theta, ball, team_ball, ..self }
+    }
+
+    /// A world state's estimates in the field frame of a team attacking `attack_sign`.
+    pub fn of(state: &WorldState, attack_sign: f64) -> Estimate {
+        Estimate::team_frame(state).to_field(attack_sign)
+    }
+}
+
+impl TrueRobot {
+    /// A robot of the simulator's ground truth.
+    pub fn of(r: &strata_sim::RobotTruth) -> TrueRobot {
+        TrueRobot {
+            x: r.pose.x,
+            y: r.pose.y,
+            theta: r.pose.theta,
+            head_yaw: r.head.yaw,
+            head_pitch: r.head.pitch,
+            present: r.present,
+            fallen: r.fallen,
+            penalized: r.penalty != strata_sim::Penalty::None,
+        }
     }
 }
 
@@ -357,6 +403,17 @@ pub fn objects_update(
                     colour.with_alpha(alpha),
                 ));
                 entity.meta("ball_confidence", format!("{:.3}", b.confidence));
+            }
+            if let Some((x, y)) = e.team_ball {
+                // A flat ring on the grass: the team's fused ball, apart from the robot's own.
+                entity.cylinders.push(foxglove::CylinderPrimitive {
+                    pose: Pose::planar(x, y, 0.003, 0.0),
+                    size: Vector3::new(TEAM_BALL_DIAMETER, TEAM_BALL_DIAMETER, 0.005),
+                    bottom_scale: 1.0,
+                    top_scale: 1.0,
+                    color: colour.with_alpha(0.35),
+                });
+                entity.meta("team_ball", format!("{x:.3}, {y:.3}"));
             }
             entity.meta("robot", robot.name.clone());
             entity.meta("pose_confidence", format!("{:.3}", e.confidence));
@@ -584,17 +641,7 @@ impl SceneRecorder {
         self.config.attack_sign = truth.game.attack_sign;
         self.ball = Some((truth.ball.position.x, truth.ball.position.y));
         for r in &truth.robots {
-            let state = TrueRobot {
-                x: r.pose.x,
-                y: r.pose.y,
-                theta: r.pose.theta,
-                head_yaw: r.head.yaw,
-                head_pitch: r.head.pitch,
-                present: r.present,
-                fallen: r.fallen,
-                penalized: r.penalty != strata_sim::Penalty::None,
-            };
-            self.robot(&robot_name(r.id)).truth = Some(state);
+            self.robot(&robot_name(r.id)).truth = Some(TrueRobot::of(r));
         }
         let mut out = SceneOutput {
             logs: truth.events.iter().filter_map(event_log).collect(),

@@ -81,6 +81,7 @@ fn robots_are_drawn_at_their_true_poses_with_their_estimates_and_views() {
             known: true,
             confidence: 0.8,
         }),
+        team_ball: Some((1.9, 0.1)),
     });
     let away = robot("away/1", -3.0, 0.0, -2.0);
     let update = objects_update(
@@ -109,6 +110,8 @@ fn robots_are_drawn_at_their_true_poses_with_their_estimates_and_views() {
     let extent = |f: fn(&Point3) -> f64| ellipse.iter().map(f).fold(0.0f64, f64::max);
     assert!(close(extent(|p| p.x), 2.4), "{}", extent(|p| p.x));
     assert!((extent(|p| p.y) - 0.2).abs() < 1e-2, "{}", extent(|p| p.y));
+    let ring = &estimate.cylinders[0].pose.position;
+    assert!(close(ring.x, 1.9) && close(ring.y, 0.1), "the team ball");
     // The view is drawn in the head frame, which follows the robot.
     let view = &update.entities[3];
     assert_eq!(view.frame_id, "home/3/head");
@@ -135,8 +138,15 @@ fn a_rotated_covariance_gives_a_rotated_ellipse() {
 #[test]
 fn frames_chain_from_the_field_to_each_camera() {
     let mut home = robot("home/3", 1.0, -2.0, 0.5);
-    home.estimate =
-        Some(Estimate { x: 1.0, y: -2.0, theta: 0.5, confidence: 1.0, lost: false, ball: None });
+    home.estimate = Some(Estimate {
+        x: 1.0,
+        y: -2.0,
+        theta: 0.5,
+        confidence: 1.0,
+        lost: false,
+        ball: None,
+        team_ball: None,
+    });
     let tf = transforms(&[home], Timestamp::from_secs_f64(4.0));
     let chain: Vec<(&str, &str)> = tf
         .transforms
@@ -242,4 +252,32 @@ fn the_shipped_layout_shows_the_scene_topics() {
         assert_eq!(three_d["topics"][topic]["visible"], true, "{topic}");
     }
     assert_eq!(layout["configById"]["RosOut!strata-events"]["topicToRender"], EVENTS_TOPIC);
+}
+
+#[test]
+fn a_team_frame_estimate_turns_half_a_turn_for_the_team_attacking_minus_x() {
+    let team_frame = Estimate {
+        x: -3.0,
+        y: 2.0,
+        theta: 0.5,
+        confidence: 0.7,
+        lost: false,
+        ball: Some(BallEstimate {
+            x: 1.0,
+            y: -1.0,
+            covariance: [[0.04, 0.01], [0.01, 0.02]],
+            known: true,
+            confidence: 0.9,
+        }),
+        team_ball: Some((0.5, 0.25)),
+    };
+    assert_eq!(team_frame.to_field(1.0), team_frame);
+    let field = team_frame.to_field(-1.0);
+    assert!(close(field.x, 3.0) && close(field.y, -2.0));
+    assert!(close(field.theta, 0.5 - std::f64::consts::PI));
+    let ball = field.ball.unwrap_or_else(|| panic!("the ball"));
+    assert!(close(ball.x, -1.0) && close(ball.y, 1.0));
+    assert_eq!(ball.covariance, [[0.04, 0.01], [0.01, 0.02]], "unchanged by half a turn");
+    assert_eq!(field.team_ball, Some((-0.5, -0.25)));
+    assert_eq!((field.confidence, field.lost), (0.7, false));
 }

@@ -220,6 +220,18 @@ function drawRobot(ctx, f, info, robot, selected, drawn) {
     ctx.beginPath();
     ctx.arc(f.px(b.x), f.py(b.y), Math.max(5, 0.06 * f.scale), 0, 2 * Math.PI);
     ctx.stroke();
+    // The estimate's 2-sigma covariance ellipse, the scene's (Foxglove draws the same).
+    if (b.ellipse && b.ellipse.length > 2) {
+      ctx.lineWidth = 1;
+      ctx.setLineDash([4, 3]);
+      ctx.beginPath();
+      b.ellipse.forEach(([ex, ey], i) => {
+        if (i === 0) ctx.moveTo(f.px(ex), f.py(ey)); else ctx.lineTo(f.px(ex), f.py(ey));
+      });
+      ctx.closePath();
+      ctx.stroke();
+      ctx.setLineDash([]);
+    }
     ctx.globalAlpha = 1;
     record.ball = { x: b.x, y: b.y, px: f.px(b.x), py: f.py(b.y) };
   }
