@@ -29,6 +29,7 @@ use strata_spl::field::FieldDimensions;
 use crate::matches::{Match, robot_name};
 use crate::outputs::{DECISION, GROUND_TRUTH, REPORT, SCORES, WORLD_STATE};
 use crate::scene::foxglove::{frame_transforms_schema, log_schema, scene_update_schema};
+use crate::scene::plot::{LayerKind, PLOT_TOPIC, layer_plot_schema};
 use crate::scene::{
     EVENTS_TOPIC, FIELD_TOPIC, OBJECTS_TOPIC, SceneConfig, SceneOutput, SceneRecorder,
     TRANSFORMS_TOPIC,
@@ -368,6 +369,16 @@ enum Layer {
     Reactive,
 }
 
+impl Layer {
+    fn kind(self) -> LayerKind {
+        match self {
+            Layer::Deliberative => LayerKind::Deliberative,
+            Layer::Planning => LayerKind::Planning,
+            Layer::Reactive => LayerKind::Reactive,
+        }
+    }
+}
+
 struct PathRecord {
     /// The robot's module prefix: `home/3`.
     robot: String,
@@ -482,6 +493,9 @@ fn write_scene(out: SceneOutput, time: Time, records: &mut DerivedRecords) {
     if let Some(transforms) = &out.transforms {
         records.record_json(TRANSFORMS_TOPIC, time, frame_transforms_schema(), transforms);
     }
+    if let Some(plot) = &out.plot {
+        records.record_json(PLOT_TOPIC, time, layer_plot_schema(), plot);
+    }
     for line in &out.logs {
         records.record_json(EVENTS_TOPIC, time, log_schema(), line);
     }
@@ -549,12 +563,21 @@ impl Derive for RunRecords {
             Some(Source::Layer(robot, layer)) => {
                 let Some(record) = self.robots.get_mut(robot) else { return };
                 record.update(layer, time, package, records);
-                if layer == Layer::Planning
-                    && let Some(scene) = self.scene.as_mut()
-                    && let Some(decision) = DECISION.downcast(package)
-                {
-                    let role = decision.value.assignment.role.name();
-                    write_scene(scene.role(&record.robot, time, role), time, records);
+                let Some(scene) = self.scene.as_mut() else { return };
+                scene.layer(&record.robot, time, layer.kind());
+                match layer {
+                    Layer::Planning => {
+                        if let Some(decision) = DECISION.downcast(package) {
+                            let role = decision.value.assignment.role.name();
+                            write_scene(scene.role(&record.robot, time, role), time, records);
+                        }
+                    }
+                    Layer::Reactive => {
+                        if let Some(report) = REPORT.downcast(package) {
+                            scene.head(&record.robot, time, &report.value.head);
+                        }
+                    }
+                    Layer::Deliberative => {}
                 }
             }
             Some(Source::World(robot)) => {

@@ -146,6 +146,19 @@ fn check_scene(report: &Value, reader: &LogReader) {
         assert!(close(estimate["y"].as_f64().expect("y"), y), "{name}: {estimate}");
         assert!(same_angle(estimate["yaw"].as_f64().expect("yaw"), theta), "{name}");
     }
+    // The layer plot of the same instant: every robot's three layers heard from, reactive
+    // fastest, and its head multiplexer's score vector.
+    let plot = &report["scene"]["plot"];
+    assert_eq!(plot["logTime"].as_u64(), Some(at), "{plot}");
+    assert_eq!(report["schemaNames"]["plot/layers"], "strata.LayerPlot");
+    let robots = plot["robots"].as_array().expect("robots");
+    assert_eq!(robots.len(), 2 * usize::from(config.players), "{plot}");
+    for robot in robots {
+        let rate = |layer: &str| robot["rates"][layer].as_f64().expect("a rate");
+        assert!(rate("reactive") > rate("deliberative"), "{robot}");
+        assert!(rate("deliberative") > 0.0, "{robot}");
+        assert!(!robot["head"].as_array().expect("head scores").is_empty(), "{robot}");
+    }
     // The game's start is in the event log.
     let events = report["scene"]["events"].as_array().expect("events");
     assert!(

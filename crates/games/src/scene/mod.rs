@@ -19,6 +19,7 @@
 //! updates per simulated second) beside the packages, which stay in CDR.
 
 pub mod foxglove;
+pub mod plot;
 
 use strata_robot::world::WorldState;
 use strata_runtime::Time;
@@ -31,6 +32,8 @@ use foxglove::{
     LineType, Log, LogLevel, Point3, Pose, Quaternion, SceneEntity, SceneUpdate, SpherePrimitive,
     TextPrimitive, Timestamp, TriangleListPrimitive, Vector3,
 };
+use plot::{LayerCounter, LayerKind, LayerPlot, RobotPlot};
+use strata_robot::control::reactive::MuxReport;
 
 /// The field's lines and goals, written once at the start of each file of a log.
 pub const FIELD_TOPIC: &str = "scene/field";
@@ -193,12 +196,21 @@ pub struct RobotState {
     pub truth: Option<TrueRobot>,
     pub estimate: Option<Estimate>,
     pub role: Option<String>,
+    /// Its layers' outputs and head scores, for the plot channel.
+    pub layers: LayerCounter,
 }
 
 impl RobotState {
     pub fn new(name: &str) -> RobotState {
         let team = usize::from(name.starts_with("away/"));
-        RobotState { name: name.to_owned(), team, truth: None, estimate: None, role: None }
+        RobotState {
+            name: name.to_owned(),
+            team,
+            truth: None,
+            estimate: None,
+            role: None,
+            layers: LayerCounter::default(),
+        }
     }
 
     /// Where the robot is drawn from: its true pose, or its estimate in a log without truth.
@@ -567,6 +579,8 @@ pub struct SceneOutput {
     pub objects: Option<SceneUpdate>,
     pub transforms: Option<FrameTransforms>,
     pub logs: Vec<Log>,
+    /// On [`plot::PLOT_TOPIC`], with the objects.
+    pub plot: Option<LayerPlot>,
 }
 
 /// Follows a run's packages — the simulator's ground truth, each robot's world states and
@@ -633,6 +647,43 @@ impl SceneRecorder {
         self.next_update = Some(Time::from_nanos(next));
         out.objects = Some(objects_update(&self.robots, self.ball, &self.config, stamp));
         out.transforms = Some(transforms(&self.robots, stamp));
+        out.plot = Some(self.layer_plot(time, stamp));
+    }
+
+    /// The rates and head scores of every robot whose layers were heard from.
+    fn layer_plot(&mut self, time: Time, stamp: Timestamp) -> LayerPlot {
+        let robots = self
+            .robots
+            .iter_mut()
+            .filter_map(|robot| {
+                let rates = robot.layers.rates(time);
+                let heard = rates.reactive + rates.deliberative + rates.planning > 0.0;
+                let estimate = robot.estimate;
+                (heard || estimate.is_some()).then(|| RobotPlot {
+                    robot: robot.name.clone(),
+                    rates,
+                    head_goal: robot.layers.head_goal().to_owned(),
+                    head: robot.layers.head_scores().to_vec(),
+                    pose_confidence: estimate.map_or(0.0, |e| foxglove::round(e.confidence)),
+                    ball_confidence: estimate
+                        .and_then(|e| e.ball)
+                        .map_or(0.0, |b| foxglove::round(b.confidence)),
+                })
+            })
+            .collect();
+        LayerPlot { timestamp: stamp, robots }
+    }
+
+    /// An output of `robot`'s `layer` at `time` (a planning decision, deliberative scores, a
+    /// reactive report), counted for its rate.
+    pub fn layer(&mut self, robot: &str, time: Time, layer: LayerKind) {
+        self.robot(robot).layers.output(layer, time);
+    }
+
+    /// `robot`'s head multiplexer in a reactive report at `time`: its score vector, plotted.
+    pub fn head(&mut self, robot: &str, time: Time, head: &MuxReport) {
+        let period = self.config.period;
+        self.robot(robot).layers.head(head, time, period);
     }
 
     /// A ground-truth package at `time`: true poses, the ball, the attack signs and events.

@@ -252,6 +252,15 @@ fn the_shipped_layout_shows_the_scene_topics() {
         assert_eq!(three_d["topics"][topic]["visible"], true, "{topic}");
     }
     assert_eq!(layout["configById"]["RosOut!strata-events"]["topicToRender"], EVENTS_TOPIC);
+    let rates = layout["configById"]["Plot!strata-rates"]["paths"].as_array().expect("paths");
+    for layer in ["reactive", "deliberative", "planning"] {
+        assert!(
+            rates.iter().any(|p| p["value"].as_str().is_some_and(|v| {
+                v.starts_with(plot::PLOT_TOPIC) && v.ends_with(&format!(".rates.{layer}"))
+            })),
+            "a plot of the {layer} layer's rate"
+        );
+    }
 }
 
 #[test]
@@ -280,4 +289,32 @@ fn a_team_frame_estimate_turns_half_a_turn_for_the_team_attacking_minus_x() {
     assert_eq!(ball.covariance, [[0.04, 0.01], [0.01, 0.02]], "unchanged by half a turn");
     assert_eq!(field.team_ball, Some((-0.5, -0.25)));
     assert_eq!((field.confidence, field.lost), (0.7, false));
+}
+
+#[test]
+fn the_recorder_plots_each_robots_layer_rates_with_the_objects() {
+    let sim = Simulation::new(SimConfig::default()).expect("the default world");
+    let field = sim.field().clone();
+    let truth = sim.ground_truth();
+    let mut recorder = SceneRecorder::new(config(&field), Vec::new());
+    let mut plots = Vec::new();
+    // Two seconds: the reactive layer of home/1 every 10 ms, its deliberative layer every
+    // 500 ms, the ground truth every 20 ms.
+    for k in 0..200u64 {
+        let time = Time::from_nanos(k * 10_000_000);
+        recorder.layer("home/1", time, plot::LayerKind::Reactive);
+        if k % 50 == 0 {
+            recorder.layer("home/1", time, plot::LayerKind::Deliberative);
+        }
+        if k % 2 == 0
+            && let Some(plot) = recorder.truth(time, &truth).plot
+        {
+            plots.push(plot);
+        }
+    }
+    assert_eq!(plots.len(), 20, "one plot with each objects update, ten a second");
+    let last = plots.last().expect("plots");
+    assert_eq!(last.robots.len(), 1, "only the robot whose layers were heard from");
+    let rates = last.robots[0].rates;
+    assert_eq!((rates.reactive, rates.deliberative, rates.planning), (100.0, 2.0, 0.0));
 }

@@ -4,6 +4,8 @@
 // message of Foxglove's well-known schemas (the scene channels, JSON) checked against the JSON
 // Schemas of @foxglove/schemas: the channel's schema must describe the same fields as
 // Foxglove's, and every message must hold exactly those fields with values of their types.
+// A JSON channel of Strata's own type (the layer plot) is checked against the JSON Schema it
+// declares, as Foxglove reads it.
 // Prints one JSON line: messages decoded per topic kind, the self-describing messages of other
 // channels counted aside, every error met, samples, and the scene at the time given (seconds,
 // second argument): the field and the first objects and frames at or after it.
@@ -143,11 +145,46 @@ async function main(path, sceneAt) {
   const samples = {};
   const schemaNames = {};
   const sceneAtNs = BigInt(Math.round(sceneAt * 1e9));
-  const scene = { field: null, objects: null, transforms: null, events: [] };
+  const scene = { field: null, objects: null, transforms: null, plot: null, events: [] };
   for await (const message of reader.readMessages()) {
     const channel = reader.channelsById.get(message.channelId);
     const kind = channel.topic.replace(/^(home|away|t\d+)\/\d+\//, "");
     const schema = reader.schemasById.get(channel.schemaId);
+    const jsonSchema = schema !== undefined && schema.encoding === "jsonschema";
+    if (channel.messageEncoding === "json" && jsonSchema && !schema.name.startsWith("foxglove.")) {
+      let declared = jsonSchemas.get(channel.schemaId);
+      if (declared === undefined) {
+        try {
+          declared = JSON.parse(new TextDecoder().decode(schema.data));
+        } catch (error) {
+          declared = new Error(`schema: ${error.message}`);
+        }
+        jsonSchemas.set(channel.schemaId, declared);
+      }
+      schemaNames[kind] = schema.name;
+      if (declared instanceof Error) {
+        errors.push(`${channel.topic}: ${declared.message}`);
+        continue;
+      }
+      let value;
+      try {
+        value = JSON.parse(new TextDecoder().decode(message.data));
+      } catch (error) {
+        errors.push(`${channel.topic} #${message.sequence}: ${error.message}`);
+        continue;
+      }
+      const found = [];
+      validate(declared, value, channel.topic, found);
+      if (found.length > 0) {
+        errors.push(...found);
+        continue;
+      }
+      decoded[kind] = (decoded[kind] || 0) + 1;
+      if (kind === "plot/layers" && message.logTime >= sceneAtNs && scene.plot === null) {
+        scene.plot = { logTime: Number(message.logTime), robots: value.robots };
+      }
+      continue;
+    }
     if (channel.messageEncoding === "json" && schema !== undefined && schema.name.startsWith("foxglove.")) {
       let theirs = jsonSchemas.get(channel.schemaId);
       if (theirs === undefined) {
