@@ -1,17 +1,21 @@
 //! Active vision's fast paths give the answers of the plain ones: the sensing candidate and the
 //! expected update of a view made in one pass, from priors that keep what does not depend on
-//! the view, against one prediction per object followed by the expected update; and an
-//! evaluation into a used report against a fresh one.
+//! the view, against one prediction per object followed by the expected update; an
+//! evaluation into a used report against a fresh one; and the task value after a predicted
+//! motion against the pose filter's own prediction.
 
 mod world_support;
 
+use nalgebra::Matrix3;
 use strata_robot::control::active_vision::{
-    ActiveVision, ActiveVisionConfig, ActiveVisionReport, GazeCandidate, ValueFunction, ValueState,
+    ActiveVision, ActiveVisionConfig, ActiveVisionReport, Criterion, GazeCandidate,
+    PredictedMotion, ValueFunction, ValueState,
 };
-use strata_robot::geometry::{Point, Pose};
+use strata_robot::geometry::{Odometry, Point, Pose};
 use strata_robot::percept::ViewCone;
 use strata_robot::world::{
-    ExpectedBelief, ObjectId, ObservationPrior, PosePrior, SensingCandidate, WorldModel, WorldState,
+    ExpectedBelief, ObjectId, ObservationPrior, PoseFilter, PosePrior, SensingCandidate,
+    WorldModel, WorldState,
 };
 use world_support::{Sim, config, patrol_step, plain_sensing_candidate};
 
@@ -250,5 +254,75 @@ fn candidates_looked_at_from_the_same_limit_are_evaluated_as_each_alone() {
             assert_eq!(evaluation.expected_value.to_bits(), alone.expected_value.to_bits());
             assert_eq!(evaluation.improvement.to_bits(), alone.improvement.to_bits());
         }
+    }
+}
+
+/// V: how near the robot is to the line y = 0.5 (quadratic: its expectation is exact to
+/// second order).
+struct Lateral;
+
+impl ValueFunction for Lateral {
+    fn name(&self) -> &str {
+        "lateral"
+    }
+
+    fn objects(&self) -> Vec<ObjectId> {
+        Vec::new()
+    }
+
+    fn value(&self, state: &ValueState<'_>) -> f64 {
+        -(state.pose.y - 0.5).powi(2)
+    }
+}
+
+fn task_value() -> ActiveVision {
+    ActiveVision::new(ActiveVisionConfig {
+        criterion: Criterion::MaxExpectedTaskValue,
+        ..ActiveVisionConfig::default()
+    })
+}
+
+#[test]
+fn no_motion_leaves_the_task_value_as_it_was() {
+    let gazes: Vec<GazeCandidate> = (0..9)
+        .map(|i| GazeCandidate {
+            label: format!("g{i}"),
+            direction: -2.0 + 0.5 * f64::from(i),
+            footprint: None,
+        })
+        .collect();
+    let still = PredictedMotion { odometry: Odometry::ZERO, noise: Matrix3::zeros() };
+    for world in &states() {
+        let plain = task_value().evaluate(world, &Closeness, &gazes);
+        let mut after = ActiveVisionReport::default();
+        task_value().evaluate_after_into(world, &Closeness, &gazes, Some(&still), &mut after);
+        assert_eq!(format!("{after:?}"), format!("{plain:?}"));
+    }
+}
+
+/// After a walk, E[V] = V(x') + tr(H P') / 2 with P' the pose filter's prediction: the
+/// heading's uncertainty has become lateral uncertainty along the walk, and costs value.
+#[test]
+fn the_task_value_after_a_walk_is_the_value_under_the_pose_filters_prediction() {
+    let walk = Odometry { dx: 2.0, dy: 0.3, dtheta: 0.4 };
+    let noise = Matrix3::from_diagonal(&nalgebra::Vector3::new(0.01, 0.01, 0.002));
+    let motion = PredictedMotion { odometry: walk, noise };
+    let gazes = vec![GazeCandidate { label: "ahead".into(), direction: 0.0, footprint: None }];
+    for world in &states() {
+        let mut report = ActiveVisionReport::default();
+        task_value().evaluate_after_into(world, &Lateral, &gazes, Some(&motion), &mut report);
+        let mut filter = PoseFilter::new(world.pose.pose, world.pose.covariance);
+        filter.predict(&walk, &noise);
+        let moved = filter.pose();
+        let expected = -(moved.y - 0.5).powi(2) - filter.covariance()[(1, 1)];
+        assert!(
+            (report.prior_expected_value - expected).abs() < 1e-6,
+            "{} against {expected}",
+            report.prior_expected_value
+        );
+        // Without the walk, the value is taken where the robot stands.
+        let here = task_value().evaluate(world, &Lateral, &gazes);
+        let standing = -(world.pose.pose.y - 0.5).powi(2) - world.pose.covariance[(1, 1)];
+        assert!((here.prior_expected_value - standing).abs() < 1e-6);
     }
 }

@@ -31,7 +31,7 @@ use strata_robot::control::planning_module::PlanningDecision;
 use strata_robot::control::reactive::Stability;
 use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::geometry::{Global as FieldFrame, Point, Pose};
-use strata_robot::world::{ObjectCategory, WorldState};
+use strata_robot::world::{ObjectCategory, OdometryNoise, WorldState};
 use strata_runtime::Time;
 use strata_spl::gamecontroller::{GameState, SetPlay};
 
@@ -39,6 +39,7 @@ use crate::catalog::{GOALKEEPER_NUMBER, Mission, Role};
 use crate::field::TeamField;
 use crate::game::{GameDirective, Kicking};
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
+use crate::predicted_motion::predicted_motion;
 use crate::primitives::{BodyPrimitive, MotionModel, TOGETHER_RANGE, facing};
 use crate::situation::{ball, best_instance, obstacle_ahead};
 use crate::value::{GoToBallValue, GoalCoveringValue, PositionValue, RefereeVisibilityValue};
@@ -104,6 +105,10 @@ pub struct BehaviorConfig {
     pub referee_behind_line: f64,
     /// How far the referee's gesture can be seen, m.
     pub referee_range: f64,
+    /// With `gaze = "active_vision_task_value"`: judge a look by the value expected after the
+    /// acting primitive's predicted motion (the paper's criterion in full); false: where the
+    /// robot stands (to compare the two).
+    pub task_value_after_motion: bool,
 }
 
 impl Default for BehaviorConfig {
@@ -120,6 +125,7 @@ impl Default for BehaviorConfig {
             let_go_distance: 0.8,
             referee_behind_line: 0.6,
             referee_range: 10.0,
+            task_value_after_motion: true,
         }
     }
 }
@@ -152,6 +158,10 @@ pub struct Ctx {
     at_own_restart: bool,
     /// Set while this robot, having taken the restart, may not touch the ball again.
     let_go: Option<LetGo>,
+    /// Seconds between the last two ticks: how long the acting primitive chosen now is
+    /// expected to run before the next decision.
+    decision_period: f64,
+    last_tick: Option<Time>,
 }
 
 impl std::fmt::Debug for Ctx {
@@ -533,8 +543,22 @@ fn gaze(ctx: &mut Ctx, value: Option<&dyn ValueFunction>) {
                 };
                 let fallback = PositionValue { target: world.pose.pose.position() };
                 let vf: &dyn ValueFunction = value.unwrap_or(&fallback);
+                // The task value is the one expected after the acting primitive the body goal
+                // just chosen runs until the next decision.
+                let after_motion = ctx.config.task_value_after_motion;
+                let motion = ctx.out.body.goals.first().filter(|_| after_motion).and_then(|body| {
+                    let ball = world.object(BALL).map(|b| b.position);
+                    predicted_motion(
+                        &body.goal,
+                        world.pose.pose,
+                        ball,
+                        &ctx.motion,
+                        ctx.decision_period,
+                        &OdometryNoise::default(),
+                    )
+                });
                 let mut report = std::mem::take(&mut ctx.spare_report);
-                ctx.vision.evaluate_into(&world, vf, &gazes, &mut report);
+                ctx.vision.evaluate_after_into(&world, vf, &gazes, motion.as_ref(), &mut report);
                 ctx.vision_report = Some(report);
                 None
             };
@@ -695,6 +719,13 @@ fn localizing(ctx: &mut Ctx) -> Status {
     }
     Status::Running
 }
+
+/// The acting primitive's horizon before the deliberative layer has ticked twice (the paper's
+/// 1 Hz), s; and the bounds of the measured one (a stalled layer must not predict a walk
+/// across the field).
+const DEFAULT_DECISION_PERIOD: f64 = 1.0;
+const MIN_DECISION_PERIOD: f64 = 0.01;
+const MAX_DECISION_PERIOD: f64 = 4.0;
 
 /// Localizing stands this long, s, then turns on the spot ...
 const LOCALIZE_STAND: f64 = 4.0;
@@ -1224,6 +1255,8 @@ impl SoccerBehavior {
                 motion,
                 at_own_restart: false,
                 let_go: None,
+                decision_period: DEFAULT_DECISION_PERIOD,
+                last_tick: None,
             },
             load: std::time::Duration::ZERO,
         })
@@ -1254,6 +1287,10 @@ impl DeliberativePolicy for SoccerBehavior {
     fn tick(&mut self, input: &DeliberativeInput<'_, WorldState, Decision>) -> Output {
         let ctx = &mut self.ctx;
         ctx.now = input.now;
+        if let Some(last) = ctx.last_tick.replace(input.now) {
+            let period = input.now.saturating_since(last).as_secs_f64();
+            ctx.decision_period = period.clamp(MIN_DECISION_PERIOD, MAX_DECISION_PERIOD);
+        }
         ctx.world = input.world.cloned();
         ctx.decision = input.assignment.cloned();
         ctx.stability = input.stability;

@@ -11,6 +11,7 @@ pub mod goals;
 pub mod message;
 pub mod motions;
 pub mod planning;
+pub mod predicted_motion;
 pub mod primitives;
 pub mod situation;
 pub mod team;

@@ -94,18 +94,19 @@ pub enum TeamConfigError {
     #[error("{source_name}: `{field}` {problem}")]
     Invalid { source_name: String, field: String, problem: String },
     #[error(
-        "no built-in team `{0}` (try: full, no-coordination, no-active-vision, always-ball, fixed-scan, entropy)"
+        "no built-in team `{0}` (try: full, no-coordination, no-active-vision, always-ball, fixed-scan, entropy, task-value)"
     )]
     UnknownPreset(String),
 }
 
-const PRESETS: [(&str, &str); 6] = [
+const PRESETS: [(&str, &str); 7] = [
     ("full", include_str!("../teams/full.toml")),
     ("no-coordination", include_str!("../teams/no-coordination.toml")),
     ("no-active-vision", include_str!("../teams/no-active-vision.toml")),
     ("always-ball", include_str!("../teams/always-ball.toml")),
     ("fixed-scan", include_str!("../teams/fixed-scan.toml")),
     ("entropy", include_str!("../teams/entropy.toml")),
+    ("task-value", include_str!("../teams/task-value.toml")),
 ];
 
 impl TeamConfig {

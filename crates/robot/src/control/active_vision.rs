@@ -17,8 +17,12 @@
 //!   posterior covariance (block-diagonal: the pose and each object are separate filters).
 //! - **maximum expected action task value**: choose the look that maximises E[V] after the next
 //!   acting primitive, which acts on the posterior mean. To second order,
-//!   E[V] = V(x) + tr(H P) / 2, with H the Hessian of V: uncertainty costs value where V is
-//!   curved, even where its gradient is flat (near the optimum of a covering position, say).
+//!   E[V] = V(x') + tr(H' P') / 2, with x' and P' the belief after the look *and* the primitive's
+//!   predicted motion ([`PredictedMotion`]: the pose moved by it, its covariance propagated as
+//!   the pose filter's prediction does, the objects carried into the moved robot frame) and H'
+//!   the Hessian of V there: uncertainty costs value where V is curved, even where its gradient
+//!   is flat (near the optimum of a covering position, say), and a heading error costs more
+//!   the farther the robot is about to walk.
 //!
 //! The two disagree when a look reduces uncertainty along a direction where V is steep but
 //! flat-bottomed, versus one where V is level but curved; both are available and the
@@ -27,7 +31,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::{Global, Point, Pose, Robot, normalize_angle};
+use crate::geometry::{Global, Odometry, Point, Pose, Robot, normalize_angle};
 use crate::percept::ViewCone;
 use crate::platform::Footprint;
 use crate::world::{ExpectedBelief, ObjectId, ObservationPrior, SensingCandidate, WorldState};
@@ -76,6 +80,52 @@ impl<'a> ValueState<'a> {
             Some(entry) => entry.1 = position,
             None => self.objects.push((id, position)),
         }
+    }
+}
+
+/// The motion the next acting primitive is expected to make before the deliberative layer
+/// decides again: the task-value criterion judges a look by the value expected *after* it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PredictedMotion {
+    /// The displacement, in the robot frame it starts from.
+    pub odometry: Odometry,
+    /// Covariance of its error (e.g. [`crate::world::OdometryNoise::covariance`]).
+    pub noise: Matrix3<f64>,
+}
+
+impl PredictedMotion {
+    /// The pose after the motion.
+    fn pose(&self, pose: Pose) -> Pose {
+        let moved = pose.to_global(Point::new(self.odometry.dx, self.odometry.dy));
+        Pose::new(moved.x, moved.y, normalize_angle(pose.theta + self.odometry.dtheta))
+    }
+
+    /// A robot-frame position in the robot frame after the motion (the same field position).
+    fn carry(&self, p: Point<Robot>) -> Point<Robot> {
+        let (s, c) = self.odometry.dtheta.sin_cos();
+        let (x, y) = (p.x - self.odometry.dx, p.y - self.odometry.dy);
+        Point::new(c * x + s * y, -s * x + c * y)
+    }
+
+    /// The pose covariance after the motion, from `p` at heading `theta`: the pose filter's
+    /// prediction (the heading's uncertainty turns into position uncertainty along the walk).
+    fn pose_covariance(&self, theta: f64, p: &Matrix3<f64>) -> Matrix3<f64> {
+        let (s, c) = theta.sin_cos();
+        let (dx, dy) = (self.odometry.dx, self.odometry.dy);
+        let f = Matrix3::new(1.0, 0.0, -s * dx - c * dy, 0.0, 1.0, c * dx - s * dy, 0.0, 0.0, 1.0);
+        let g = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        f * p * f.transpose() + g * self.noise * g.transpose()
+    }
+
+    /// An object's robot-frame covariance after the motion: turned into the new frame, plus
+    /// the motion's own error as it moves the object relative to the robot.
+    fn object_covariance(&self, p: Point<Robot>, covariance: &Matrix2<f64>) -> Matrix2<f64> {
+        let (s, c) = self.odometry.dtheta.sin_cos();
+        let turn = Matrix2::new(c, s, -s, c);
+        let (x, y) = (p.x - self.odometry.dx, p.y - self.odometry.dy);
+        // d(carried)/d(dx, dy, dtheta).
+        let j = nalgebra::Matrix2x3::new(-c, -s, -s * x + c * y, s, -c, -c * x - s * y);
+        turn * covariance * turn.transpose() + j * self.noise * j.transpose()
     }
 }
 
@@ -248,10 +298,26 @@ impl ActiveVision {
         ActiveVision { config, ..ActiveVision::default() }
     }
 
-    fn derivatives(&self, world: &WorldState, vf: &dyn ValueFunction) -> Derivatives {
+    /// V's value and derivatives at the world state's estimates, or where `motion` takes them.
+    fn derivatives(
+        &self,
+        world: &WorldState,
+        vf: &dyn ValueFunction,
+        motion: Option<&PredictedMotion>,
+    ) -> Derivatives {
         // One state, perturbed and restored in place: each perturbed state is the world
-        // state's own but for one block, as a fresh copy would be.
+        // state's own (or the moved one) but for one block, as a fresh copy would be.
         let mut state = ValueState::of(world);
+        let mut carried = Vec::new();
+        if let Some(motion) = motion {
+            state.pose = motion.pose(state.pose);
+            for id in vf.objects() {
+                if let Some(p) = world.get(id).map(|o| o.position) {
+                    carried.push((id, motion.carry(p)));
+                }
+            }
+            state.objects.clone_from(&carried);
+        }
         let base = state.pose;
         let value = vf.value(&state);
         // Pose block: x, y, theta.
@@ -273,7 +339,7 @@ impl ActiveVision {
                 vf.value(s)
             };
             let (g, h) = derivatives_of::<2, _>(value, &steps, &mut state, perturbed);
-            state.objects.clear();
+            state.objects.clone_from(&carried);
             objects.push((
                 id,
                 Vector2::new(g[0], g[1]),
@@ -326,10 +392,37 @@ impl ActiveVision {
         candidates: &[GazeCandidate],
         report: &mut ActiveVisionReport,
     ) {
-        let d = self.derivatives(world, vf);
+        self.evaluate_after_into(world, vf, candidates, None, report);
+    }
+
+    /// As [`ActiveVision::evaluate_into`], with the task-value criterion judging each look by
+    /// the value expected after `motion`, the next acting primitive's (the variance criterion
+    /// judges the belief the look leaves now, and ignores it).
+    pub fn evaluate_after_into(
+        &mut self,
+        world: &WorldState,
+        vf: &dyn ValueFunction,
+        candidates: &[GazeCandidate],
+        motion: Option<&PredictedMotion>,
+        report: &mut ActiveVisionReport,
+    ) {
+        let motion = motion.filter(|_| self.config.criterion == Criterion::MaxExpectedTaskValue);
+        let d = self.derivatives(world, vf, motion);
+        let heading = world.pose.pose.theta;
+        // The belief a look leaves, carried through the motion when there is one.
+        let moved_pose = |p: &Matrix3<f64>| match motion {
+            Some(m) => m.pose_covariance(heading, p),
+            None => *p,
+        };
+        let moved_object = |id: ObjectId, p: Matrix2<f64>| match (motion, world.get(id)) {
+            (Some(m), Some(o)) => m.object_covariance(o.position, &p),
+            _ => p,
+        };
         let prior_object = |id: ObjectId| world.get(id).map(|o| o.covariance);
         let (prior_variance, prior_expected_value) =
-            Self::moments(&d, &world.pose.covariance, prior_object);
+            Self::moments(&d, &moved_pose(&world.pose.covariance), |id| {
+                prior_object(id).map(|p| moved_object(id, p))
+            });
         let (lo, hi) = self.config.yaw_limits;
         let (range, min_visibility) = (self.config.range, self.config.min_visibility);
         // Objects no view of this range can observe are left out once for all candidates.
@@ -383,9 +476,15 @@ impl ActiveVision {
                 &mut self.scratch,
             );
             let scratch = &self.scratch;
-            let posterior_object =
-                |id: ObjectId| scratch.object(id).copied().or_else(|| prior_object(id));
-            let (variance, expected) = Self::moments(&d, &scratch.pose, posterior_object);
+            let posterior_object = |id: ObjectId| {
+                scratch
+                    .object(id)
+                    .copied()
+                    .or_else(|| prior_object(id))
+                    .map(|p| moved_object(id, p))
+            };
+            let (variance, expected) =
+                Self::moments(&d, &moved_pose(&scratch.pose), posterior_object);
             let names = self.sensing.observations.iter().filter_map(|o| world.get(o.object));
             overwrite(&mut e.observed, names.map(|o| o.name.as_str()));
             e.value_variance = variance;
