@@ -11,6 +11,7 @@ use crate::{config_error, from_json, run_error};
 /// (time, path, coverage, ball unknown, pose error).
 type StepTuple = (Vec<f32>, f64, bool, bool, (f64, usize, f64, f64, f64));
 
+#[derive(Debug)]
 #[pyclass(module = "strata._native", unsendable)]
 pub struct GazeEnv {
     env: gym::GazeEnv,

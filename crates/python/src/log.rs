@@ -11,7 +11,7 @@ use crate::{run_error, to_json};
 /// What the log holds, as JSON (`strata log info --json`).
 #[pyfunction]
 pub fn log_info(path: PathBuf) -> PyResult<String> {
-    let reader = LogReader::open(&path).map_err(run_error)?;
+    let reader = LogReader::open(&path).map_err(|e| run_error(e.into()))?;
     to_json(&LogInfo::of(&reader))
 }
 
