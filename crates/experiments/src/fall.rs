@@ -459,6 +459,7 @@ fn run_one(
             player,
             team: team.clone(),
             start: Pose::new(start[0], start[1], start[2]),
+            gaze: None,
         }],
     )?;
     scene.log = log;

@@ -44,8 +44,9 @@ use strata_runtime::{
 };
 use strata_sim::{GameState, NoiseLevel, RobotId, SimConfig, SimHandle, Simulation, add_simulator};
 use strata_soccer::field::TeamField;
+use strata_soccer::gaze_override::GazeOverride;
 use strata_soccer::team::team_world_config;
-use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot};
+use strata_soccer::team::{SoccerRobotSpec, TeamConfig, add_soccer_robot_with_gaze};
 
 use strata_games::logging::{RobotRunConfig, open_run_log};
 use strata_games::matches::{robot_name, served_links, served_platform};
@@ -570,6 +571,8 @@ pub struct SceneRobot {
     pub team: TeamConfig,
     /// Where it starts, team frame (own goal at -x).
     pub start: Pose,
+    /// Its head's goal chosen from outside (the gaze environment, `goal_covering::gym`).
+    pub gaze: Option<Arc<GazeOverride>>,
 }
 
 /// A world with some robots of one team, set to Playing, the referee manual (nothing moves
@@ -734,8 +737,9 @@ impl Scene {
                 initial_pose: None,
                 relocations: Vec::new(),
             };
-            let modules = add_soccer_robot(&mut graph, spec, &robot.team)
-                .map_err(|e| anyhow!("robot {}: {e}", robot_name(id)))?;
+            let modules =
+                add_soccer_robot_with_gaze(&mut graph, spec, &robot.team, robot.gaze.clone())
+                    .map_err(|e| anyhow!("robot {}: {e}", robot_name(id)))?;
             added.push((id, modules));
         }
         let graph = graph.build().context("wiring the experiment")?;

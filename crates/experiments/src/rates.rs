@@ -325,6 +325,7 @@ fn run_in_process(
             player: r.player,
             team: team.clone(),
             start: Pose::new(r.start[0], r.start[1], r.start[2]),
+            gaze: None,
         })
         .collect();
     let mut scene =

@@ -38,6 +38,7 @@ use strata_spl::gamecontroller::{GameState, SetPlay};
 use crate::catalog::{GOALKEEPER_NUMBER, Mission, Role};
 use crate::field::TeamField;
 use crate::game::{GameDirective, Kicking};
+use crate::gaze_override::{self, GazeOverride, Kind};
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
 use crate::predicted_motion::predicted_motion;
 use crate::primitives::{BodyPrimitive, MotionModel, TOGETHER_RANGE, facing};
@@ -162,6 +163,8 @@ pub struct Ctx {
     /// expected to run before the next decision.
     decision_period: f64,
     last_tick: Option<Time>,
+    /// A gaze chosen from outside (a learning environment), in place of active vision's.
+    gaze_override: Option<Arc<GazeOverride>>,
 }
 
 impl std::fmt::Debug for Ctx {
@@ -443,6 +446,14 @@ enum Looks {
 }
 
 impl Looks {
+    fn kind(self) -> Kind {
+        match self {
+            Looks::Ball => Kind::Ball,
+            Looks::Landmark => Kind::Landmark,
+            Looks::Together => Kind::Together,
+        }
+    }
+
     /// The objects a candidate with this `label` looks at (the head goal's objects).
     fn objects(self, label: &str) -> Vec<String> {
         match self {
@@ -576,6 +587,10 @@ fn gaze(ctx: &mut Ctx, value: Option<&dyn ValueFunction>) {
                     deliberative: score,
                     objects: what.objects(&candidate.label),
                 });
+            }
+            if let Some(choice) = ctx.gaze_override.as_ref().and_then(|o| o.get()) {
+                let kinds: Vec<Kind> = looks.iter().map(|l| l.kind()).collect();
+                gaze_override::apply(choice, &kinds, &mut vector);
             }
             ctx.gazes = gazes;
             ctx.gaze_looks = looks;
@@ -1257,6 +1272,7 @@ impl SoccerBehavior {
                 let_go: None,
                 decision_period: DEFAULT_DECISION_PERIOD,
                 last_tick: None,
+                gaze_override: None,
             },
             load: std::time::Duration::ZERO,
         })
@@ -1265,6 +1281,13 @@ impl SoccerBehavior {
     /// The same behavior, with `load` of busy computation after every tick.
     pub fn with_load(mut self, load: std::time::Duration) -> SoccerBehavior {
         self.load = load;
+        self
+    }
+
+    /// The same behavior, its head's goal taken from `choice` whenever one is set there (with
+    /// the value-function gazes: their candidates are what a choice names).
+    pub fn with_gaze_override(mut self, choice: Arc<GazeOverride>) -> SoccerBehavior {
+        self.ctx.gaze_override = Some(choice);
         self
     }
 

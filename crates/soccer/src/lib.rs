@@ -7,6 +7,7 @@ pub mod behaviors;
 pub mod catalog;
 pub mod field;
 pub mod game;
+pub mod gaze_override;
 pub mod goals;
 pub mod message;
 pub mod motions;

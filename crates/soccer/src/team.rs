@@ -28,6 +28,7 @@ use crate::activation::{BodyActivation, HeadActivation, WholeBodyActivation};
 use crate::behaviors::{BehaviorConfig, SoccerBehavior};
 use crate::field::TeamField;
 use crate::game::{GameControllerReferee, SignalConfig};
+use crate::gaze_override::GazeOverride;
 use crate::goals::{BodyGoal, HeadGoal, WholeBodyGoal};
 use crate::planning::{SoccerCodec, SoccerPlanning, SoccerPlanningConfig};
 use crate::primitives::{
@@ -469,10 +470,24 @@ pub fn add_soccer_robot(
     spec: SoccerRobotSpec,
     config: &TeamConfig,
 ) -> Result<RobotModules, String> {
+    add_soccer_robot_with_gaze(graph, spec, config, None)
+}
+
+/// [`add_soccer_robot`], the head's goal chosen through `gaze` when given (a learning
+/// environment's actions; `crate::gaze_override`).
+pub fn add_soccer_robot_with_gaze(
+    graph: &mut GraphBuilder,
+    spec: SoccerRobotSpec,
+    config: &TeamConfig,
+    gaze: Option<Arc<GazeOverride>>,
+) -> Result<RobotModules, String> {
     let info = spec.platform.info();
     let field = Arc::clone(&spec.field);
     let reactive = reactive_layer(config, &info, &field);
-    let deliberative = deliberative_behavior(config, &info, &field, spec.player)?;
+    let mut deliberative = deliberative_behavior(config, &info, &field, spec.player)?;
+    if let Some(gaze) = gaze {
+        deliberative = deliberative.with_gaze_override(gaze);
+    }
     let (planner, referee) =
         planning_parts(config, &field, spec.player, spec.team_number, spec.half_duration);
     let parts = RobotParts::<Soccer> {

@@ -90,6 +90,7 @@ impl Stage {
                 player: *player,
                 team: TeamConfig::preset("full").expect("the full team"),
                 start: *start,
+                gaze: None,
             })
             .collect();
         let mut scene = Scene::new("spl", NoiseLevel::Default, SEED, &robots).expect("scene");

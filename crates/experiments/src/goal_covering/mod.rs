@@ -48,6 +48,7 @@ use super::{
 pub const NAME: &str = "goal-covering";
 
 mod files;
+pub mod gym;
 mod metrics;
 mod plots;
 mod report;
@@ -155,7 +156,7 @@ fn run_one(
         &scenario.field,
         scenario.noise_level.unwrap_or_default(),
         job.seed,
-        &[SceneRobot { player: 1, team: team.clone(), start: Pose::new(x, y, theta) }],
+        &[SceneRobot { player: 1, team: team.clone(), start: Pose::new(x, y, theta), gaze: None }],
     )?;
     scene.log = log;
     let (keeper, modules) = scene.robots[0].clone();
