@@ -21,6 +21,7 @@
 
 pub mod feed;
 pub mod foxglove;
+pub mod live;
 
 use strata_robot::world::WorldState;
 use strata_runtime::Time;
