@@ -168,6 +168,38 @@ fn watch(addr: SocketAddr, robots: &[&str]) -> Seen {
     }
 }
 
+/// The entity ids of the first `scene/field` message a client gets that subscribes after the
+/// field was published.
+fn late_field(addr: SocketAddr) -> Vec<String> {
+    let mut socket = connect(addr);
+    let _info = next_json(&mut socket);
+    let advertise = next_json(&mut socket);
+    let channels = advertise["channels"].as_array().expect("channels");
+    let field = channels.iter().find(|c| c["topic"] == FIELD_TOPIC).expect("the field's channel");
+    let subscribe = serde_json::json!({
+        "op": "subscribe",
+        "subscriptions": [{ "id": 7, "channelId": field["id"] }],
+    });
+    socket.send(Message::text(subscribe.to_string())).expect("subscribed");
+    loop {
+        let bytes = match socket.read().expect("the field before the read timeout") {
+            Message::Binary(bytes) => bytes,
+            Message::Close(frame) => panic!("the server closed the connection: {frame:?}"),
+            _ => continue,
+        };
+        if bytes.first() == Some(&1) && bytes.len() > 13 {
+            let update: Value = serde_json::from_slice(&bytes[13..]).expect("a JSON SceneUpdate");
+            let _ = socket.close(None);
+            return update["entities"]
+                .as_array()
+                .expect("entities")
+                .iter()
+                .map(|e| e["id"].as_str().expect("an id").to_owned())
+                .collect();
+        }
+    }
+}
+
 #[test]
 fn a_foxglove_client_subscribes_to_a_live_match_and_gets_its_scene() {
     let config = MatchConfig { players: 2, seed: 3, limit: Some(6.0), ..MatchConfig::default() };
@@ -184,6 +216,8 @@ fn a_foxglove_client_subscribes_to_a_live_match_and_gets_its_scene() {
     let report = game.play(&mut |_, _| {}).expect("the match runs");
     assert!(report.simulated_s > 5.0, "the match was played: {report:?}");
     let seen = client.join().expect("the client read the scene");
+    // The match is over and the field was published long ago: it is sent on subscription.
+    assert_eq!(late_field(addr), ["field"], "a late subscriber gets the field");
     server.finish();
 
     assert_eq!(seen.field_entities, ["field"]);
