@@ -20,6 +20,7 @@ pub mod links;
 pub mod logging;
 pub mod matches;
 pub mod outputs;
+pub mod pacing;
 pub mod physics;
 pub mod replay_registry;
 pub mod robot;

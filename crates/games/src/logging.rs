@@ -28,11 +28,11 @@ use strata_spl::field::FieldDimensions;
 
 use crate::matches::{Match, robot_name};
 use crate::outputs::{DECISION, GROUND_TRUTH, REPORT, SCORES, WORLD_STATE};
+use crate::scene::feed::{SceneFeed, SceneSource};
 use crate::scene::foxglove::{frame_transforms_schema, log_schema, scene_update_schema};
-use crate::scene::plot::{LayerKind, PLOT_TOPIC, layer_plot_schema};
+use crate::scene::plot::{PLOT_TOPIC, layer_plot_schema};
 use crate::scene::{
-    EVENTS_TOPIC, FIELD_TOPIC, OBJECTS_TOPIC, SceneConfig, SceneOutput, SceneRecorder,
-    TRANSFORMS_TOPIC,
+    EVENTS_TOPIC, FIELD_TOPIC, OBJECTS_TOPIC, SceneConfig, SceneOutput, TRANSFORMS_TOPIC,
 };
 
 /// Topic of the game-state records (written when the game state changes).
@@ -232,7 +232,7 @@ pub fn open_run_log(
         robots: robots.iter().map(|robot| PathRecord::new(robot)).collect(),
         sources: Vec::new(),
         last_game: None,
-        scene: scene.map(|config| SceneRecorder::new(config, robots.iter().cloned())),
+        scene: scene.map(|config| SceneFeed::new(config, robots.iter().cloned())),
     }));
     Ok(Arc::new(tap))
 }
@@ -369,21 +369,7 @@ enum Layer {
     Reactive,
 }
 
-impl Layer {
-    fn kind(self) -> LayerKind {
-        match self {
-            Layer::Deliberative => LayerKind::Deliberative,
-            Layer::Planning => LayerKind::Planning,
-            Layer::Reactive => LayerKind::Reactive,
-        }
-    }
-}
-
 struct PathRecord {
-    /// The robot's module prefix: `home/3`.
-    robot: String,
-    /// Its world states' topic, for the scene.
-    world: String,
     /// Where the robot's path records go: `home/3/behavior_path`.
     topic: String,
     /// The topics of the robot's deliberative scores, planning decisions and reactive reports.
@@ -400,8 +386,6 @@ struct PathRecord {
 impl PathRecord {
     fn new(robot: &str) -> PathRecord {
         PathRecord {
-            robot: robot.to_owned(),
-            world: format!("{robot}/world/{WORLD_STATE}"),
             topic: format!("{robot}/{BEHAVIOR_PATH_TOPIC}"),
             sources: [
                 (format!("{robot}/deliberative/{SCORES}"), Layer::Deliberative),
@@ -459,27 +443,27 @@ impl PathRecord {
 }
 
 /// What a logged topic's packages are derived into.
-#[derive(Clone, Copy)]
-enum Source {
+#[derive(Clone, Copy, Default)]
+struct Sources {
     /// The simulator's ground truth: the game state.
-    GroundTruth,
+    game_state: bool,
     /// A layer's output of the robot with this index: its behavior path.
-    Layer(usize, Layer),
-    /// The world states of the robot with this index: its estimates, for the scene.
-    World(usize),
+    path: Option<(usize, Layer)>,
+    /// What it is to the scene, when the log has one.
+    scene: Option<SceneSource>,
 }
 
 /// The records of a log that are not packages, derived on the log's writer thread (see
 /// [`strata_log::Derive`]): the game state when it changes (from the simulator's ground
-/// truth), and each logged robot's behavior path, checked every reactive cycle and written
-/// when it changes.
+/// truth), each logged robot's behavior path, checked every reactive cycle and written
+/// when it changes, and the scene channels.
 struct RunRecords {
     robots: Vec<PathRecord>,
     /// By topic id.
-    sources: Vec<Option<Source>>,
+    sources: Vec<Sources>,
     last_game: Option<GameTruth>,
     /// The scene channels' state, when the log has them.
-    scene: Option<SceneRecorder>,
+    scene: Option<SceneFeed>,
 }
 
 /// Writes what the scene says to write, at `time` (the package's log time).
@@ -509,9 +493,6 @@ impl RunRecords {
         records: &mut DerivedRecords,
     ) {
         let Some(truth) = GROUND_TRUTH.downcast(package) else { return };
-        if let Some(scene) = self.scene.as_mut() {
-            write_scene(scene.truth(time, &truth.value), time, records);
-        }
         let game = &truth.value.game;
         // The clock runs down and the message budgets shrink all the time: a change of the
         // game state is a change of anything else.
@@ -530,25 +511,19 @@ impl RunRecords {
 
 impl Derive for RunRecords {
     fn wants(&mut self, id: u32, topic: &str, _type_name: &str) -> bool {
-        let truth = topic.rsplit_once('/').is_some_and(|(_, output)| output == GROUND_TRUTH.name());
-        let source = if truth {
-            Some(Source::GroundTruth)
-        } else {
-            let scene = self.scene.is_some();
-            self.robots.iter().enumerate().find_map(|(robot, record)| {
-                if scene && record.world == topic {
-                    return Some(Source::World(robot));
-                }
-                let (_, layer) = record.sources.iter().find(|(name, _)| name == topic)?;
-                Some(Source::Layer(robot, *layer))
-            })
-        };
+        let game_state =
+            topic.rsplit_once('/').is_some_and(|(_, output)| output == GROUND_TRUTH.name());
+        let path = self.robots.iter().enumerate().find_map(|(robot, record)| {
+            let (_, layer) = record.sources.iter().find(|(name, _)| name == topic)?;
+            Some((robot, *layer))
+        });
+        let scene = self.scene.as_ref().and_then(|scene| scene.source(topic));
         let index = id as usize;
         if self.sources.len() <= index {
-            self.sources.resize(index + 1, None);
+            self.sources.resize(index + 1, Sources::default());
         }
-        self.sources[index] = source;
-        source.is_some()
+        self.sources[index] = Sources { game_state, path, scene };
+        game_state || path.is_some() || scene.is_some()
     }
 
     fn package(
@@ -558,38 +533,17 @@ impl Derive for RunRecords {
         package: &dyn ErasedPackage,
         records: &mut DerivedRecords,
     ) {
-        match self.sources.get(topic as usize).copied().flatten() {
-            Some(Source::GroundTruth) => self.game_state(time, package, records),
-            Some(Source::Layer(robot, layer)) => {
-                let Some(record) = self.robots.get_mut(robot) else { return };
-                record.update(layer, time, package, records);
-                let Some(scene) = self.scene.as_mut() else { return };
-                scene.layer(&record.robot, time, layer.kind());
-                match layer {
-                    Layer::Planning => {
-                        if let Some(decision) = DECISION.downcast(package) {
-                            let role = decision.value.assignment.role.name();
-                            write_scene(scene.role(&record.robot, time, role), time, records);
-                        }
-                    }
-                    Layer::Reactive => {
-                        if let Some(report) = REPORT.downcast(package) {
-                            scene.head(&record.robot, time, &report.value.head);
-                        }
-                    }
-                    Layer::Deliberative => {}
-                }
-            }
-            Some(Source::World(robot)) => {
-                let (Some(record), Some(scene)) = (self.robots.get(robot), self.scene.as_mut())
-                else {
-                    return;
-                };
-                if let Some(state) = WORLD_STATE.downcast(package) {
-                    write_scene(scene.world(&record.robot, time, &state.value), time, records);
-                }
-            }
-            None => {}
+        let Some(sources) = self.sources.get(topic as usize).copied() else { return };
+        if let (Some(source), Some(scene)) = (sources.scene, self.scene.as_mut()) {
+            write_scene(scene.package(source, time, package), time, records);
+        }
+        if sources.game_state {
+            self.game_state(time, package, records);
+        }
+        if let Some((robot, layer)) = sources.path
+            && let Some(record) = self.robots.get_mut(robot)
+        {
+            record.update(layer, time, package, records);
         }
     }
 

@@ -5,12 +5,13 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, PoisonError};
 
 use anyhow::{Context as _, Result, bail};
-use clap::Args;
+use clap::{ArgGroup, Args};
 use indicatif::{ProgressBar, ProgressStyle};
 use strata_games::logging::{LogSettings, MatchLog, parse_robots};
 use strata_games::matches::{Match, MatchConfig, MatchReport};
 use strata_games::physics::game::{GameConfig, PhysicsReport, RULES_HALF_TIME};
 use strata_games::physics::{self, Engine};
+use strata_games::scene::live::{self, SceneServer};
 use strata_log::LogCompression;
 use strata_runtime::Encoding;
 use strata_sim::NoiseLevel;
@@ -18,6 +19,7 @@ use strata_soccer::team::TeamConfig;
 use strata_view::{LiveTap, ViewServer};
 
 #[derive(Debug, Args)]
+#[command(group(ArgGroup::new("live").args(["view", "foxglove"]).multiple(true)))]
 pub struct MatchArgs {
     /// Where the game is played: the built-in 2D simulator, or Booster T1s in rcssservermj
     /// (docs/rcssservermj.md; `scripts/setup-rcssservermj` installs it).
@@ -95,9 +97,17 @@ pub struct MatchArgs {
     /// The viewer's port on 127.0.0.1 (0: any free port).
     #[arg(long, default_value_t = 8080, requires = "view")]
     pub port: u16,
-    /// With --view: simulated seconds per real second (0: as fast as possible).
-    #[arg(long, default_value_t = 1.0, requires = "view")]
-    pub speed: f64,
+    /// With --view or --foxglove: simulated seconds per real second (0: as fast as
+    /// possible) [default: 1 with --view; with --foxglove alone, as fast as possible].
+    #[arg(long, requires = "live")]
+    pub speed: Option<f64>,
+    /// Serve the match's scene live over Foxglove's WebSocket protocol on this address, for
+    /// the Foxglove app's 3D panel (docs/foxglove.md, "Live") [default: 127.0.0.1:8765].
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = live::DEFAULT_ADDR)]
+    pub foxglove: Option<String>,
+    /// With --foxglove: start the match only once a client subscribed to a channel.
+    #[arg(long, requires = "foxglove")]
+    pub foxglove_wait: bool,
 }
 
 impl MatchArgs {
@@ -143,6 +153,7 @@ pub fn run(args: MatchArgs) -> Result<()> {
         return run_physics(&args);
     }
     let config = config(&args)?;
+    let foxglove_addr = args.foxglove.as_deref().map(live::parse_addr).transpose()?;
     let players = config.players;
     let mut game = Match::new(config)?;
     let log = match &args.log {
@@ -162,8 +173,9 @@ pub fn run(args: MatchArgs) -> Result<()> {
         }
         None => None,
     };
+    // One tap paces a lockstep match: the viewer's when there is one.
+    let speed = args.speed.or(args.view.then_some(1.0)).filter(|s| *s > 0.0 && !args.realtime);
     let viewer = if args.view {
-        let speed = (args.speed > 0.0 && !args.realtime).then_some(args.speed);
         let (data, tap) = LiveTap::for_match(&game, speed);
         game.add_tap(Arc::new(tap));
         let server = ViewServer::start(Arc::clone(&data), args.port)
@@ -172,6 +184,18 @@ pub fn run(args: MatchArgs) -> Result<()> {
         Some((data, server))
     } else {
         None
+    };
+    let mut foxglove = match foxglove_addr {
+        Some(addr) => {
+            let server = SceneServer::attach(&mut game, addr, speed.filter(|_| !args.view))?;
+            eprintln!("Foxglove: {} (Open connection -> Foxglove WebSocket)", server.url());
+            if args.foxglove_wait {
+                eprintln!("waiting for a Foxglove client to subscribe (Ctrl-C stops)");
+                wait_for_subscriber(&server)?;
+            }
+            Some(server)
+        }
+        None => None,
     };
     let bar = if args.json { ProgressBar::hidden() } else { ProgressBar::new(1000) };
     bar.set_style(
@@ -183,6 +207,15 @@ pub fn run(args: MatchArgs) -> Result<()> {
         bar.set_message(score.to_owned());
     })?;
     bar.finish_and_clear();
+    if let Some(server) = &mut foxglove {
+        server.finish();
+        if server.dropped() > 0 {
+            eprintln!(
+                "Foxglove: {} packages dropped (the server's worker fell behind)",
+                server.dropped()
+            );
+        }
+    }
     // After the last simulated second or Ctrl-C: the lockstep loop stopped at the interrupt
     // flag, so the log is closed properly either way.
     if let Some(log) = &log {
@@ -213,6 +246,17 @@ pub fn run(args: MatchArgs) -> Result<()> {
     Ok(())
 }
 
+/// Blocks until a Foxglove client subscribed, or Ctrl-C.
+fn wait_for_subscriber(server: &SceneServer) -> Result<()> {
+    let interrupted = strata_runtime::signal::interrupt_flag().map_err(anyhow::Error::msg)?;
+    while !server.wait_for_subscriber(std::time::Duration::from_millis(200)) {
+        if interrupted.load(Ordering::Relaxed) {
+            bail!("interrupted while waiting for a Foxglove client");
+        }
+    }
+    Ok(())
+}
+
 /// A game of T1s in rcssservermj (`strata_games::physics::game`).
 fn run_physics(args: &MatchArgs) -> Result<()> {
     let defaults = MatchArgs::defaults();
@@ -223,6 +267,7 @@ fn run_physics(args: &MatchArgs) -> Result<()> {
         ("--realtime", args.realtime),
         ("--no-delay", args.no_delay),
         ("--view", args.view),
+        ("--foxglove", args.foxglove.is_some()),
         ("--log-robots", args.log_robots.is_some()),
         ("--log-world-hz", args.log_world_hz != defaults.log_world_hz),
     ];

@@ -61,6 +61,9 @@ fn run_test_controller(args: &RobotArgs) -> Result<()> {
     if options.log.is_some() {
         bail!("--log records the modules of the full architecture: not with --controller test");
     }
+    if options.foxglove.is_some() {
+        bail!("--foxglove serves the full architecture's scene: not with --controller test");
+    }
     if options.net {
         bail!(
             "--controller test reads the game state from the simulator server; run it without --net"

@@ -55,3 +55,19 @@ fn a_team_config_with_an_unknown_field_names_the_file_and_the_field() {
     assert_clear_error(&output, &["team.toml", "bogus_gain"]);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_foxglove_address_that_cannot_be_served_is_one_error_naming_it() {
+    let run = |addr: &str| {
+        Command::new(env!("CARGO_BIN_EXE_strata"))
+            .args(["match", "--players", "1", "--duration", "1", "--foxglove", addr])
+            .env("RUST_BACKTRACE", "1")
+            .output()
+            .expect("strata runs")
+    };
+    assert_clear_error(&run("not an address"), &["--foxglove `not an address`", "HOST:PORT"]);
+    // A port another program listens on.
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+    let addr = taken.local_addr().expect("its address").to_string();
+    assert_clear_error(&run(&addr), &["Foxglove", &addr]);
+}

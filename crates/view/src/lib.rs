@@ -13,13 +13,12 @@ pub mod request;
 pub mod server;
 
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, PoisonError, RwLock};
+use std::sync::{Arc, PoisonError, RwLock};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, Result};
 use strata_log::LogReader;
-use strata_runtime::{Tap, TapOutput, TapRecord, Time};
+use strata_runtime::{Tap, TapOutput, TapRecord};
 use strata_spl::field::Field;
 
 use data::ViewData;
@@ -27,6 +26,7 @@ pub use server::ViewServer;
 use strata_games::logging::{RobotRunConfig, RunConfig};
 use strata_games::matches::Match;
 use strata_games::outputs;
+use strata_games::pacing::Pacer;
 
 /// The outputs whose packages the viewer shows (`data::classify` tells which module's).
 const SHOWN_OUTPUTS: [&str; 5] = [
@@ -154,17 +154,13 @@ pub fn wait_loaded(data: &RwLock<ViewData>, limit: Duration) -> bool {
 /// time so that it can be watched (the lockstep host otherwise runs as fast as it can).
 pub struct LiveTap {
     data: Arc<RwLock<ViewData>>,
-    /// Simulated seconds per wall second; `None`: unpaced.
-    speed: Option<f64>,
-    /// Wall time and simulated time of the first ground truth.
-    origin: Mutex<Option<(Instant, Time)>>,
-    /// Stops pacing (Ctrl-C: the match must end promptly).
-    interrupted: Option<Arc<AtomicBool>>,
+    /// `None`: unpaced.
+    pacer: Option<Pacer>,
 }
 
 impl std::fmt::Debug for LiveTap {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LiveTap").field("speed", &self.speed).finish_non_exhaustive()
+        f.debug_struct("LiveTap").field("pacer", &self.pacer).finish_non_exhaustive()
     }
 }
 
@@ -179,30 +175,8 @@ impl LiveTap {
         data.set_camera(run.platform.camera_fov, run.platform.camera_range);
         data.set_seed(Some(run.seed));
         let data = Arc::new(RwLock::new(data));
-        let tap = LiveTap {
-            data: Arc::clone(&data),
-            speed: speed.filter(|s| s.is_finite() && *s > 0.0),
-            origin: Mutex::new(None),
-            interrupted: strata_runtime::signal::interrupt_flag().ok(),
-        };
+        let tap = LiveTap { data: Arc::clone(&data), pacer: speed.and_then(Pacer::new) };
         (data, tap)
-    }
-
-    fn pace(&self, now: Time) {
-        let Some(speed) = self.speed else { return };
-        if self.interrupted.as_ref().is_some_and(|f| f.load(Ordering::Relaxed)) {
-            return;
-        }
-        let (wall, sim) = *self
-            .origin
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .get_or_insert((Instant::now(), now));
-        let due = wall + (now - sim).div_f64(speed);
-        let wait = due.saturating_duration_since(Instant::now());
-        if !wait.is_zero() {
-            std::thread::sleep(wait);
-        }
     }
 }
 
@@ -228,8 +202,10 @@ impl Tap for LiveTap {
                 data::Incoming::Live(record.package),
             );
         }
-        if record.sent_on.output == outputs::GROUND_TRUTH.name() {
-            self.pace(record.time);
+        if record.sent_on.output == outputs::GROUND_TRUTH.name()
+            && let Some(pacer) = &self.pacer
+        {
+            pacer.pace(record.time);
         }
     }
 }

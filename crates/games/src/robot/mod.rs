@@ -58,6 +58,7 @@ use strata_spl::Field;
 
 use crate::links::{LinkCounters, LinkStats};
 use crate::logging::{RobotRunConfig, open_run_log};
+use crate::scene::live::{self, SceneServer};
 use links::{OpenLinks, learn_attack_sign, open_links};
 use platform::{OpenPlatform, PlatformCounters, open_platform, sit_down};
 use report::LayerMeter;
@@ -212,6 +213,12 @@ pub struct RobotOptions {
     #[arg(long, value_name = "MB", requires = "log",
           value_parser = clap::value_parser!(u64).range(1..))]
     pub log_max_size: Option<u64>,
+    /// Serve the robot's scene live (its own estimates: it has no ground truth) over
+    /// Foxglove's WebSocket protocol on this address, for the Foxglove app's 3D panel
+    /// (docs/foxglove.md, "Live") [default: 127.0.0.1:8765].
+    #[arg(long, value_name = "ADDR", num_args = 0..=1,
+          default_missing_value = crate::scene::live::DEFAULT_ADDR)]
+    pub foxglove: Option<String>,
 }
 
 impl RobotOptions {
@@ -249,6 +256,7 @@ impl RobotOptions {
             log_encoding: Encoding::Cdr,
             log_no_sync: false,
             log_max_size: None,
+            foxglove: None,
         }
     }
 }
@@ -301,17 +309,23 @@ pub fn run(opts: &RobotOptions, out: &Arc<dyn RobotOutput>) -> Result<()> {
         real_time_priority: (opts.real_time_priority > 0).then_some(opts.real_time_priority),
         ..HostConfig::with_seed(seed)
     };
+    let run_config = RobotRunConfig {
+        robot: format!("t{}/{}", opts.team, opts.player),
+        team: config.clone(),
+        world: robot_world_config(&config, &team_field, initial_pose, &relocations),
+        field: team_field.field.dimensions().clone(),
+        attack_sign,
+        platform: info.clone(),
+    };
     let log = match &opts.log {
-        Some(path) => {
-            let run_config = RobotRunConfig {
-                robot: format!("t{}/{}", opts.team, opts.player),
-                team: config.clone(),
-                world: robot_world_config(&config, &team_field, initial_pose, &relocations),
-                field: team_field.field.dimensions().clone(),
-                attack_sign,
-                platform: info.clone(),
-            };
-            Some(open_log(path, opts, seed, &run_config, &graph)?)
+        Some(path) => Some(open_log(path, opts, seed, &run_config, &graph)?),
+        None => None,
+    };
+    let mut foxglove = match &opts.foxglove {
+        Some(text) => {
+            let addr = live::parse_addr(text)?;
+            let robots = [run_config.robot.clone()];
+            Some(SceneServer::start(addr, run_config.scene(), robots)?)
         }
         None => None,
     };
@@ -330,6 +344,10 @@ pub fn run(opts: &RobotOptions, out: &Arc<dyn RobotOutput>) -> Result<()> {
     }
     if let Some(log) = &log {
         host.add_tap(Arc::clone(log) as Arc<dyn Tap>);
+    }
+    if let Some(server) = &foxglove {
+        host.add_tap(Arc::new(server.tap(None)));
+        out.note(&format!("Foxglove: {} (Open connection -> Foxglove WebSocket)", server.url()));
     }
 
     out.start(&start_info(opts, &platform, &config, endpoints, attack_sign, attack_source));
@@ -395,6 +413,15 @@ pub fn run(opts: &RobotOptions, out: &Arc<dyn RobotOutput>) -> Result<()> {
         match log.finish() {
             Ok(summary) => out.note(&log_note(&summary)),
             Err(error) => out.note(&format!("log: {error}")),
+        }
+    }
+    if let Some(server) = &mut foxglove {
+        server.finish();
+        if server.dropped() > 0 {
+            out.note(&format!(
+                "Foxglove: {} packages dropped (the server's worker fell behind)",
+                server.dropped()
+            ));
         }
     }
 
@@ -576,6 +603,9 @@ pub fn validate(opts: &RobotOptions) -> Result<()> {
     }
     if !(opts.gc_wait.is_finite() && opts.gc_wait >= 0.0) {
         bail!("--gc-wait must be >= 0, got {}", opts.gc_wait);
+    }
+    if let Some(addr) = &opts.foxglove {
+        live::parse_addr(addr)?;
     }
     let net_options = [
         ("--interface", opts.interface.is_some()),

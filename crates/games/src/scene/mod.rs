@@ -6,8 +6,9 @@
 //!
 //! One place computes it: pure functions of the packages ([`field_update`],
 //! [`objects_update`], [`transforms`], [`event_log`]) and a [`SceneRecorder`] that follows a
-//! run's packages and says what to write when. The log writer derives the scene channels
-//! with it off the match thread (`crate::logging`); a live server or `strata view` can use the
+//! run's packages and says what to write when, fed by topic ([`feed::SceneFeed`]). The log
+//! writer derives the scene channels with it off the match thread (`crate::logging`), and so
+//! does the live server of Foxglove's WebSocket protocol ([`live`]); `strata view` can use the
 //! same functions.
 //!
 //! The messages are Foxglove's well-known schemas ([`foxglove`]) in **JSON** with JSON
@@ -18,7 +19,9 @@
 //! serde writes it with no new dependency, and because the scene is a small stream (ten
 //! updates per simulated second) beside the packages, which stay in CDR.
 
+pub mod feed;
 pub mod foxglove;
+pub mod live;
 pub mod plot;
 
 use strata_robot::world::WorldState;
