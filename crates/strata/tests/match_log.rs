@@ -13,6 +13,7 @@ use std::time::Duration;
 use serde_json::Value;
 use strata_games::logging::{BEHAVIOR_PATH_TOPIC, GAME_STATE_TOPIC, LogSettings};
 use strata_games::replay_registry;
+use strata_games::scene::plot::PLOT_TOPIC;
 use strata_log::LogReader;
 use strata_log::overrides::Override;
 use strata_log::replay::{ReplayOptions, replay};
@@ -42,7 +43,10 @@ impl Tap for Collect {
 }
 
 fn is_record_topic(topic: &str) -> bool {
-    topic == GAME_STATE_TOPIC || topic.ends_with(BEHAVIOR_PATH_TOPIC) || topic.starts_with("scene/")
+    topic == GAME_STATE_TOPIC
+        || topic.ends_with(BEHAVIOR_PATH_TOPIC)
+        || topic.starts_with("scene/")
+        || topic == PLOT_TOPIC
 }
 
 #[test]
@@ -160,6 +164,7 @@ fn logged_robots_can_be_chosen_and_the_world_state_decimated() {
             || *t == "simulator/ground_truth"
             || t.starts_with("simulator/home_2/")
             || t.starts_with("scene/")
+            || *t == PLOT_TOPIC
             || *t == GAME_STATE_TOPIC),
         "{topics:?}"
     );
