@@ -5,8 +5,10 @@ mod world_support;
 
 use nalgebra::Vector2;
 use strata_robot::geometry::Pose;
-use strata_robot::world::{PosePrior, WorldModel};
-use world_support::{Sim, anees_band, config, gaussian, nees2, nees3, patrol_step, pose_error};
+use strata_robot::world::{PoseFeed, PosePrior, WorldModel, WorldModelConfig};
+use world_support::{
+    Sim, anees_band, config, config_with_lines, gaussian, nees2, nees3, patrol_step, pose_error,
+};
 
 const RUNS: usize = 40;
 const FRAMES: usize = 450;
@@ -19,7 +21,36 @@ struct Nees {
     ball_error: Vec<f64>,
 }
 
-fn run(seed: u64, nees: &mut Nees) {
+/// What the pose filter is corrected with.
+#[derive(Clone, Copy)]
+struct Setup {
+    feed: PoseFeed,
+    lines: bool,
+}
+
+const DEFAULT: Setup = Setup { feed: PoseFeed::Gained, lines: false };
+
+impl Nees {
+    fn new() -> Nees {
+        Nees {
+            pose: vec![Vec::new(); FRAMES],
+            ball: vec![Vec::new(); FRAMES],
+            pose_error: Vec::new(),
+            heading_error: Vec::new(),
+            ball_error: Vec::new(),
+        }
+    }
+
+    fn of(setup: Setup) -> Nees {
+        let mut nees = Nees::new();
+        for seed in 0..RUNS as u64 {
+            run(seed, setup, &mut nees);
+        }
+        nees
+    }
+}
+
+fn run(seed: u64, setup: Setup, nees: &mut Nees) {
     let sigma = [0.2, 0.2, 0.1];
     let mean = Pose::new(-2.0, -1.0, 0.3);
     let mut sim = Sim::new(seed, mean);
@@ -32,8 +63,12 @@ fn run(seed: u64, nees: &mut Nees) {
     sim.ball = Vector2::new(-1.0, -0.5);
     // A rolling ball, its velocity within the filter's prior on a new track's velocity.
     sim.ball_velocity = Vector2::new(0.5 * gaussian(&mut sim.rng), 0.5 * gaussian(&mut sim.rng));
-    let mut world =
-        WorldModel::new(config(Some(PosePrior { pose: mean, sigma }))).expect("valid config");
+    sim.see_lines = setup.lines;
+    let prior = Some(PosePrior { pose: mean, sigma });
+    let mut config: WorldModelConfig =
+        if setup.lines { config_with_lines(prior) } else { config(prior) };
+    config.pose.feed = setup.feed;
+    let mut world = WorldModel::new(config).expect("valid config");
     let ball = world.object_id("ball").expect("configured");
     for frame in 0..FRAMES {
         let (odometry, percepts) = sim.frame(patrol_step(&sim));
@@ -79,16 +114,7 @@ fn summarize(per_frame: &[Vec<f64>], dof: f64) -> (f64, f64, usize) {
 
 #[test]
 fn pose_and_ball_filters_are_consistent() {
-    let mut nees = Nees {
-        pose: vec![Vec::new(); FRAMES],
-        ball: vec![Vec::new(); FRAMES],
-        pose_error: Vec::new(),
-        heading_error: Vec::new(),
-        ball_error: Vec::new(),
-    };
-    for seed in 0..RUNS as u64 {
-        run(seed, &mut nees);
-    }
+    let nees = Nees::of(DEFAULT);
     for chunk in 0..FRAMES / 30 {
         let r = chunk * 30..(chunk + 1) * 30;
         let p: Vec<f64> = nees.pose[r.clone()].iter().map(|v| mean(v)).collect();
@@ -115,4 +141,48 @@ fn pose_and_ball_filters_are_consistent() {
     assert!((lo2..=hi2).contains(&ball_mean), "ball ANEES {ball_mean}");
     assert!(pose_inside >= 0.8, "pose ANEES inside the band in {pose_inside}");
     assert!(ball_inside >= 0.8, "ball ANEES inside the band in {ball_inside}");
+}
+
+/// The pose's ANEES over the frames most runs reached, and its mean position and heading error.
+fn pose_summary(nees: &Nees, label: &str) -> (f64, f64, f64) {
+    let (inside, anees, frames) = summarize(&nees.pose, 3.0);
+    let (error, heading) = (mean(&nees.pose_error), mean(&nees.heading_error));
+    let (lo, hi) = anees_band(3.0, RUNS);
+    println!(
+        "{label}: pose ANEES {anees:.2} (95% band {lo:.2}..{hi:.2}), {:.1}% of {frames} frames inside; mean error {:.1} cm, {:.2} deg",
+        inside * 100.0,
+        error * 100.0,
+        heading.to_degrees()
+    );
+    (anees, error, heading)
+}
+
+/// docs/world-model.md "What the pose filter is fed": the paper's wording fed literally (each
+/// frame, the landmark filters' whole estimates) counts every past observation again and the
+/// pose filter claims far more certainty than it has; what the filters gained does not.
+#[test]
+fn feeding_whole_landmark_estimates_makes_the_pose_overconfident() {
+    let (gained, gained_error, _) = pose_summary(&Nees::of(DEFAULT), "gained information");
+    let (estimates, estimates_error, _) =
+        pose_summary(&Nees::of(Setup { feed: PoseFeed::Estimates, ..DEFAULT }), "whole estimates");
+    let (_, hi) = anees_band(3.0, RUNS);
+    assert!(gained <= hi, "gained information: ANEES {gained}");
+    assert!(estimates > 2.0 * hi, "whole estimates: ANEES {estimates} not overconfident");
+    assert!(
+        estimates_error > gained_error,
+        "whole estimates {estimates_error} m vs gained {gained_error} m"
+    );
+}
+
+/// The painted lines as observations: the pose stays consistent and gets more accurate, most
+/// of all in heading (a line's direction is a heading measurement of its own).
+#[test]
+fn field_lines_make_the_pose_more_accurate_and_keep_it_consistent() {
+    let (_, error, heading) = pose_summary(&Nees::of(DEFAULT), "landmarks");
+    let (anees, lines_error, lines_heading) =
+        pose_summary(&Nees::of(Setup { lines: true, ..DEFAULT }), "landmarks and lines");
+    let (lo, hi) = anees_band(3.0, RUNS);
+    assert!((lo..=hi).contains(&anees), "with lines: ANEES {anees}");
+    assert!(lines_error < error, "position error {lines_error} m with lines vs {error} m");
+    assert!(lines_heading < heading, "heading error {lines_heading} with lines vs {heading}");
 }

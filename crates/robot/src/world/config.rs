@@ -31,6 +31,8 @@ pub struct WorldModelConfig {
     pub confidence: ConfidenceConfig,
     pub association: AssociationConfig,
     pub pose: PoseConfig,
+    /// The painted field lines the pose filter is corrected with.
+    pub lines: FieldLinesConfig,
     pub team: TeamConfig,
 }
 
@@ -375,6 +377,50 @@ pub struct PoseConfig {
     pub correct_odometry: bool,
     /// The map accuracy compares the landmarks observed within this time with the map, s.
     pub map_accuracy_max_age: f64,
+    /// What the pose filter is corrected with (docs/world-model.md, "What the pose filter is
+    /// fed").
+    pub feed: PoseFeed,
+}
+
+/// What the pose filter is corrected with from each landmark filter corrected in a frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PoseFeed {
+    /// The information the landmark filter gained from this frame's observation (its
+    /// posterior information minus its prior): every observation counts once.
+    #[default]
+    Gained,
+    /// The landmark filter's whole estimate, as the paper words it: each frame counts again
+    /// every observation the filter ever fused (measured overconfident).
+    Estimates,
+}
+
+/// The painted field lines as observations of the pose (paper 3.1: lines and their
+/// crossings). A line observation is the nearest point of the line's visible piece and the
+/// line's direction (modulo a half turn), both in the robot frame: together they tell how far
+/// the robot is from the line and how it is turned to it, not where along it it stands.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FieldLinesConfig {
+    /// The perception class of line observations; `None`: lines are not used.
+    pub class: Option<ObjectClass>,
+    /// The map's straight lines (line centres), field frame.
+    pub segments: Vec<[Point<Global>; 2]>,
+    /// Standard deviation of an observed line's direction when perception gives none, rad.
+    pub direction_sigma: f64,
+    /// How far beyond a segment's ends an observed point may lie and still be on it, m (the
+    /// painted width, and the pose's error along the line).
+    pub end_margin: f64,
+    /// Lines observed farther than this are not used, m (far lines are seen at a grazing
+    /// angle, their direction barely measured).
+    pub max_range: f64,
+}
+
+impl FieldLinesConfig {
+    /// Whether observations of `class` are line observations.
+    pub fn accepts(&self, class: ObjectClass) -> bool {
+        self.class == Some(class) && !self.segments.is_empty()
+    }
 }
 
 impl Default for PoseConfig {
@@ -397,6 +443,7 @@ impl Default for PoseConfig {
             recovery_period: 0.1,
             correct_odometry: false,
             map_accuracy_max_age: 2.0,
+            feed: PoseFeed::Gained,
         }
     }
 }
@@ -617,6 +664,21 @@ impl WorldModelConfig {
         }
         non_negative("pose.recovery_period", p.recovery_period)?;
         positive("pose.map_accuracy_max_age", p.map_accuracy_max_age)?;
+        let l = &self.lines;
+        for (i, segment) in l.segments.iter().enumerate() {
+            let [a, b] = segment;
+            if !(a.is_finite() && b.is_finite()) {
+                return Err(err(format!("lines.segments[{i}]"), "must be finite"));
+            }
+            if a.distance(*b) < 1e-6 {
+                return Err(err(format!("lines.segments[{i}]"), "must have two distinct ends"));
+            }
+        }
+        if l.class.is_some() {
+            positive("lines.direction_sigma", l.direction_sigma)?;
+            non_negative("lines.end_margin", l.end_margin)?;
+            positive("lines.max_range", l.max_range)?;
+        }
         let t = &self.team;
         positive("team.max_age", t.max_age)?;
         probability("team.gate_probability", t.gate_probability)?;

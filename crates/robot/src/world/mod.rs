@@ -34,9 +34,9 @@ mod team;
 mod wire;
 
 pub use config::{
-    AssociationConfig, CameraNoise, ConfidenceConfig, ConfigError, MAX_INSTANCES, ObjectConfidence,
-    ObjectKind, ObjectOfInterest, OdometryNoise, PoseConfig, PosePrior, Region, SymmetryHint,
-    TeamConfig, WorldModelConfig, validate_hint, validate_pose_prior,
+    AssociationConfig, CameraNoise, ConfidenceConfig, ConfigError, FieldLinesConfig, MAX_INSTANCES,
+    ObjectConfidence, ObjectKind, ObjectOfInterest, OdometryNoise, PoseConfig, PoseFeed, PosePrior,
+    Region, SymmetryHint, TeamConfig, WorldModelConfig, validate_hint, validate_pose_prior,
 };
 pub use expected::{
     ExpectedBelief, ExpectedObject, ExpectedObservation, ObservationPrior, PredictedObservation,

@@ -4,6 +4,7 @@
 
 mod association;
 mod confidence;
+mod lines;
 mod localization;
 mod publication;
 mod team_objects;
@@ -115,6 +116,8 @@ struct Scratch {
     priors: Vec<Option<Option<Gaussian2>>>,
     /// Team fusion's candidates.
     candidates: Vec<FusionCandidate>,
+    /// The image's line observations.
+    lines: Vec<super::pose::LineObservation>,
 }
 
 /// The world model: object filters, the robot-pose filter, confidence, map accuracy, the
@@ -475,6 +478,7 @@ impl WorldModel {
         self.negative_information(&camera.view);
         self.estimate_odometry_error();
         self.correct_pose(now);
+        self.correct_with_lines(now);
         self.finish_frame(true);
     }
 

@@ -1,6 +1,8 @@
 //! The robot-pose filter (paper 3.1): an EKF on (x, y, theta) in the field frame, predicted with
 //! odometry and corrected with the estimated positions of the landmarks against the known map.
 
+use std::f64::consts::{FRAC_PI_2, PI};
+
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 
 use super::math::{Innovation, all_finite, joseph_update, nis, posterior_covariance, symmetrize};
@@ -114,6 +116,104 @@ impl PoseFilter {
     }
 }
 
+/// One observation of a painted line, in the robot frame: the nearest point of its visible
+/// piece and its direction (modulo a half turn), with their noise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LineObservation {
+    pub point: Vector2<f64>,
+    pub point_covariance: Matrix2<f64>,
+    pub direction: f64,
+    pub direction_sigma: f64,
+}
+
+impl LineObservation {
+    /// The measurement `(s, phi)` this observation makes of the line: the robot's signed
+    /// distance from it (along the line's left normal) and the line's direction relative to
+    /// the robot's heading, with their covariance. The point's position along the line carries
+    /// no information about the pose, so it is projected out here.
+    fn measurement(&self) -> (Vector2<f64>, Matrix2<f64>) {
+        let (s, c) = self.direction.sin_cos();
+        let (x, y) = (self.point.x, self.point.y);
+        let distance = x * s - y * c;
+        // d distance / d (x, y, direction).
+        let j = nalgebra::Vector3::new(s, -c, x * c + y * s);
+        let mut noise = Matrix3::zeros();
+        noise.fixed_view_mut::<2, 2>(0, 0).copy_from(&self.point_covariance);
+        noise[(2, 2)] = self.direction_sigma * self.direction_sigma;
+        let jac = SMatrix::<f64, 2, 3>::new(j.x, j.y, j.z, 0.0, 0.0, 1.0);
+        let r = jac * noise * jac.transpose();
+        (Vector2::new(distance, self.direction), (r + r.transpose()) * 0.5)
+    }
+}
+
+/// A map line's expected measurement `(s, phi)` for the pose (see
+/// [`LineObservation::measurement`]), its Jacobian, and where along the segment (m from
+/// `start`) the observed point falls. The line's direction is taken as whichever of its two
+/// senses is nearer the observed one: a painted line has no arrow.
+fn line_measurement(
+    pose: &Vector3<f64>,
+    [start, end]: [Point<Global>; 2],
+    observation: &LineObservation,
+) -> (Vector2<f64>, SMatrix<f64, 2, 3>, f64) {
+    let mut alpha = (end.y - start.y).atan2(end.x - start.x);
+    if normalize_angle(alpha - pose[2] - observation.direction).abs() > FRAC_PI_2 {
+        alpha += PI;
+    }
+    let (sa, ca) = alpha.sin_cos();
+    let (dx, dy) = (pose[0] - start.x, pose[1] - start.y);
+    let distance = -sa * dx + ca * dy;
+    let h = Vector2::new(distance, normalize_angle(alpha - pose[2]));
+    let jac = SMatrix::<f64, 2, 3>::new(-sa, ca, 0.0, 0.0, 0.0, -1.0);
+    // The observed point in the field frame, measured along the segment from `start`.
+    let (st, ct) = pose[2].sin_cos();
+    let (px, py) = (observation.point.x, observation.point.y);
+    let (fx, fy) = (dx + ct * px - st * py, dy + st * px + ct * py);
+    let (ux, uy) = (end.x - start.x, end.y - start.y);
+    let length = ux.hypot(uy);
+    let along = (fx * ux + fy * uy) / length;
+    (h, jac, along)
+}
+
+impl PoseFilter {
+    /// The innovation of a line observation against the map line `segment`, and where along
+    /// the segment the observed point falls (m from its start; outside `[0, length]` it is off
+    /// the painted segment).
+    pub fn line_innovation(
+        &self,
+        segment: [Point<Global>; 2],
+        observation: &LineObservation,
+    ) -> Option<(Innovation, f64)> {
+        let (h, jac, along) = line_measurement(&self.x, segment, observation);
+        let (z, r) = observation.measurement();
+        let nu = Vector2::new(z.x - h.x, normalize_angle(z.y - h.y));
+        let s = jac * self.p * jac.transpose() + r;
+        let s = (s + s.transpose()) * 0.5;
+        Some((Innovation { nu, s, nis: nis(&nu, &s)? }, along))
+    }
+
+    /// Corrects the pose with a line observation of the map line `segment` (Joseph form).
+    /// `None`: nothing changed.
+    pub fn update_line(
+        &mut self,
+        segment: [Point<Global>; 2],
+        observation: &LineObservation,
+    ) -> Option<Innovation> {
+        let (h, jac, _) = line_measurement(&self.x, segment, observation);
+        let (z, r) = observation.measurement();
+        let nu = Vector2::new(z.x - h.x, normalize_angle(z.y - h.y));
+        let mut x = self.x;
+        let mut p = self.p;
+        let innovation = joseph_update(&mut x, &mut p, &jac, nu, &r)?;
+        x[2] = normalize_angle(x[2]);
+        if !(all_finite(&x) && all_finite(&p)) {
+            return None;
+        }
+        self.x = x;
+        self.p = p;
+        Some(innovation)
+    }
+}
+
 /// `h(pose) = R(-theta) (m - p)` and its Jacobian with respect to `(x, y, theta)`.
 pub(crate) fn landmark_measurement(
     pose: &Vector3<f64>,
@@ -182,6 +282,80 @@ mod tests {
         assert_relative_eq!(f.pose().y, 0.0, epsilon = 1e-12);
         assert_relative_eq!(f.covariance()[(0, 0)], 0.02, epsilon = 1e-12);
         assert_relative_eq!(f.covariance()[(1, 1)], 0.02, epsilon = 1e-12);
+    }
+
+    fn line_seen(pose: Pose, segment: [Point<Global>; 2]) -> LineObservation {
+        // The foot of the perpendicular from the robot, and the line's direction, both in the
+        // robot frame, without noise.
+        let [a, b] = segment;
+        let (ux, uy) = ((b.x - a.x) / a.distance(b), (b.y - a.y) / a.distance(b));
+        let t = (pose.x - a.x) * ux + (pose.y - a.y) * uy;
+        let foot = Point::<Global>::new(a.x + t * ux, a.y + t * uy);
+        let (h, _) = landmark_measurement(&Vector3::new(pose.x, pose.y, pose.theta), foot);
+        LineObservation {
+            point: h,
+            point_covariance: Matrix2::identity() * 0.01,
+            direction: normalize_angle(uy.atan2(ux) - pose.theta),
+            direction_sigma: 0.05,
+        }
+    }
+
+    #[test]
+    fn a_line_corrects_the_distance_to_it_and_the_heading_not_the_position_along_it() {
+        // The halfway line x = 0; the robot believes it stands at x = -1.2, facing it, but it
+        // stands at x = -1.0 and is turned by 0.1 rad.
+        let segment = [Point::new(0.0, -3.0), Point::new(0.0, 3.0)];
+        let truth = Pose::new(-1.0, 0.5, 0.1);
+        let observation = line_seen(truth, segment);
+        let p0 = Matrix3::from_diagonal(&Vector3::new(0.04, 0.04, 0.04));
+        let mut f = PoseFilter::new(Pose::new(-1.2, 0.0, 0.0), p0);
+        let (innovation, along) = f.line_innovation(segment, &observation).expect("regular");
+        assert!((0.0..=6.0).contains(&along), "the observed point is on the segment: {along}");
+        assert!(innovation.nis > 1.0);
+        f.update_line(segment, &observation).expect("regular");
+        let pose = f.pose();
+        assert!((pose.x + 1.0).abs() < 0.05, "moved toward the true distance: {pose:?}");
+        assert!((pose.theta - 0.1).abs() < 0.03, "heading corrected: {pose:?}");
+        assert_relative_eq!(pose.y, 0.0, epsilon = 0.02);
+        // Along the line, nothing was learnt.
+        assert_relative_eq!(f.covariance()[(1, 1)], 0.04, epsilon = 1e-9);
+        assert!(f.covariance()[(0, 0)] < 0.01);
+    }
+
+    #[test]
+    fn a_line_has_no_arrow() {
+        let segment = [Point::new(0.0, -3.0), Point::new(0.0, 3.0)];
+        let reversed = [segment[1], segment[0]];
+        let truth = Pose::new(-1.0, 0.5, 0.1);
+        let mut observation = line_seen(truth, segment);
+        let f = PoseFilter::new(truth, Matrix3::identity() * 0.01);
+        for direction in [observation.direction, normalize_angle(observation.direction + PI)] {
+            observation.direction = direction;
+            for s in [segment, reversed] {
+                let (innovation, _) = f.line_innovation(s, &observation).expect("regular");
+                assert!(innovation.nu.norm() < 1e-9, "{:?}", innovation.nu);
+            }
+        }
+    }
+
+    #[test]
+    fn line_jacobian_matches_finite_differences() {
+        let pose = Vector3::new(0.3, -1.2, 0.8);
+        let segment = [Point::new(-2.0, 1.0), Point::new(3.0, 2.5)];
+        let observation = LineObservation {
+            point: Vector2::new(1.0, 0.5),
+            point_covariance: Matrix2::identity() * 0.01,
+            direction: -0.5,
+            direction_sigma: 0.05,
+        };
+        let (h0, jac, _) = line_measurement(&pose, segment, &observation);
+        for k in 0..3 {
+            let mut d = pose;
+            d[k] += 1e-7;
+            let (h1, _, _) = line_measurement(&d, segment, &observation);
+            let numeric = (h1 - h0) / 1e-7;
+            assert_relative_eq!(numeric, jac.column(k).into_owned(), epsilon = 1e-5);
+        }
     }
 
     #[test]

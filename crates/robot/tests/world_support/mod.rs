@@ -12,8 +12,8 @@ use strata_robot::geometry::{Global, Odometry, Point, Pose, normalize_angle};
 use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
 use strata_robot::platform::ObjectClass;
 use strata_robot::world::{
-    CameraNoise, ExpectedObservation, ObjectId, ObjectKind, ObjectOfInterest, OdometryNoise,
-    PoseConfig, PosePrior, Region, SensingCandidate, WorldModelConfig, WorldState,
+    CameraNoise, ExpectedObservation, FieldLinesConfig, ObjectId, ObjectKind, ObjectOfInterest,
+    OdometryNoise, PoseConfig, PosePrior, Region, SensingCandidate, WorldModelConfig, WorldState,
 };
 use strata_runtime::Time;
 
@@ -22,6 +22,9 @@ pub const POST: ObjectClass = ObjectClass(10);
 pub const L_CROSSING: ObjectClass = ObjectClass(11);
 pub const CIRCLE: ObjectClass = ObjectClass(14);
 pub const PENALTY_MARK: ObjectClass = ObjectClass(15);
+pub const LINE: ObjectClass = ObjectClass(3);
+/// Standard deviation of a seen line's direction, rad.
+pub const LINE_DIRECTION_SIGMA: f64 = 0.05;
 
 pub const FRICTION: f64 = 0.4;
 pub const BALL_ACCELERATION_NOISE: f64 = 0.15;
@@ -45,6 +48,39 @@ pub fn landmarks() -> Vec<(&'static str, ObjectClass, Vec<Point<Global>>)> {
         ("centre_circle", CIRCLE, vec![p(0.0, 0.0)]),
         ("corner", L_CROSSING, vec![p(4.5, 3.0), p(4.5, -3.0), p(-4.5, 3.0), p(-4.5, -3.0)]),
     ]
+}
+
+/// The painted lines of the test field: the outer lines, the halfway line, the goal areas.
+pub fn field_lines() -> Vec<[Point<Global>; 2]> {
+    let p = |x: f64, y: f64| Point::new(x, y);
+    let mut lines = vec![
+        [p(-4.5, -3.0), p(4.5, -3.0)],
+        [p(-4.5, 3.0), p(4.5, 3.0)],
+        [p(-4.5, -3.0), p(-4.5, 3.0)],
+        [p(4.5, -3.0), p(4.5, 3.0)],
+        [p(0.0, -3.0), p(0.0, 3.0)],
+    ];
+    for side in [-1.0, 1.0] {
+        let (goal, front) = (4.5 * side, 3.9 * side);
+        lines.push([p(front, -1.1), p(front, 1.1)]);
+        lines.push([p(goal, -1.1), p(front, -1.1)]);
+        lines.push([p(goal, 1.1), p(front, 1.1)]);
+    }
+    lines
+}
+
+/// [`config`] with the field lines as observations of the pose.
+pub fn config_with_lines(initial: Option<PosePrior>) -> WorldModelConfig {
+    WorldModelConfig {
+        lines: FieldLinesConfig {
+            class: Some(LINE),
+            segments: field_lines(),
+            direction_sigma: LINE_DIRECTION_SIGMA,
+            end_margin: 0.1,
+            max_range: 4.0,
+        },
+        ..config(initial)
+    }
 }
 
 /// The world-model configuration an application would give for this field.
@@ -114,6 +150,8 @@ pub struct Sim {
     pub detection_probability: f64,
     pub see_landmarks: bool,
     pub see_ball: bool,
+    /// Report the painted lines (nearest point of the visible piece, direction).
+    pub see_lines: bool,
     /// Consecutive frames, up to now, in which the real ball was detected.
     pub ball_streak: usize,
     landmarks: Vec<(ObjectClass, Point<Global>)>,
@@ -142,6 +180,7 @@ impl Sim {
             detection_probability: 1.0,
             see_landmarks: true,
             see_ball: true,
+            see_lines: false,
             ball_streak: 0,
             landmarks,
         }
@@ -215,6 +254,34 @@ impl Sim {
         }
     }
 
+    /// A line as the simulator's camera reports it: the point of its piece inside the view
+    /// nearest the robot, and its direction modulo a half turn, both with noise.
+    fn observe_line(&mut self, [a, b]: [Point<Global>; 2], view: &ViewCone) -> Option<Observation> {
+        const STEPS: usize = 400;
+        let (a, b) = (self.truth.to_robot(a), self.truth.to_robot(b));
+        let at = |t: f64| Point::new(a.x + (b.x - a.x) * t, a.y + (b.y - a.y) * t);
+        // The view is convex: the visible piece is one interval of the segment.
+        let visible: Vec<f64> = (0..=STEPS)
+            .map(|k| k as f64 / STEPS as f64)
+            .filter(|&t| view.contains(at(t), 0.0) && at(t).range() > 0.2)
+            .collect();
+        let (&t0, &t1) = (visible.first()?, visible.last()?);
+        if (t1 - t0) * a.distance(b) < 0.3 {
+            return None;
+        }
+        let (dx, dy) = (b.x - a.x, b.y - a.y);
+        let foot = -(a.x * dx + a.y * dy) / (dx * dx + dy * dy);
+        let nearest = at(foot.clamp(t0, t1));
+        if rand::RngExt::random::<f64>(&mut self.rng) >= self.detection_probability {
+            return None;
+        }
+        let mut observation = self.observe(LINE, nearest);
+        let direction = dy.atan2(dx) + LINE_DIRECTION_SIGMA * gaussian(&mut self.rng);
+        let half_turn = normalize_angle(2.0 * direction) / 2.0;
+        observation.orientation = Some(half_turn);
+        Some(observation)
+    }
+
     /// One camera frame at the current time.
     pub fn camera_frame(&mut self) -> Percepts {
         let view = ViewCone {
@@ -233,6 +300,13 @@ impl Sim {
                     && rand::RngExt::random::<f64>(&mut self.rng) < self.detection_probability
                 {
                     observations.push(self.observe(class, p));
+                }
+            }
+        }
+        if self.see_lines {
+            for segment in field_lines() {
+                if let Some(observation) = self.observe_line(segment, &view) {
+                    observations.push(observation);
                 }
             }
         }

@@ -48,7 +48,7 @@ impl Measured {
 }
 
 impl WorldModel {
-    fn measurement(&self, obs: &Observation) -> Option<RangeBearing> {
+    pub(super) fn measurement(&self, obs: &Observation) -> Option<RangeBearing> {
         let camera = &self.config.camera;
         let (range_sigma, bearing_sigma) = camera.sigmas(obs.range);
         let usable = |s: f64| s.is_finite() && s > 0.0;
@@ -92,6 +92,7 @@ impl WorldModel {
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.measurements.clear();
         scratch.pairs.clear();
+        scratch.lines.clear();
         // Nothing changes until every candidate pair is scored: each filter's prior (or map
         // prediction) is worked out once per image, each observation converted once.
         scratch.priors.clear();
@@ -99,6 +100,10 @@ impl WorldModel {
         let pose = self.pose_usable().map(|p| (p.clone(), p.heading_sin_cos()));
         for (i, obs) in observations.iter().enumerate() {
             self.diagnostics.observations += 1;
+            if self.take_line(obs, &mut scratch.lines) {
+                scratch.measurements.push(None);
+                continue;
+            }
             let z = self.measurement(obs);
             let group = self.groups.iter().position(|g| g.accepts(obs));
             let (Some(z), Some(group)) = (z, group) else {

@@ -6,7 +6,8 @@ use strata_runtime::Time;
 use super::{FrameGain, Slot, Track, WorldModel};
 use crate::geometry::Odometry;
 use crate::platform::FootContact;
-use crate::world::config::{PosePrior, SymmetryHint};
+use crate::world::config::{PoseFeed, PosePrior, SymmetryHint};
+use crate::world::object::GainedInformation;
 use crate::world::pose::PoseFilter;
 use crate::world::recovery::{
     MapInstance, RecoveryInput, RecoveryOutcome, Relocation, Sighting, recover,
@@ -64,13 +65,31 @@ impl WorldModel {
         }
     }
 
-    /// The pose filter's correction: the landmark filters' estimates as observations (only
-    /// what each gained in this frame, so no observation counts twice).
+    /// What the pose filter is corrected with for a landmark filter corrected in this frame
+    /// (`pose.feed`).
+    fn pose_measurement(&self, gain: &FrameGain) -> GainedInformation {
+        match self.config.pose.feed {
+            PoseFeed::Gained => gain.gained,
+            PoseFeed::Estimates => match &self.slots[gain.slot].track {
+                Some(track) => GainedInformation {
+                    position: track.filter.position_vector(),
+                    covariance: track.filter.position_covariance(),
+                },
+                None => gain.gained,
+            },
+        }
+    }
+
+    /// The pose filter's correction: the landmark filters' estimates as observations (by
+    /// default only what each gained in this frame, so no observation counts twice).
     pub(super) fn correct_pose(&mut self, now: Time) {
         if self.pose_usable().is_none() {
             return;
         }
-        let gains = std::mem::take(&mut self.frame_gains);
+        let mut gains = std::mem::take(&mut self.frame_gains);
+        for gain in &mut gains {
+            gain.gained = self.pose_measurement(gain);
+        }
         for gain in &gains {
             let Some(map) = self.slots[gain.slot].map_position else { continue };
             let Some(pose) = self.pose.as_ref() else { break };
