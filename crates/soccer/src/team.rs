@@ -20,7 +20,9 @@ use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::edge::{RobotLinks, RobotPlatform};
 use strata_robot::perception::PerceptionConfig;
 use strata_robot::platform::{ObjectClass, PlatformInfo};
-use strata_robot::world::{CameraNoise, PosePrior, SymmetryHint, WorldModelConfig, WorldState};
+use strata_robot::world::{
+    CameraNoise, PoseFeed, PosePrior, SymmetryHint, WorldModelConfig, WorldState,
+};
 use strata_runtime::GraphBuilder;
 use strata_spl::ObjectKind;
 
@@ -62,6 +64,23 @@ pub struct TeamConfig {
     pub timing: RobotTiming,
     /// Extra computation per deliberative tick, s (the rates experiment's load).
     pub deliberative_load: f64,
+    pub localization: LocalizationConfig,
+}
+
+/// What the robots localize with (docs/world-model.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LocalizationConfig {
+    /// What the pose filter is corrected with from the landmark filters.
+    pub feed: PoseFeed,
+    /// The painted field lines as observations of the pose.
+    pub field_lines: bool,
+}
+
+impl Default for LocalizationConfig {
+    fn default() -> Self {
+        LocalizationConfig { feed: PoseFeed::Gained, field_lines: true }
+    }
 }
 
 impl Default for TeamConfig {
@@ -81,6 +100,7 @@ impl Default for TeamConfig {
             signals: SignalConfig::default(),
             timing: RobotTiming::default(),
             deliberative_load: 0.0,
+            localization: LocalizationConfig::default(),
         }
     }
 }
@@ -302,7 +322,12 @@ const DISAGREEMENT_PRIOR: [f64; 3] = [2.0, 2.0, 1.0];
 
 /// The world model of a team's robots: the field's, with the team's camera model.
 pub fn team_world_config(team: &TeamConfig, field: &TeamField) -> WorldModelConfig {
-    WorldModelConfig { camera: team.camera, ..world_config(field) }
+    let mut config = WorldModelConfig { camera: team.camera, ..world_config(field) };
+    config.pose.feed = team.localization.feed;
+    if !team.localization.field_lines {
+        config.lines.class = None;
+    }
+    config
 }
 
 /// The world model's configuration for one robot of `team`: the team's, with where it starts

@@ -1,10 +1,10 @@
 //! The objects of interest of robot soccer, as world modeling's configuration: the ball, the
-//! field's landmarks (in the team frame) and the other robots as obstacles.
+//! field's landmarks and painted lines (in the team frame) and the other robots as obstacles.
 
 use strata_robot::platform::ObjectClass;
 use strata_robot::world::{
-    ObjectKind as WorldObjectKind, ObjectOfInterest, PoseConfig, Region, SymmetryHint,
-    WorldModelConfig,
+    FieldLinesConfig, ObjectKind as WorldObjectKind, ObjectOfInterest, PoseConfig, Region,
+    SymmetryHint, WorldModelConfig,
 };
 use strata_spl::field::{Colour, Landmark, Side};
 use strata_spl::{LandmarkKind, ObjectKind};
@@ -154,8 +154,24 @@ pub fn world_config(field: &TeamField) -> WorldModelConfig {
         min_y: -field.half_width - margin,
         max_y: field.half_width + margin,
     };
+    let segments = field
+        .field
+        .lines()
+        .iter()
+        .map(|l| [field.to_team(l.start.x, l.start.y), field.to_team(l.end.x, l.end.y)])
+        .collect();
     WorldModelConfig {
         objects,
+        lines: FieldLinesConfig {
+            class: Some(class(ObjectKind::FieldLine)),
+            segments,
+            // The simulator's default camera noise (strata_sim::noise).
+            direction_sigma: 0.05,
+            // Half a line's width, and room for the pose's error along the line.
+            end_margin: 0.1,
+            // Beyond it a line is seen too flat for its direction to tell much.
+            max_range: 5.0,
+        },
         pose: PoseConfig {
             bounds: Some(Region {
                 min_x: -field.half_length - margin,
