@@ -907,8 +907,48 @@ fn goal_covering(ctx: &mut Ctx, depth: f64) -> Status {
             reach: ctx.config.keeper_reach,
         };
         gaze(ctx, Some(&value));
+        relocalize_on_area_line(ctx);
     }
     Status::Running
+}
+
+/// The keeper re-localizes on the line in front of its goal (Table 3's "observe field line"):
+/// a goal whose worth is what its pose lacks, `1 - confidence`, so that it wins the head only
+/// when the pose has grown unsure (after a dive, a push) and the value functions' looks are
+/// worth less. The baselines keep their own gaze; a gaze chosen from outside (a learned
+/// policy) is not second-guessed.
+fn relocalize_on_area_line(ctx: &mut Ctx) {
+    let value_functions =
+        matches!(ctx.config.gaze, GazeStrategy::ActiveVision | GazeStrategy::ActiveVisionTaskValue);
+    let overridden = ctx.gaze_override.as_ref().is_some_and(|o| o.get().is_some());
+    let Some(world) = ctx.world.as_ref().filter(|w| !w.pose.lost) else { return };
+    if !value_functions || overridden {
+        return;
+    }
+    let need = (1.0 - world.pose.confidence).clamp(0.0, 1.0);
+    if let Some(line) = own_area_line(&ctx.field) {
+        ctx.out.head.push(GoalScore::new(HeadGoal::ObserveFieldLine { line }, need));
+    }
+}
+
+/// The index (in [`strata_spl::Field::lines`]) of the line nearest the own goal line that runs
+/// parallel to it inside the field: the goal area's front line, or the penalty area's on a
+/// field without a goal area.
+pub fn own_area_line(field: &TeamField) -> Option<u8> {
+    let goal_line = -field.half_length;
+    field
+        .field
+        .lines()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, l)| {
+            let (a, b) = (field.to_team(l.start.x, l.start.y), field.to_team(l.end.x, l.end.y));
+            let parallel = (a.x - b.x).abs() < 1e-6;
+            let inside = a.x > goal_line + 0.05 && a.x < -0.05;
+            (parallel && inside).then_some((a.x, i))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .and_then(|(_, i)| u8::try_from(i).ok())
 }
 
 /// Partner following: keep a supporting position near the striker.
@@ -1777,6 +1817,114 @@ mod tests {
         // It faces the ball.
         let to_ball = (Point::<FieldFrame>::new(-3.0, 2.5) - wide.position()).angle();
         assert!((strata_robot::normalize_angle(to_ball - wide.theta)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_keepers_relocalization_line_is_the_front_of_its_goal_area() {
+        // The paper's field has no goal area: its penalty area's front line.
+        for preset in ["spl", "paper2010"] {
+            let field = strata_spl::Field::preset(preset).expect("preset");
+            let d = field.dimensions();
+            let depth = d.goal_area.unwrap_or(d.penalty_area).length;
+            for sign in [1.0, -1.0] {
+                let team = TeamField::new(field.clone(), sign);
+                let line = own_area_line(&team).expect("a line in front of the goal");
+                let segment = team.field.lines()[usize::from(line)];
+                let (a, b) = (
+                    team.to_team(segment.start.x, segment.start.y),
+                    team.to_team(segment.end.x, segment.end.y),
+                );
+                assert!((a.x - b.x).abs() < 1e-9, "{preset} {sign}: parallel to the goal line");
+                let front = -team.half_length + depth;
+                assert!((a.x - front).abs() < 0.06, "{preset} {sign}: x {} vs {front}", a.x);
+                assert!(a.y.abs() < team.half_width && b.y.abs() < team.half_width);
+            }
+        }
+    }
+
+    /// Sure of its pose, the keeper looks where its value function says; unsure, the line in
+    /// front of its goal is among its best looks (the activation function averages S_d and S_r;
+    /// for the line both are what the pose lacks).
+    #[test]
+    fn an_unsure_keeper_relocalizes_on_the_line_in_front_of_its_goal() {
+        use strata_robot::control::deliberative::{DeliberativeInput, DeliberativePolicy};
+        use strata_robot::control::scores::ScoreCombination;
+        use strata_robot::percept::{CameraPercepts, Observation, Percepts, ViewCone};
+        use strata_robot::platform::ObjectClass;
+        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+        let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
+        let line = own_area_line(&field).expect("a goal area");
+        let head_of_keeper = |sigma: [f64; 3]| {
+            let mut b = behavior(GOALKEEPER_NUMBER);
+            let mut model =
+                WorldModel::new(crate::world_config::world_config(&field)).expect("valid");
+            let prior = PosePrior { pose: Pose::new(-4.0, 0.0, 0.0), sigma };
+            model.command(WorldCommand::SetPose { prior }).expect("pose");
+            // The ball 2 m ahead, seen in a few images.
+            for k in 1..=5 {
+                let stamp = Time::from_secs_f64(0.5 + 0.03 * f64::from(k));
+                let ball = Observation {
+                    class: ObjectClass(strata_spl::ObjectKind::Ball.code()),
+                    variant: None,
+                    range: 2.0,
+                    bearing: 0.0,
+                    orientation: None,
+                    range_sigma: 0.1,
+                    bearing_sigma: 0.03,
+                };
+                let view = ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 };
+                let camera = CameraPercepts { stamp, view, observations: vec![ball] };
+                let percepts = Percepts { stamp, camera: Some(camera), ..Percepts::default() };
+                model.process(strata_robot::geometry::Odometry::default(), &percepts);
+            }
+            let world = model.state();
+            let decision = Decision {
+                assignment: strata_robot::control::planning::Assignment {
+                    mission: Mission::DefendTheGoal,
+                    role: Role::Goalie,
+                    alone: false,
+                },
+                directive: GameDirective { state: GameState::Playing, ..GameDirective::default() },
+                teammates: Vec::new(),
+                stats: Default::default(),
+            };
+            let input = |at: f64| DeliberativeInput {
+                now: Time::from_secs_f64(at),
+                world: Some(&world),
+                assignment: Some(&decision),
+                stability: Stability::default(),
+            };
+            b.tick(&input(1.0));
+            let out = b.tick(&input(1.1));
+            assert!(out.behavior_path.contains("Goal covering"), "{}", out.behavior_path);
+            // The activation function's second stage: S_d and S_r averaged, S_r the need to
+            // look (1 - confidence) of the goal's objects, or of the pose for a line.
+            let need = |g: &GoalScore<HeadGoal>| match &g.goal {
+                HeadGoal::ObserveFieldLine { .. } => 1.0 - world.pose.confidence,
+                _ => {
+                    let objects = crate::situation::head_goal_objects(&world, &g.goal);
+                    objects.iter().map(|o| 1.0 - o.confidence).fold(0.0, f64::max)
+                }
+            };
+            let total = |g: &GoalScore<HeadGoal>| {
+                ScoreCombination::Average.combine(g.deliberative, need(g))
+            };
+            let total_of =
+                |goal: &HeadGoal| out.head.goals.iter().find(|g| &g.goal == goal).map(&total);
+            let best = out.head.goals.iter().map(&total).fold(0.0, f64::max);
+            let line_total = total_of(&HeadGoal::ObserveFieldLine { line }).expect("line goal");
+            let ball_total = total_of(&HeadGoal::ObserveBall).unwrap_or(0.0);
+            (line_total, ball_total, best, world.pose.confidence)
+        };
+        let (line_total, _, best, confidence) = head_of_keeper([0.02, 0.02, 0.02]);
+        assert!(confidence > 0.8, "{confidence}");
+        assert!(line_total < 0.5 * best, "sure ({confidence}): line {line_total}, best {best}");
+        // Unsure, the line beats looking at the ball alone; a look at a landmark the pose
+        // cannot place (need 1) may still beat it: both localize.
+        let (line_total, ball_total, best, confidence) = head_of_keeper([0.5, 0.5, 0.4]);
+        assert!(confidence < 0.2, "{confidence}");
+        assert!(line_total > ball_total, "unsure: line {line_total}, ball {ball_total}");
+        assert!(line_total > 0.9 * best, "unsure: line {line_total}, best {best}");
     }
 
     /// The candidates as made before their storage was reused: each with a new label and a
