@@ -27,7 +27,7 @@ use super::expected::{BeliefView, ExpectedBelief, ObjectPrior, SensingCandidate}
 use super::math::{chi2_2dof_quantile, major_sigma};
 use super::object::{GainedInformation, MotionModel, ObjectFilter, innovation_at};
 use super::odometry_error::{Lag, LandmarkShift, OdometryErrorEstimator};
-use super::pose::PoseFilter;
+use super::pose::{MapLine, PoseFilter};
 use super::published::{UNKNOWN_VARIANCE, global_estimate_with, map_prediction_from};
 use super::state::{
     LostReason, ObjectCategory, ObjectEstimate, ObjectId, ObjectInfo, ObjectName, WorldDiagnostics,
@@ -117,7 +117,7 @@ struct Scratch {
     /// Team fusion's candidates.
     candidates: Vec<FusionCandidate>,
     /// The image's line observations.
-    lines: Vec<super::pose::LineObservation>,
+    lines: Vec<super::pose::MeasuredLine>,
 }
 
 /// The world model: object filters, the robot-pose filter, confidence, map accuracy, the
@@ -141,6 +141,8 @@ pub struct WorldModel {
     relocated: Option<(Time, Odometry)>,
     time: Option<Time>,
     frame_gains: Vec<FrameGain>,
+    /// The configuration's field lines, prepared for line observations.
+    map_lines: Vec<MapLine>,
     kidnap: KidnapDetector,
     /// The current kidnap was declared because the landmarks disagreed with the pose (not a
     /// placement, a lift or a command): `pose.disagreement_prior` applies.
@@ -288,6 +290,7 @@ impl WorldModel {
             relocated: None,
             time: None,
             frame_gains: Vec::new(),
+            map_lines: config.lines.segments.iter().map(|s| MapLine::new(*s)).collect(),
             kidnap: KidnapDetector::default(),
             disagreed: false,
             lifted: false,

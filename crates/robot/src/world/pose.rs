@@ -131,7 +131,7 @@ impl LineObservation {
     /// distance from it (along the line's left normal) and the line's direction relative to
     /// the robot's heading, with their covariance. The point's position along the line carries
     /// no information about the pose, so it is projected out here.
-    fn measurement(&self) -> (Vector2<f64>, Matrix2<f64>) {
+    pub fn measurement(&self) -> MeasuredLine {
         let (s, c) = self.direction.sin_cos();
         let (x, y) = (self.point.x, self.point.y);
         let distance = x * s - y * c;
@@ -142,7 +142,38 @@ impl LineObservation {
         noise[(2, 2)] = self.direction_sigma * self.direction_sigma;
         let jac = SMatrix::<f64, 2, 3>::new(j.x, j.y, j.z, 0.0, 0.0, 1.0);
         let r = jac * noise * jac.transpose();
-        (Vector2::new(distance, self.direction), (r + r.transpose()) * 0.5)
+        MeasuredLine {
+            observation: *self,
+            z: Vector2::new(distance, self.direction),
+            r: (r + r.transpose()) * 0.5,
+        }
+    }
+}
+
+/// A line observation with its measurement `(s, phi)` and covariance, worked out once for
+/// comparing it with every map line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeasuredLine {
+    pub observation: LineObservation,
+    pub z: Vector2<f64>,
+    pub r: Matrix2<f64>,
+}
+
+/// A map line, with what comparing observations with it needs worked out once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapLine {
+    pub start: Point<Global>,
+    pub end: Point<Global>,
+    /// Direction from `start` to `end`, rad, and its sine and cosine.
+    direction: f64,
+    sin_cos: (f64, f64),
+    pub length: f64,
+}
+
+impl MapLine {
+    pub fn new([start, end]: [Point<Global>; 2]) -> MapLine {
+        let direction = (end.y - start.y).atan2(end.x - start.x);
+        MapLine { start, end, direction, sin_cos: direction.sin_cos(), length: start.distance(end) }
     }
 }
 
@@ -152,25 +183,25 @@ impl LineObservation {
 /// senses is nearer the observed one: a painted line has no arrow.
 fn line_measurement(
     pose: &Vector3<f64>,
-    [start, end]: [Point<Global>; 2],
+    line: &MapLine,
     observation: &LineObservation,
 ) -> (Vector2<f64>, SMatrix<f64, 2, 3>, f64) {
-    let mut alpha = (end.y - start.y).atan2(end.x - start.x);
+    let (mut alpha, (mut sa, mut ca)) = (line.direction, line.sin_cos);
     if normalize_angle(alpha - pose[2] - observation.direction).abs() > FRAC_PI_2 {
         alpha += PI;
+        (sa, ca) = (-sa, -ca);
     }
-    let (sa, ca) = alpha.sin_cos();
-    let (dx, dy) = (pose[0] - start.x, pose[1] - start.y);
+    let (dx, dy) = (pose[0] - line.start.x, pose[1] - line.start.y);
     let distance = -sa * dx + ca * dy;
     let h = Vector2::new(distance, normalize_angle(alpha - pose[2]));
     let jac = SMatrix::<f64, 2, 3>::new(-sa, ca, 0.0, 0.0, 0.0, -1.0);
-    // The observed point in the field frame, measured along the segment from `start`.
+    // The observed point in the field frame, measured along the segment from `start` (whose
+    // direction is the unflipped one).
     let (st, ct) = pose[2].sin_cos();
     let (px, py) = (observation.point.x, observation.point.y);
     let (fx, fy) = (dx + ct * px - st * py, dy + st * px + ct * py);
-    let (ux, uy) = (end.x - start.x, end.y - start.y);
-    let length = ux.hypot(uy);
-    let along = (fx * ux + fy * uy) / length;
+    let (us, uc) = line.sin_cos;
+    let along = fx * uc + fy * us;
     (h, jac, along)
 }
 
@@ -183,8 +214,45 @@ impl PoseFilter {
         segment: [Point<Global>; 2],
         observation: &LineObservation,
     ) -> Option<(Innovation, f64)> {
-        let (h, jac, along) = line_measurement(&self.x, segment, observation);
-        let (z, r) = observation.measurement();
+        self.line_innovation_within(
+            &MapLine::new(segment),
+            &observation.measurement(),
+            f64::INFINITY,
+        )
+    }
+
+    /// [`PoseFilter::line_innovation`] for a prepared line and measurement; `None` as soon as
+    /// either component alone lies outside `gate` (a 2-D innovation's NIS is at least each
+    /// component's own, so nothing inside the gate is lost): most map lines of a field run
+    /// the other way or lie metres off, and are dismissed before any matrix is formed.
+    pub fn line_innovation_within(
+        &self,
+        line: &MapLine,
+        measured: &MeasuredLine,
+        gate: f64,
+    ) -> Option<(Innovation, f64)> {
+        let (z, r) = (measured.z, measured.r);
+        let p = &self.p;
+        let (angle_variance, distance_noise) = (p[(2, 2)] + r[(1, 1)], r[(0, 0)]);
+        let mut alpha = line.direction;
+        let mut flip = 1.0;
+        if normalize_angle(alpha - self.x[2] - z.y).abs() > FRAC_PI_2 {
+            alpha += PI;
+            flip = -1.0;
+        }
+        let angle = normalize_angle(z.y - normalize_angle(alpha - self.x[2]));
+        if angle * angle > gate * angle_variance {
+            return None;
+        }
+        let (sa, ca) = (flip * line.sin_cos.0, flip * line.sin_cos.1);
+        let distance = -sa * (self.x[0] - line.start.x) + ca * (self.x[1] - line.start.y);
+        let distance_variance =
+            sa * sa * p[(0, 0)] - 2.0 * sa * ca * p[(0, 1)] + ca * ca * p[(1, 1)] + distance_noise;
+        let off = z.x - distance;
+        if off * off > gate * distance_variance {
+            return None;
+        }
+        let (h, jac, along) = line_measurement(&self.x, line, &measured.observation);
         let nu = Vector2::new(z.x - h.x, normalize_angle(z.y - h.y));
         let s = jac * self.p * jac.transpose() + r;
         let s = (s + s.transpose()) * 0.5;
@@ -198,12 +266,20 @@ impl PoseFilter {
         segment: [Point<Global>; 2],
         observation: &LineObservation,
     ) -> Option<Innovation> {
-        let (h, jac, _) = line_measurement(&self.x, segment, observation);
-        let (z, r) = observation.measurement();
-        let nu = Vector2::new(z.x - h.x, normalize_angle(z.y - h.y));
+        self.update_line_with(&MapLine::new(segment), &observation.measurement())
+    }
+
+    /// [`PoseFilter::update_line`] for a prepared line and measurement.
+    pub fn update_line_with(
+        &mut self,
+        line: &MapLine,
+        measured: &MeasuredLine,
+    ) -> Option<Innovation> {
+        let (h, jac, _) = line_measurement(&self.x, line, &measured.observation);
+        let nu = Vector2::new(measured.z.x - h.x, normalize_angle(measured.z.y - h.y));
         let mut x = self.x;
         let mut p = self.p;
-        let innovation = joseph_update(&mut x, &mut p, &jac, nu, &r)?;
+        let innovation = joseph_update(&mut x, &mut p, &jac, nu, &measured.r)?;
         x[2] = normalize_angle(x[2]);
         if !(all_finite(&x) && all_finite(&p)) {
             return None;
@@ -348,11 +424,12 @@ mod tests {
             direction: -0.5,
             direction_sigma: 0.05,
         };
-        let (h0, jac, _) = line_measurement(&pose, segment, &observation);
+        let line = MapLine::new(segment);
+        let (h0, jac, _) = line_measurement(&pose, &line, &observation);
         for k in 0..3 {
             let mut d = pose;
             d[k] += 1e-7;
-            let (h1, _, _) = line_measurement(&d, segment, &observation);
+            let (h1, _, _) = line_measurement(&d, &line, &observation);
             let numeric = (h1 - h0) / 1e-7;
             assert_relative_eq!(numeric, jac.column(k).into_owned(), epsilon = 1e-5);
         }

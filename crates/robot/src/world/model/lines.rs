@@ -6,7 +6,7 @@ use strata_runtime::Time;
 
 use super::WorldModel;
 use crate::percept::Observation;
-use crate::world::pose::LineObservation;
+use crate::world::pose::{LineObservation, MeasuredLine};
 
 impl WorldModel {
     /// Keeps a line observation in `lines` for [`WorldModel::correct_with_lines`]; `true` for
@@ -14,7 +14,7 @@ impl WorldModel {
     pub(super) fn take_line(
         &mut self,
         obs: &Observation,
-        lines_seen: &mut Vec<LineObservation>,
+        lines_seen: &mut Vec<MeasuredLine>,
     ) -> bool {
         let lines = &self.config.lines;
         if !lines.accepts(obs.class) {
@@ -24,12 +24,13 @@ impl WorldModel {
         let z = self.measurement(obs);
         match (z, direction) {
             (Some(z), Some(direction)) if z.range <= lines.max_range => {
-                lines_seen.push(LineObservation {
+                let observation = LineObservation {
                     point: z.cartesian(),
                     point_covariance: z.cartesian_noise(),
                     direction,
                     direction_sigma: lines.direction_sigma,
-                });
+                };
+                lines_seen.push(observation.measurement());
             }
             _ => self.diagnostics.ignored += 1,
         }
@@ -44,16 +45,19 @@ impl WorldModel {
         let observations = std::mem::take(&mut self.scratch.lines);
         let margin = self.config.association.ambiguity_margin;
         let end_margin = self.config.lines.end_margin;
-        for observation in &observations {
+        for measured in &observations {
             let Some(pose) = self.pose_usable() else { break };
             let mut best: Option<(f64, usize)> = None;
             let mut second = f64::INFINITY;
-            for (k, segment) in self.config.lines.segments.iter().enumerate() {
-                let Some((innovation, along)) = pose.line_innovation(*segment, observation) else {
+            for (k, line) in self.map_lines.iter().enumerate() {
+                let Some((innovation, along)) =
+                    pose.line_innovation_within(line, measured, self.gate)
+                else {
                     continue;
                 };
-                let length = segment[0].distance(segment[1]);
-                if innovation.nis > self.gate || along < -end_margin || along > length + end_margin
+                if innovation.nis > self.gate
+                    || along < -end_margin
+                    || along > line.length + end_margin
                 {
                     continue;
                 }
@@ -76,9 +80,9 @@ impl WorldModel {
                 self.diagnostics.ambiguous += 1;
                 continue;
             }
-            let segment = self.config.lines.segments[k];
+            let line = self.map_lines[k];
             if let Some(pose) = self.pose.as_mut()
-                && pose.update_line(segment, observation).is_some()
+                && pose.update_line_with(&line, measured).is_some()
             {
                 self.diagnostics.associated += 1;
                 self.last_pose_correction = Some(now);
