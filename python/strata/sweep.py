@@ -117,7 +117,7 @@ def sweep(
     address: str | None = None,
     records: str | os.PathLike[str] | None = None,
     num_workers: int | None = None,
-    chunk: int = 1,
+    chunk: int | None = None,
     max_retries: int = 3,
     progress: bool = False,
     **options: Any,
@@ -129,10 +129,12 @@ def sweep(
     ``address``: a Ray cluster (``ray start --head`` prints it; ``"auto"`` finds a local one);
     without it, a Ray instance of this machine with ``num_workers`` CPUs (all by default), unless
     Ray is already initialized. ``records``: the records directory, ``OUT/records`` by
-    default; it resumes a sweep. ``chunk``: jobs per task. ``options``: ``runs``, ``seed``,
+    default; it resumes a sweep. ``chunk``: jobs per task; by default about eight tasks per CPU
+    of the cluster (a job of a short scenario takes milliseconds: a task per job would spend
+    more on scheduling than on running). ``options``: ``runs``, ``seed``,
     ``out`` as for :func:`strata.run_experiment`.
     """
-    if chunk < 1:
+    if chunk is not None and chunk < 1:
         raise ValueError("chunk: must be at least 1")
     settings: dict[str, Any] = {k: v for k, v in options.items() if v is not None}
     for key in ("out",):
@@ -161,15 +163,16 @@ def sweep(
         settings.pop("scenario")
         settings["scenario_file"] = scenario_path
     todo = [job for job in range(jobs) if not os.path.exists(record_path(records_dir, job))]
-    chunks = [todo[i : i + chunk] for i in range(0, len(todo), chunk)]
     started = time.monotonic()
-    if chunks:
-        _run_tasks(
+    tasks = 0
+    if todo:
+        tasks = _run_tasks(
             name,
             settings,
             scenario_text,
             scenario_path,
-            chunks,
+            todo,
+            chunk,
             records_dir,
             address=address,
             num_workers=num_workers,
@@ -184,7 +187,7 @@ def sweep(
         "jobs": jobs,
         "ran": len(todo),
         "skipped": jobs - len(todo),
-        "tasks": len(chunks),
+        "tasks": tasks,
         "tasks_s": ran_s,
     }
     return outcome
@@ -195,14 +198,16 @@ def _run_tasks(
     settings: dict[str, Any],
     scenario_text: str | None,
     scenario_path: str | None,
-    chunks: list[list[int]],
+    todo: list[int],
+    chunk: int | None,
     records_dir: str,
     *,
     address: str | None,
     num_workers: int | None,
     max_retries: int,
     progress: bool,
-) -> None:
+) -> int:
+    """Runs the jobs `todo` as tasks, writing each record as its task returns; the task count."""
     ray = _import_ray()
     if not ray.is_initialized():
         if address:
@@ -213,6 +218,10 @@ def _run_tasks(
                 include_dashboard=False,
                 logging_level="WARNING",
             )
+    if chunk is None:
+        cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        chunk = max(1, -(-len(todo) // (8 * cpus)))
+    chunks = [todo[i : i + chunk] for i in range(0, len(todo), chunk)]
     # Worker deaths (a lost node, a killed process) are retried; an error the experiment
     # raises is not: it would fail again.
     remote = ray.remote(num_cpus=1, max_retries=max_retries)(_run_chunk)
@@ -230,6 +239,7 @@ def _run_tasks(
             done += 1
             if progress:
                 print(f"{name}: {done}/{len(chunks)} tasks done", file=sys.stderr, flush=True)
+    return len(chunks)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -243,7 +253,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--scenario", help="a scenario TOML file")
     parser.add_argument("--records", help="the records directory [default: OUT/records]")
     parser.add_argument("--num-workers", type=int, help="CPUs of a local Ray instance")
-    parser.add_argument("--chunk", type=int, default=1, help="jobs per task")
+    parser.add_argument("--chunk", type=int, help="jobs per task [default: 8 tasks per CPU]")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     args = parser.parse_args(argv)
     try:
