@@ -136,6 +136,9 @@ def sweep(
     """
     if chunk is not None and chunk < 1:
         raise ValueError("chunk: must be at least 1")
+    if options.get("log") is not None or options.get("threads") is not None:
+        # A task runs its jobs with one thread on its worker; a log would stay on that worker.
+        raise ValueError("log, threads: not options of a sweep (use strata.run_experiment)")
     settings: dict[str, Any] = {k: v for k, v in options.items() if v is not None}
     for key in ("out",):
         if key in settings:
