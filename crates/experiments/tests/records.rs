@@ -3,8 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use strata_experiments::records::{RecordMode, Records, record_path};
-use strata_experiments::{Options, goal_covering, plan, run};
+use strata_experiments::records::{RecordMode, Records, decode_for, record_path};
+use strata_experiments::{Options, RECORDABLE, goal_covering, plan, run};
 
 /// Two short paths, two runs: four jobs of a few simulated seconds.
 const SCENARIO: &str = r#"
@@ -161,4 +161,27 @@ fn real_time_experiments_cannot_be_split() {
     };
     let err = run(goal_covering::NAME, &opts).expect_err("no job 99999");
     assert!(format!("{err:#}").contains("no job 99999"), "{err:#}");
+}
+
+/// What the fuzz target (fuzz/fuzz_targets/experiment_record.rs) checks, on the inputs nearest
+/// a real record: every truncation and every single-byte change decodes or fails, never panics.
+#[test]
+fn records_cut_or_changed_anywhere_are_refused_without_a_panic() {
+    let (dir, scenario) = setup("mutations");
+    let rec = dir.join("records");
+    shard(&scenario, &rec, &[1]);
+    let good = std::fs::read(record_path(&rec, 1)).expect("record");
+    assert_eq!(decode_for(goal_covering::NAME, &good).expect("decodes"), 1);
+    for len in 0..good.len() {
+        for name in RECORDABLE {
+            let _ = decode_for(name, &good[..len]);
+        }
+    }
+    for at in 0..good.len() {
+        for flip in [0x01u8, 0x80, 0xff] {
+            let mut bytes = good.clone();
+            bytes[at] ^= flip;
+            let _ = decode_for(goal_covering::NAME, &bytes);
+        }
+    }
 }
