@@ -22,6 +22,7 @@ pub mod goal_covering;
 pub mod physics;
 pub mod plot;
 pub mod rates;
+pub mod records;
 pub mod referee;
 pub mod report;
 pub mod stats;
@@ -78,6 +79,8 @@ pub struct Options {
     pub log: Option<PathBuf>,
     /// The built-in simulator or T1s in rcssservermj (`crate::physics`).
     pub engine: Engine,
+    /// Run only some jobs into a records directory, or merge the records there (`records`).
+    pub records: Option<records::Records>,
 }
 
 impl Default for Options {
@@ -92,9 +95,14 @@ impl Default for Options {
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             strata_exe: None,
             engine: Engine::Sim,
+            records: None,
         }
     }
 }
+
+/// The experiments whose jobs can be recorded and merged (`Options::records`): the lockstep
+/// ones, deterministic for a seed.
+pub const RECORDABLE: [&str; 2] = [goal_covering::NAME, team::NAME];
 
 /// What an experiment produced.
 #[derive(Clone, Debug, Serialize)]
@@ -114,6 +122,12 @@ pub fn run(name: &str, options: &Options) -> Result<Outcome> {
     if options.engine == Engine::Rcssservermj && name == referee::NAME {
         bail!("`{name}` runs on the built-in simulator only (its referee emulates the signals)");
     }
+    if let Some(records) = &options.records {
+        check_recordable(name, options.engine)?;
+        if records.mode != records::RecordMode::Merge {
+            return run_records(name, options, records);
+        }
+    }
     let out_dir = options.out.clone().unwrap_or_else(|| match options.engine {
         Engine::Sim => Path::new("results").join(name),
         Engine::Rcssservermj => Path::new("results").join(format!("{name}-rcssservermj")),
@@ -130,6 +144,62 @@ pub fn run(name: &str, options: &Options) -> Result<Outcome> {
         .with_context(|| format!("writing {}", summary_path.display()))?;
     ctx.files.push(summary_path);
     Ok(Outcome { experiment: name.to_owned(), out_dir, files: ctx.files, summary })
+}
+
+/// Refuses record mode where splitting the runs changes what they measure.
+pub fn check_recordable(name: &str, engine: Engine) -> Result<()> {
+    if engine != Engine::Sim {
+        bail!(
+            "`{name}` on {engine:?} cannot be split into job records: only the built-in \
+             simulator's lockstep runs are deterministic for a seed"
+        );
+    }
+    if name == rates::NAME || name == fall::NAME {
+        bail!(
+            "`{name}` measures in real time on this machine: its runs cannot be split across \
+             workers or machines (run it in one process)"
+        );
+    }
+    if !RECORDABLE.contains(&name) {
+        bail!(
+            "`{name}` cannot be split into job records yet (recordable: {})",
+            RECORDABLE.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Plans or runs jobs into a records directory: the experiment stops at `Ctx::run_jobs`, before
+/// its report, with what it did.
+fn run_records(name: &str, options: &Options, records: &records::Records) -> Result<Outcome> {
+    let mut ctx = Ctx::new(name, options, records.dir.clone());
+    let stop = match run_2d(name, &mut ctx) {
+        Ok(_) => bail!("`{name}` ran without going through its job records"),
+        Err(e) => e.downcast::<records::Stop>()?,
+    };
+    let (summary, files) = match stop {
+        records::Stop::Planned { jobs } => (serde_json::json!({ "jobs": jobs }), Vec::new()),
+        records::Stop::Ran { jobs, written, skipped } => {
+            let files = written.iter().map(|i| records::record_path(&records.dir, *i)).collect();
+            (serde_json::json!({ "jobs": jobs, "written": written, "skipped": skipped }), files)
+        }
+    };
+    Ok(Outcome { experiment: name.to_owned(), out_dir: records.dir.clone(), files, summary })
+}
+
+/// The number of jobs experiment `name` runs with `options`; writes the records manifest into
+/// `dir` (or checks the one there is this sweep's).
+pub fn plan(name: &str, options: &Options, dir: &Path) -> Result<usize> {
+    let options = Options {
+        records: Some(records::Records { dir: dir.to_path_buf(), mode: records::RecordMode::Plan }),
+        progress: false,
+        ..options.clone()
+    };
+    let outcome = run(name, &options)?;
+    outcome.summary["jobs"]
+        .as_u64()
+        .map(|n| n as usize)
+        .ok_or_else(|| anyhow!("`{name}`: the plan has no job count"))
 }
 
 fn run_2d(name: &str, ctx: &mut Ctx<'_>) -> Result<serde_json::Value> {
@@ -521,6 +591,60 @@ impl<'a> Ctx<'a> {
 /// A scenario's own checks, after parsing.
 pub trait Validate {
     fn validate(&mut self, check: &Check<'_>, dir: Option<&Path>) -> Result<(), ScenarioError>;
+}
+
+impl Ctx<'_> {
+    /// Runs the experiment's jobs: all of them in this process (`parallel`), or, with
+    /// `Options::records`, only some into the records directory (then stops the experiment
+    /// before its report) or none, loading every job's result from the records.
+    pub fn run_jobs<J: Sync, R: Send + Serialize + DeserializeOwned>(
+        &self,
+        jobs: &[J],
+        f: impl Fn(usize, &J) -> Result<R> + Sync,
+    ) -> Result<Vec<R>> {
+        use records::{Manifest, RecordMode, Stop};
+        let Some(records) = &self.options.records else {
+            return parallel(jobs, self.options.threads, f);
+        };
+        let dir = &records.dir;
+        let manifest = Manifest::new(self.name, &self.scenario_text, self.options.seed, jobs.len());
+        match &records.mode {
+            RecordMode::Plan => {
+                manifest.write_or_check(dir)?;
+                Err(Stop::Planned { jobs: jobs.len() }.into())
+            }
+            RecordMode::Run { only } => {
+                manifest.write_or_check(dir)?;
+                let mut wanted: Vec<usize> = match only {
+                    Some(only) => only.clone(),
+                    None => (0..jobs.len()).collect(),
+                };
+                wanted.sort_unstable();
+                wanted.dedup();
+                if let Some(bad) = wanted.iter().find(|i| **i >= jobs.len()) {
+                    bail!(
+                        "no job {bad}: `{}` has {} jobs (0 to {})",
+                        self.name,
+                        jobs.len(),
+                        jobs.len().saturating_sub(1)
+                    );
+                }
+                // A record present is a finished job (records appear whole): resume skips it.
+                let (skipped, todo): (Vec<usize>, Vec<usize>) =
+                    wanted.into_iter().partition(|i| records::record_path(dir, *i).exists());
+                let written = parallel(&todo, self.options.threads, |_, i| {
+                    let result = f(*i, &jobs[*i]).with_context(|| format!("job {i}"))?;
+                    records::write(dir, *i, &result)?;
+                    Ok(*i)
+                })?;
+                Err(Stop::Ran { jobs: jobs.len(), written, skipped }.into())
+            }
+            RecordMode::Merge => {
+                manifest.check(dir)?;
+                (0..jobs.len()).map(|i| records::read(dir, i, jobs.len())).collect()
+            }
+        }
+    }
 }
 
 /// Runs `f` on every job, `threads` at a time, in job order of the results; stops at the first

@@ -14,7 +14,7 @@ use strata_soccer::team::TeamConfig;
 use super::plot::{Bars, distribution_bars};
 use super::report::{Markdown, num, write_csv};
 use super::stats::Estimate;
-use super::{Check, Ctx, ScenarioError, Validate, finish_log, parallel};
+use super::{Check, Ctx, ScenarioError, Validate, finish_log};
 use strata_games::logging::{LogSettings, MatchLog};
 use strata_games::matches::{Match, MatchConfig, MatchReport, TeamReport};
 
@@ -165,8 +165,9 @@ enum Job {
     },
 }
 
-#[derive(Clone, Debug)]
-struct RunResult {
+/// One match's result; a job record holds it (`crate::records`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub(crate) struct RunResult {
     report: MatchReport,
 }
 
@@ -308,7 +309,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
     }
     let bar = ctx.progress((match_seconds(scenario) * jobs.len() as f64) as u64, "simulated s");
     let log = ctx.options.log.clone();
-    let results = parallel(&jobs, ctx.options.threads, |i, job| {
+    let results = ctx.run_jobs(&jobs, |i, job| {
         play(scenario, job, log.as_deref().filter(|_| i == 0), &|n| bar.inc(n))
     })?;
     bar.finish_and_clear();

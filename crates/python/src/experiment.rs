@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use pyo3::prelude::*;
 use serde::Deserialize;
+use strata_experiments::records::{RecordMode, Records};
 use strata_experiments::{EXPERIMENTS, Options, ScenarioError};
 
 use crate::{config_error, from_json, run_error, to_json};
@@ -22,6 +23,11 @@ struct ExperimentSpec {
     scenario: Option<toml::Table>,
     threads: Option<usize>,
     log: Option<PathBuf>,
+    /// A records directory (`strata.sweep`): with `record_mode`, what to do with it.
+    records: Option<PathBuf>,
+    /// `plan` (count the jobs), `run` (the jobs `only` lists, or all) or `merge`.
+    record_mode: Option<String>,
+    only: Option<Vec<usize>>,
 }
 
 /// The experiments' names.
@@ -49,6 +55,35 @@ pub fn run_experiment(py: Python<'_>, name: &str, options_json: &str) -> PyResul
     if spec.runs == Some(0) {
         return Err(config_error("field `runs`: must be at least 1"));
     }
+    let records = match (&spec.records, spec.record_mode.as_deref()) {
+        (None, None) if spec.only.is_none() => None,
+        (Some(dir), Some(mode)) => {
+            let mode = match (mode, &spec.only) {
+                ("plan", None) => RecordMode::Plan,
+                ("run", only) => RecordMode::Run { only: only.clone() },
+                ("merge", None) => RecordMode::Merge,
+                ("plan" | "merge", Some(_)) => {
+                    return Err(config_error(format!(
+                        "field `only`: lists the jobs of record_mode `run`, not `{mode}`"
+                    )));
+                }
+                (other, _) => {
+                    return Err(config_error(format!(
+                        "field `record_mode`: `{other}` is not one of plan, run, merge"
+                    )));
+                }
+            };
+            // Real-time experiments cannot be split: the caller's choice, not a failed run.
+            strata_experiments::check_recordable(name, strata_games::physics::Engine::Sim)
+                .map_err(|e| config_error(format!("{e:#}")))?;
+            Some(Records { dir: dir.clone(), mode })
+        }
+        _ => {
+            return Err(config_error(
+                "fields `records`, `record_mode`: give both (and `only` with `run`), or none",
+            ));
+        }
+    };
     let out = spec.out.clone().unwrap_or_else(|| Path::new("results").join(name));
     let mut options = Options {
         runs: spec.runs,
@@ -56,6 +91,7 @@ pub fn run_experiment(py: Python<'_>, name: &str, options_json: &str) -> PyResul
         out: Some(out.clone()),
         scenario: spec.scenario_file.clone(),
         log: spec.log.clone(),
+        records,
         ..Options::default()
     };
     if let Some(threads) = spec.threads {

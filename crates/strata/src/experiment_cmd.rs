@@ -1,9 +1,10 @@
 //! `strata experiment NAME`: the paper's section 4, re-runnable, against baselines.
 
 use std::io::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
 
-use anyhow::Result;
+use anyhow::{Context as _, Result, bail};
 use clap::Args;
 use strata_experiments::{self as experiments, EXPERIMENTS, Options};
 use strata_games::physics::Engine;
@@ -43,9 +44,17 @@ pub struct ExperimentArgs {
     /// (docs/rcssservermj.md; output in results/NAME-rcssservermj/ by default).
     #[arg(long, value_enum, default_value = "sim")]
     pub engine: Engine,
+    /// Run the runs as Ray tasks (`strata.sweep`, docs/python.md): on the cluster at ADDRESS
+    /// (`ray start --head` prints it), or on a local Ray instance without it. Records go to
+    /// OUT/records/; running the same command again resumes without redoing finished runs.
+    #[arg(long, value_name = "ADDRESS", num_args = 0..=1, default_missing_value = "")]
+    pub ray: Option<String>,
 }
 
 pub fn run(args: ExperimentArgs) -> Result<()> {
+    if let Some(address) = &args.ray {
+        return run_on_ray(&args, address);
+    }
     let mut options = Options {
         runs: args.runs,
         seed: args.seed,
@@ -86,6 +95,72 @@ pub fn run(args: ExperimentArgs) -> Result<()> {
         if args.name == "all" {
             println!("(experiments: {})", EXPERIMENTS.join(", "));
         }
+    }
+    Ok(())
+}
+
+/// The interpreter that has the `strata` package: `$STRATA_PYTHON`, the repository's
+/// `.venv-python` (scripts/setup-python), or `python3`.
+fn python() -> PathBuf {
+    if let Some(python) = std::env::var_os("STRATA_PYTHON").filter(|p| !p.is_empty()) {
+        return PathBuf::from(python);
+    }
+    let venv = Path::new(".venv-python/bin/python");
+    if venv.is_file() {
+        return venv.to_path_buf();
+    }
+    PathBuf::from("python3")
+}
+
+/// `--ray`: the sweep is Python's (Ray's client is a Python library): runs `python -m
+/// strata.sweep` with the same options.
+fn run_on_ray(args: &ExperimentArgs, address: &str) -> Result<()> {
+    if args.name == "all" {
+        bail!("--ray runs one experiment: name it, not `all`");
+    }
+    if args.log.is_some() {
+        bail!("--log records a run in this process; it cannot be used with --ray");
+    }
+    experiments::check_recordable(&args.name, args.engine)?;
+    let python = python();
+    let setup = "install the Python package: ./scripts/setup-python (or set STRATA_PYTHON to an \
+                 interpreter that has strata and ray)";
+    let check = Command::new(&python)
+        .args(["-c", "import strata.sweep, ray"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status();
+    match check {
+        Ok(status) if status.success() => {}
+        Ok(_) => bail!("{} cannot import strata and ray: {setup}", python.display()),
+        Err(e) => bail!("cannot run {}: {e}; {setup}", python.display()),
+    }
+    let mut command = Command::new(&python);
+    command.args(["-m", "strata.sweep", &args.name, "--seed", &args.seed.to_string()]);
+    if !address.is_empty() {
+        command.args(["--address", address]);
+    }
+    if let Some(runs) = args.runs {
+        command.args(["--runs", &runs.to_string()]);
+    }
+    if let Some(out) = &args.out {
+        command.arg("--out").arg(out);
+    }
+    if let Some(scenario) = &args.scenario {
+        command.arg("--scenario").arg(scenario);
+    }
+    if let Some(threads) = args.threads {
+        // On a local instance, the workers are the cores it may use.
+        command.args(["--num-workers", &threads.max(1).to_string()]);
+    }
+    if args.json {
+        command.arg("--json");
+    }
+    let status = command
+        .status()
+        .with_context(|| format!("running {} -m strata.sweep", python.display()))?;
+    if !status.success() {
+        bail!("the sweep failed ({status})");
     }
     Ok(())
 }

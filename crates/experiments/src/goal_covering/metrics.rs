@@ -2,7 +2,7 @@
 
 use super::*;
 
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Sample {
     pub t: f64,
     /// The head multiplexer's selected goal is the ball alone (Table 5's "observe ball").

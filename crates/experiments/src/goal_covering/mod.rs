@@ -41,9 +41,7 @@ use strata_soccer::world_config::BALL;
 use super::plot::{Bars, FieldPaths, Panel, Series, Stack, Tradeoff, TradeoffPoint};
 use super::report::{Markdown, num, pct, verdict, write_csv};
 use super::stats::{Estimate, fraction_true, mean, percentile};
-use super::{
-    Check, Ctx, ExperimentLog, HostKind, ScenarioError, Scene, SceneRobot, Validate, parallel,
-};
+use super::{Check, Ctx, ExperimentLog, HostKind, ScenarioError, Scene, SceneRobot, Validate};
 
 pub const NAME: &str = "goal-covering";
 
@@ -127,8 +125,9 @@ struct Job {
 /// `timeseries.csv` hundreds of megabytes on a random scenario.
 const TRACED_PATHS: usize = 3;
 
-#[derive(Clone, Debug)]
-struct RunResult {
+/// One job's result; a job record holds it (`crate::records`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub(crate) struct RunResult {
     metrics: RunMetrics,
     reactive_hz: f64,
     deliberative_hz: f64,
@@ -338,7 +337,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         / scenario.paths.len() as f64;
     let bar = ctx.progress((per_job * jobs.len() as f64).ceil() as u64, "simulated s");
     let log = ExperimentLog::for_job(ctx, 0);
-    let results = parallel(&jobs, ctx.options.threads, |i, job| {
+    let results = ctx.run_jobs(&jobs, |i, job| {
         run_one(scenario, job, log.clone().filter(|_| i == 0), &|n| bar.inc(n))
     })?;
     bar.finish_and_clear();
