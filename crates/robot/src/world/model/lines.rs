@@ -9,7 +9,7 @@ use crate::percept::Observation;
 use crate::world::pose::{LineObservation, MeasuredLine};
 
 impl WorldModel {
-    /// Keeps a line observation in `lines` for [`WorldModel::correct_with_lines`]; `true` for
+    /// Keeps a line observation in `lines_seen` for [`WorldModel::correct_with_lines`]; `true` for
     /// an observation that is one (association leaves it alone).
     pub(super) fn take_line(
         &mut self,
