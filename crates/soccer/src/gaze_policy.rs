@@ -87,7 +87,7 @@ impl GazePolicy {
             .map_err(|source| GazePolicyError::Format { origin: origin.to_owned(), source })?;
         let names = tensors.names();
         let layers = (0..=MAX_HIDDEN)
-            .take_while(|k| names.iter().any(|n| *n == &format!("hidden.{k}.weight")))
+            .take_while(|k| names.iter().any(|n| **n == format!("hidden.{k}.weight")))
             .count();
         if layers > MAX_HIDDEN {
             return Err(tensor_error(

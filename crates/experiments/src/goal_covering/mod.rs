@@ -231,7 +231,7 @@ fn run_one(
                 .map_err(|e| anyhow!("{e}"))?;
         }
         if let (Some(policy), Some(choice), true) = (&policy, &choice, scripted) {
-            if since_decision % decision_samples == 0 {
+            if since_decision.is_multiple_of(decision_samples) {
                 let world = tap
                     .world_state
                     .as_ref()
