@@ -33,7 +33,7 @@ type Seeds = BTreeMap<String, Vec<u8>>;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let fuzz_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
     let root = fuzz_dir.join("seeds");
-    let targets: [(&str, Seeds); 9] = [
+    let targets: [(&str, Seeds); 10] = [
         ("control_packet", control_packets()),
         ("return_packet", return_packets()?),
         ("team_message", team_messages()?),
@@ -43,6 +43,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("log_reader", logs()?),
         ("cdr", cdr_payloads()?),
         ("view_request", view_requests()),
+        ("gaze_policy", gaze_policies(&fuzz_dir.join("../crates/experiments/data"))?),
     ];
     for (target, seeds) in targets {
         let dir = root.join(target);
@@ -70,6 +71,13 @@ fn with_near_misses(valid: Seeds) -> Seeds {
         seeds.insert("edge-short-by-one".into(), first[..first.len().saturating_sub(1)].to_vec());
     }
     seeds
+}
+
+/// The shipped learned gaze (its tensors' names and shapes are what the loader checks), and its
+/// near misses.
+fn gaze_policies(data: &Path) -> Result<Seeds, Box<dyn std::error::Error>> {
+    let shipped = std::fs::read(data.join("gaze-policy.safetensors"))?;
+    Ok(with_near_misses(Seeds::from([("shipped".into(), shipped)])))
 }
 
 fn control_packets() -> Seeds {

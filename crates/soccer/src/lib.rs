@@ -8,6 +8,7 @@ pub mod catalog;
 pub mod field;
 pub mod game;
 pub mod gaze_override;
+pub mod gaze_policy;
 pub mod goals;
 pub mod message;
 pub mod motions;

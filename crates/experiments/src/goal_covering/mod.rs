@@ -29,10 +29,14 @@ use strata_games::outputs;
 use strata_robot::control::reactive::MuxReport;
 use strata_robot::control::scores::Goal as _;
 use strata_robot::geometry::{Global as FieldFrame, Point, Pose};
+use strata_robot::world::WorldState;
 use strata_runtime::{Tap, TapRecord};
 use strata_sim::{BallScript, NoiseLevel};
+use strata_soccer::behaviors::GazeStrategy;
 use strata_soccer::behaviors::covering_pose;
 use strata_soccer::field::TeamField;
+use strata_soccer::gaze_override::GazeOverride;
+use strata_soccer::gaze_policy::GazePolicy;
 use strata_soccer::goals::HeadGoal;
 use strata_soccer::team::TeamConfig;
 use strata_soccer::value::goal_coverage;
@@ -47,12 +51,14 @@ pub const NAME: &str = "goal-covering";
 
 mod files;
 pub mod gym;
+pub mod learned;
 mod metrics;
 mod plots;
 mod report;
 mod scenario;
 
 use self::files::*;
+use self::learned::SHIPPED_POLICY;
 pub use self::metrics::*;
 use self::plots::*;
 use self::report::*;
@@ -76,6 +82,9 @@ struct KeeperTap {
     deliberative: String,
     world: String,
     latest: Mutex<Latest>,
+    /// The newest world state, kept for a learned gaze's observation only (a copy per percept
+    /// would slow the other methods down for nothing).
+    world_state: Option<Mutex<Option<WorldState>>>,
 }
 
 impl Tap for KeeperTap {
@@ -105,6 +114,10 @@ impl Tap for KeeperTap {
             latest.ball_confidence = ball.map_or(0.0, |b| b.confidence);
             latest.ball_estimate = ball.filter(|b| b.known).map(|b| b.global_position);
             latest.pose = Some(world.pose.pose);
+            drop(latest);
+            if let Some(slot) = &self.world_state {
+                *slot.lock().unwrap_or_else(|e| e.into_inner()) = Some(world.clone());
+            }
         }
     }
 }
@@ -151,11 +164,18 @@ fn run_one(
     let [x, y, theta] = scenario.keeper_start;
     let path = &scenario.paths[job.trajectory];
     let trajectory = &path.trajectory;
+    let policy = scenario.policies.get(job.method).cloned().flatten();
+    let choice = policy.as_ref().map(|_| GazeOverride::new());
     let mut scene = Scene::new(
         &scenario.field,
         scenario.noise_level.unwrap_or_default(),
         job.seed,
-        &[SceneRobot { player: 1, team: team.clone(), start: Pose::new(x, y, theta), gaze: None }],
+        &[SceneRobot {
+            player: 1,
+            team: team.clone(),
+            start: Pose::new(x, y, theta),
+            gaze: choice.clone(),
+        }],
     )?;
     scene.log = log;
     let (keeper, modules) = scene.robots[0].clone();
@@ -173,7 +193,13 @@ fn run_one(
         deliberative: modules.deliberative.clone(),
         world: modules.world.clone(),
         latest: Mutex::new(Latest::default()),
+        world_state: policy.as_ref().map(|_| Mutex::new(None)),
     });
+    // A learned gaze decides every deliberative period, as one step of the gaze environment.
+    let decision_samples = (1.0 / scenario.deliberative_hz[job.rate] / scenario.sample_period)
+        .round()
+        .max(1.0) as usize;
+    let mut since_decision = 0usize;
     let mut host = scene.host(HostKind::Lockstep, job.seed, tap.clone())?;
     let period = Duration::from_secs_f64(scenario.sample_period);
     let moving = trajectory.length() / path.speed;
@@ -202,6 +228,16 @@ fn run_one(
                 .lock()
                 .script_ball(BallScript::new(waypoints.clone(), path.speed))
                 .map_err(|e| anyhow!("{e}"))?;
+        }
+        if let (Some(policy), Some(choice), true) = (&policy, &choice, scripted) {
+            if since_decision.is_multiple_of(decision_samples) {
+                let world = tap
+                    .world_state
+                    .as_ref()
+                    .and_then(|w| w.lock().unwrap_or_else(|e| e.into_inner()).clone());
+                choice.set(Some(learned_choice(policy, world.as_ref(), &field, &truth)));
+            }
+            since_decision += 1;
         }
         if now > end {
             break;
@@ -249,6 +285,17 @@ fn run_one(
         deliberative_hz: rate(&modules.deliberative),
         trace: keep_trace.then_some(trace),
     })
+}
+
+/// The learned gaze's choice from the keeper's world state and true head angles: what the
+/// gaze environment observes at a step's start.
+fn learned_choice(
+    policy: &GazePolicy,
+    world: Option<&WorldState>,
+    field: &TeamField,
+    truth: &strata_sim::RobotTruth,
+) -> strata_soccer::gaze_override::GazeChoice {
+    policy.choose(&gym::observation(world, field, [truth.head.yaw, truth.head.pitch]))
 }
 
 // ---------------------------------------------------------------------------------------------

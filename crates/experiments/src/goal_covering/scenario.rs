@@ -51,6 +51,9 @@ pub struct Scenario {
     pub paper: Vec<PaperRow>,
     #[serde(skip)]
     pub(super) resolved: Vec<TeamConfig>,
+    /// Per method, its learned gaze, loaded.
+    #[serde(skip)]
+    pub(super) policies: Vec<Option<Arc<GazePolicy>>>,
     #[serde(skip)]
     pub(super) noise_level: Option<NoiseLevel>,
     /// The fixed trajectories, then the random paths: what the runs follow.
@@ -120,6 +123,12 @@ pub struct Method {
     pub name: String,
     /// A built-in team (full, always-ball, fixed-scan, entropy, ...) or a team TOML file.
     pub team: String,
+    /// A learned gaze ([`super::learned`]): at each deliberative decision the team's gaze is
+    /// this policy's choice. `"shipped"`: the policy shipped with the crate
+    /// (data/gaze-policy.safetensors); otherwise a safetensors file (relative to the scenario's
+    /// directory). The team must make gaze candidates (a value-function or entropy gaze).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub policy: Option<String>,
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize)]
@@ -169,8 +178,50 @@ pub(crate) fn check_methods_and_trajectories(
     trajectories: &[Trajectory],
 ) -> Result<Vec<TeamConfig>, ScenarioError> {
     let resolved = check_methods(check, dir, methods, reference)?;
+    if let Some(i) = methods.iter().position(|m| m.policy.is_some()) {
+        return Err(check.fail(
+            &format!("methods[{i}].policy"),
+            "a learned gaze runs in the 2D goal-covering experiment only",
+        ));
+    }
     check_trajectories(check, trajectories, false)?;
     Ok(resolved)
+}
+
+/// Per method, its learned gaze loaded (`None` for the others); the team of one must make
+/// gaze candidates for the policy to choose among.
+pub(super) fn load_policies(
+    check: &Check<'_>,
+    dir: Option<&Path>,
+    methods: &[Method],
+    resolved: &[TeamConfig],
+) -> Result<Vec<Option<Arc<GazePolicy>>>, ScenarioError> {
+    let mut policies = Vec::with_capacity(methods.len());
+    for (i, (method, team)) in methods.iter().zip(resolved).enumerate() {
+        let Some(source) = &method.policy else {
+            policies.push(None);
+            continue;
+        };
+        let field = format!("methods[{i}].policy");
+        if matches!(team.behavior.gaze, GazeStrategy::AlwaysBall | GazeStrategy::FixedScan) {
+            return Err(check.fail(
+                &field,
+                format!(
+                    "team `{}` makes no gaze candidates to choose from (use a value-function or \
+                     entropy gaze)",
+                    method.team
+                ),
+            ));
+        }
+        let policy = if source == SHIPPED_POLICY {
+            learned::shipped_policy()
+        } else {
+            let path = dir.map_or_else(|| Path::new(source).to_path_buf(), |d| d.join(source));
+            learned::load_policy(&path)
+        };
+        policies.push(Some(Arc::new(policy.map_err(|e| check.fail(&field, e.to_string()))?)));
+    }
+    Ok(policies)
 }
 
 /// The methods' teams, resolved; the reference is one of them.
@@ -332,6 +383,7 @@ impl Validate for Scenario {
             return Err(check.fail("keeper_start", "must be three finite numbers"));
         }
         self.resolved = check_methods(check, dir, &self.methods, &self.reference)?;
+        self.policies = load_policies(check, dir, &self.methods, &self.resolved)?;
         check_trajectories(check, &self.trajectories, self.random.is_some())?;
         check.positive("recover.turn", self.recover.turn)?;
         if self.recover.turn >= 180.0 {

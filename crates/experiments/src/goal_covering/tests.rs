@@ -278,3 +278,25 @@ fn a_bad_random_or_recover_value_names_the_file_and_the_field() {
     let error = validated(&none).map(|_| ()).expect_err("no paths");
     assert!(error.to_string().contains("`trajectories`"), "{error}");
 }
+
+#[test]
+fn the_learned_method_loads_the_shipped_policy_and_refuses_a_bad_one() {
+    let scenario = validated(RANDOM_SCENARIO).expect("valid");
+    let learned = scenario.methods.iter().position(|m| m.name == "learned").expect("learned");
+    assert!(scenario.policies[learned].is_some());
+    assert_eq!(scenario.policies.iter().filter(|p| p.is_some()).count(), 1);
+
+    let shipped = "policy = \"shipped\"";
+    assert!(RANDOM_SCENARIO.contains(shipped));
+    let missing = RANDOM_SCENARIO.replace(shipped, "policy = \"no-such-policy.safetensors\"");
+    let text = validated(&missing).map(|_| ()).expect_err("no file").to_string();
+    assert!(text.contains("`methods[5].policy`") && text.contains("no-such-policy"), "{text}");
+
+    let no_candidates = RANDOM_SCENARIO.replace(
+        "team = \"full\"\npolicy = \"shipped\"",
+        "team = \"always-ball\"\npolicy = \"shipped\"",
+    );
+    assert_ne!(no_candidates, RANDOM_SCENARIO);
+    let text = validated(&no_candidates).map(|_| ()).expect_err("always-ball").to_string();
+    assert!(text.contains("no gaze candidates"), "{text}");
+}
