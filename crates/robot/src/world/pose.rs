@@ -93,16 +93,7 @@ impl PoseFilter {
     ) -> Option<Innovation> {
         let (h, jac) = self.expected_landmark(map);
         let nu = measured.position - h;
-        let mut x = self.x;
-        let mut p = self.p;
-        let innovation = joseph_update(&mut x, &mut p, &jac, nu, &measured.covariance)?;
-        x[2] = normalize_angle(x[2]);
-        if !(all_finite(&x) && all_finite(&p)) {
-            return None;
-        }
-        self.x = x;
-        self.p = p;
-        Some(innovation)
+        self.correct(&jac, nu, &measured.covariance)
     }
 
     /// The covariance after a landmark estimate with covariance `r`, without changing anything.
@@ -277,9 +268,20 @@ impl PoseFilter {
     ) -> Option<Innovation> {
         let (h, jac, _) = line_measurement(&self.x, line, &measured.observation);
         let nu = Vector2::new(measured.z.x - h.x, normalize_angle(measured.z.y - h.y));
+        self.correct(&jac, nu, &measured.r)
+    }
+
+    /// The correction with innovation `nu`, measurement Jacobian `jac` and noise `r` (Joseph
+    /// form); the filter is left as it was if the result is not finite. `None`: nothing changed.
+    fn correct(
+        &mut self,
+        jac: &SMatrix<f64, 2, 3>,
+        nu: Vector2<f64>,
+        r: &Matrix2<f64>,
+    ) -> Option<Innovation> {
         let mut x = self.x;
         let mut p = self.p;
-        let innovation = joseph_update(&mut x, &mut p, &jac, nu, &measured.r)?;
+        let innovation = joseph_update(&mut x, &mut p, jac, nu, r)?;
         x[2] = normalize_angle(x[2]);
         if !(all_finite(&x) && all_finite(&p)) {
             return None;
