@@ -186,3 +186,16 @@ fn field_lines_make_the_pose_more_accurate_and_keep_it_consistent() {
     assert!(lines_error < error, "position error {lines_error} m with lines vs {error} m");
     assert!(lines_heading < heading, "heading error {lines_heading} with lines vs {heading}");
 }
+
+/// A line map the filter cannot use is refused naming the field.
+#[test]
+fn a_bad_line_map_is_refused_naming_the_field() {
+    let mut config = config_with_lines(None);
+    config.lines.segments[3][1] = config.lines.segments[3][0];
+    let error = WorldModel::new(config).expect_err("a segment without length");
+    assert_eq!(error.field, "lines.segments[3]");
+    let mut config = config_with_lines(None);
+    config.lines.direction_sigma = 0.0;
+    let error = WorldModel::new(config).expect_err("no direction noise");
+    assert_eq!(error.field, "lines.direction_sigma");
+}

@@ -406,7 +406,7 @@ pub struct FieldLinesConfig {
     pub class: Option<ObjectClass>,
     /// The map's straight lines (line centres), field frame.
     pub segments: Vec<[Point<Global>; 2]>,
-    /// Standard deviation of an observed line's direction when perception gives none, rad.
+    /// Standard deviation of an observed line's direction, rad (observations carry none).
     pub direction_sigma: f64,
     /// How far beyond a segment's ends an observed point may lie and still be on it, m (the
     /// painted width, and the pose's error along the line).
