@@ -916,13 +916,14 @@ fn goal_covering(ctx: &mut Ctx, depth: f64) -> Status {
 /// a goal whose worth is what its pose lacks, `1 - confidence`, so that it wins the head only
 /// when the pose has grown unsure (after a dive, a push) and the value functions' looks are
 /// worth less. The baselines keep their own gaze; a gaze chosen from outside (a learned
-/// policy) is not second-guessed.
+/// policy) is not second-guessed; a body that does not see lines (the T1 in rcssservermj) has
+/// nothing to gain from the look.
 fn relocalize_on_area_line(ctx: &mut Ctx) {
     let value_functions =
         matches!(ctx.config.gaze, GazeStrategy::ActiveVision | GazeStrategy::ActiveVisionTaskValue);
     let overridden = ctx.gaze_override.as_ref().is_some_and(|o| o.get().is_some());
     let Some(world) = ctx.world.as_ref().filter(|w| !w.pose.lost) else { return };
-    if !value_functions || overridden {
+    if !value_functions || overridden || !ctx.motion.sees_field_lines {
         return;
     }
     let need = (1.0 - world.pose.confidence).clamp(0.0, 1.0);
