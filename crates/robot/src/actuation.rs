@@ -72,6 +72,10 @@ pub struct ActuationState {
     head_queue: VecDeque<HeadMotion>,
     head_current: Option<HeadMotion>,
     head_announced: bool,
+    /// The stamp of the newest feedback when the current head motion was ordered: feedback
+    /// no newer than it was measured before the order reached the platform, and its
+    /// "settled" is about the previous target.
+    head_ordered_after: Option<Time>,
     body_queue: VecDeque<BodyMotion>,
     body: BodyExecution,
     body_announced: bool,
@@ -90,6 +94,7 @@ impl ActuationState {
             head_queue: VecDeque::new(),
             head_current: None,
             head_announced: false,
+            head_ordered_after: None,
             body_queue: VecDeque::new(),
             body: BodyExecution::Idle,
             body_announced: false,
@@ -140,6 +145,7 @@ impl ActuationState {
     fn start_head(&mut self, motion: HeadMotion) {
         self.head_current = Some(motion);
         self.head_announced = false;
+        self.head_ordered_after = self.last_time;
         self.orders.head = Some(HeadOrder { target: motion.target, max_speed: motion.max_speed });
     }
 
@@ -300,20 +306,29 @@ impl ActuationState {
                 .abs()
                 .max((feedback.head.pitch - current.target.pitch).abs());
             let eta = if current.max_speed > 0.0 { error / current.max_speed } else { 0.0 };
+            // The feedback describes the previous target until the platform has received the
+            // order: a queued motion must wait for its own settling. A platform whose feedback
+            // comes from another thread can hand over a sample taken before the order a cycle
+            // or two later (the T1 in rcssservermj under load), so feedback stamped no later
+            // than the order is not heard on settling.
+            let ordered_this_cycle = self.orders.head.is_some();
+            let fresh = self.head_ordered_after.is_none_or(|t| feedback.stamp > t);
+            let ended = !ordered_this_cycle && ((fresh && feedback.head_settled) || error < 0.01);
+            // Every motion with nothing queued behind it is announced once, at the latest when
+            // it ends: a head path waits for the announcement to go on, and a motion that ended
+            // unannounced (a sample taken before the order and stamped after the last one)
+            // would stop it for good.
             if self.head_queue.is_empty()
                 && !self.head_announced
-                && eta <= self.config.finishing_lead
+                && (eta <= self.config.finishing_lead || ended)
             {
                 self.head_announced = true;
                 self.messages.push(ActuationMessage::CommandFinishing {
                     resource: Resource::Head,
-                    remaining: eta,
+                    remaining: if ended { 0.0 } else { eta },
                 });
             }
-            // The feedback describes the previous target until the platform has received the
-            // order issued this cycle: a queued motion must wait for its own settling.
-            let ordered_this_cycle = self.orders.head.is_some();
-            if !ordered_this_cycle && (feedback.head_settled || error < 0.01) {
+            if ended {
                 match self.head_queue.pop_front() {
                     Some(next) => self.start_head(next),
                     None => self.head_current = None,
@@ -734,6 +749,76 @@ mod tests {
             m,
             ActuationMessage::CommandFinishing { resource: Resource::Head, .. }
         )));
+    }
+
+    #[test]
+    fn a_stale_settled_feedback_does_not_end_the_head_motion_just_ordered() {
+        let mut a = ActuationState::new(ActuationConfig { finishing_lead: 0.1 });
+        let target = |yaw| HeadMotion { target: HeadAngles { yaw, pitch: 0.0 }, max_speed: 1.0 };
+        a.command(&MotionCommands::PerResource {
+            head: Some(HeadCommand::NonQueue(target(-1.0))),
+            body: None,
+        });
+        a.command(&MotionCommands::PerResource {
+            head: Some(HeadCommand::Queue(target(0.5))),
+            body: None,
+        });
+        let mut fb = feedback(0.9, BodyMotionState::Standing);
+        fb.head_settled = false;
+        let (orders, _) = a.update(&fb);
+        assert_eq!(orders.and_then(|o| o.head).map(|h| h.target.yaw), Some(-1.0));
+        // The first target reached: the queued one is ordered in this update.
+        fb.stamp = Time::from_secs_f64(1.0);
+        fb.head = HeadAngles { yaw: -1.0, pitch: 0.0 };
+        fb.head_settled = true;
+        let (orders, _) = a.update(&fb);
+        assert_eq!(orders.and_then(|o| o.head).map(|h| h.target.yaw), Some(0.5));
+        // The same sample again, a cycle later: measured before the order reached the platform.
+        let (orders, messages) = a.update(&fb);
+        assert!(orders.is_none() && messages.is_empty(), "{orders:?} {messages:?}");
+        // The head on its way, then near the target: the end is announced.
+        fb.stamp = Time::from_secs_f64(1.02);
+        fb.head_settled = false;
+        assert!(a.update(&fb).1.is_empty());
+        fb.stamp = Time::from_secs_f64(2.4);
+        fb.head = HeadAngles { yaw: 0.45, pitch: 0.0 };
+        let (_, messages) = a.update(&fb);
+        assert!(
+            messages.iter().any(|m| matches!(
+                m,
+                ActuationMessage::CommandFinishing { resource: Resource::Head, .. }
+            )),
+            "{messages:?}"
+        );
+    }
+
+    #[test]
+    fn a_head_motion_that_ends_unannounced_is_announced_as_it_ends() {
+        let mut a = ActuationState::new(ActuationConfig { finishing_lead: 0.1 });
+        let mut fb = feedback(1.0, BodyMotionState::Standing);
+        fb.head_settled = true;
+        a.update(&fb);
+        a.command(&MotionCommands::PerResource {
+            head: Some(HeadCommand::Queue(HeadMotion {
+                target: HeadAngles { yaw: 1.0, pitch: 0.0 },
+                max_speed: 1.0,
+            })),
+            body: None,
+        });
+        let (orders, _) = a.update(&fb);
+        assert!(orders.is_some_and(|o| o.head.is_some()));
+        // Taken before the order reached the platform, stamped after the last sample: it
+        // ends the motion far from its target, but the end is announced.
+        fb.stamp = Time::from_secs_f64(1.02);
+        let (_, messages) = a.update(&fb);
+        assert!(
+            messages.iter().any(|m| matches!(
+                m,
+                ActuationMessage::CommandFinishing { resource: Resource::Head, remaining }
+                    if *remaining == 0.0
+            )),
+            "{messages:?}"
+        );
     }
 
     /// A platform that refuses every special sequence (its catalogue is empty).
