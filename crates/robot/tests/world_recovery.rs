@@ -421,3 +421,67 @@ fn a_robot_the_platform_saw_placed_is_kidnapped_at_once_and_found_at_the_spot() 
         assert!(after.noticed == Some(DT) && after.lost, "seed {seed}");
     }
 }
+
+/// A fall: the torso tilted for `lying` frames, during which the robot ends up `shift` away
+/// from where odometry puts it; then it patrols upright again. Returns the world model and the
+/// frames after the stand-up until the pose was within 0.3 m and 10 degrees to stay.
+fn fall(seed: u64, fall_tilt: Option<f64>) -> (WorldModel, Option<usize>) {
+    let start = Pose::new(-2.5, 1.0, 0.4);
+    let mut sim = Sim::new(700 + seed, start);
+    let mut cfg = config(Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.02] }));
+    cfg.pose.fall_tilt = fall_tilt;
+    let mut world = WorldModel::new(cfg).expect("valid config");
+    for _ in 0..(3.0 / DT) as usize {
+        let (odometry, percepts) = sim.frame(patrol_step(&sim));
+        world.process(odometry, &percepts);
+    }
+    assert!(good(&world.state().pose.pose, &sim.truth), "seed {seed}: not localized");
+    let t = sim.truth;
+    sim.truth = Pose::new(t.x + 0.45, t.y - 0.3, t.theta + 0.3);
+    for _ in 0..(1.5 / DT) as usize {
+        let (_, mut percepts) = sim.frame(Odometry::ZERO);
+        percepts.inertial.body_angles = [0.1, 1.45];
+        percepts.camera = None;
+        world.process(Odometry::ZERO, &percepts);
+    }
+    let mut good_since = None;
+    for frame in 0..(6.0 / DT) as usize {
+        let (odometry, percepts) = sim.frame(patrol_step(&sim));
+        world.process(odometry, &percepts);
+        let state = world.state();
+        match (!state.pose.lost && good(&state.pose.pose, &sim.truth), good_since) {
+            (true, None) => good_since = Some(frame),
+            (false, Some(_)) => good_since = None,
+            _ => {}
+        }
+    }
+    (world, good_since)
+}
+
+#[test]
+fn after_a_fall_the_next_landmarks_correct_the_pose() {
+    let seconds = |f: Option<usize>| f.map_or(6.0, |f| f as f64 * DT);
+    let (mut noted_total, mut unnoted_total) = (0.0, 0.0);
+    for seed in 0..8 {
+        let (world, noted) = fall(seed, Some(1.0));
+        let (unnoted_world, unnoted) = fall(seed, None);
+        println!(
+            "seed {seed}: localized {:.2} s after standing up with the fall noted ({} kidnaps), \
+             {:.2} s without ({} kidnaps; 6 = not within 6 s)",
+            seconds(noted),
+            world.diagnostics().kidnaps,
+            seconds(unnoted),
+            unnoted_world.diagnostics().kidnaps
+        );
+        assert!(seconds(noted) <= 2.5, "seed {seed}: {:?}", world.state().pose);
+        assert_eq!(world.diagnostics().kidnaps, 0, "seed {seed}: corrected, not recovered");
+        noted_total += seconds(noted);
+        unnoted_total += seconds(unnoted);
+    }
+    println!(
+        "mean over 8 seeds: {:.2} s noted, {:.2} s not",
+        noted_total / 8.0,
+        unnoted_total / 8.0
+    );
+    assert!(noted_total < unnoted_total / 2.0, "{noted_total:.2} s against {unnoted_total:.2} s");
+}

@@ -320,6 +320,9 @@ impl std::fmt::Debug for SoccerRobotSpec {
 /// platform that reports every move it sees.
 const DISAGREEMENT_PRIOR: [f64; 3] = [2.0, 2.0, 1.0];
 
+/// A torso tilted beyond this has fallen (rad): a walking T1 leans by a few tenths at most.
+const FALL_TILT: f64 = 1.0;
+
 /// The world model of a team's robots: the field's, with the team's camera model.
 pub fn team_world_config(team: &TeamConfig, field: &TeamField) -> WorldModelConfig {
     let mut config = WorldModelConfig { camera: team.camera, ..world_config(field) };
@@ -351,6 +354,11 @@ pub fn robot_world_config(
         // fallen T1 could come up on its mirror image (two robot-halves of one game at 9.8 and
         // 16.9 m of mean error).
         config.pose.disagreement_prior = Some(DISAGREEMENT_PRIOR);
+        // Better still, a fall is noticed as it happens: standing up, the pose and the tracks
+        // grow uncertain and the next landmarks correct them. Without it a T1 keeper that fell
+        // in its goal stood up 1-2 m from where it believed, its pose too sure to take the
+        // landmarks that said so, and walked out of its goal for 20 s.
+        config.pose.fall_tilt = Some(FALL_TILT);
         if initial_pose.is_some() {
             // A robot that starts from its pose needs no hint that it enters the field in its
             // own half, and in play the hint is wrong half the time: a T1 that fell in the

@@ -357,6 +357,14 @@ pub struct PoseConfig {
     /// a fall), not a carry: the robot is still near it, which tells a pose from its mirror
     /// image on a symmetric field. `None`: the robot may be anywhere.
     pub disagreement_prior: Option<[f64; 3]>,
+    /// A fall moves the robot by what no odometry measured. When the torso, tilted beyond
+    /// this (rad, roll or pitch), is upright again (below half of it), the pose and every
+    /// tracked object grow uncertain by `fall_sigma`, so that what the robot sees next
+    /// corrects them instead of being refused by a pose still sure of itself. `None`: falls
+    /// are not looked for.
+    pub fall_tilt: Option<f64>,
+    /// Standard deviations of the unmeasured motion of a fall and a stand-up (m, m, rad).
+    pub fall_sigma: [f64; 3],
     /// Only landmark estimates observed within this time take part in recovery, s.
     pub recovery_max_age: f64,
     /// Landmarks that must agree with a recovery hypothesis.
@@ -435,6 +443,8 @@ impl Default for PoseConfig {
             kidnap_from_one_landmark: false,
             kidnap_on_lift: None,
             disagreement_prior: None,
+            fall_tilt: None,
+            fall_sigma: [0.4, 0.4, 0.3],
             recovery_max_age: 3.0,
             recovery_min_landmarks: 2,
             recovery_margin: 6.0,
@@ -650,6 +660,14 @@ impl WorldModelConfig {
             for (i, s) in sigma.iter().enumerate() {
                 positive(&format!("pose.disagreement_prior[{i}]"), *s)?;
             }
+        }
+        if let Some(tilt) = p.fall_tilt
+            && !(tilt > 0.0 && tilt < std::f64::consts::PI)
+        {
+            return Err(err("pose.fall_tilt", "must lie between 0 and pi (rad)"));
+        }
+        for (i, s) in p.fall_sigma.iter().enumerate() {
+            non_negative(&format!("pose.fall_sigma[{i}]"), *s)?;
         }
         positive("pose.recovery_max_age", p.recovery_max_age)?;
         if p.recovery_min_landmarks < 2 {

@@ -148,6 +148,8 @@ pub struct WorldModel {
     /// placement, a lift or a command): `pose.disagreement_prior` applies.
     disagreed: bool,
     lifted: bool,
+    /// The torso tilted beyond `pose.fall_tilt` and not yet upright again.
+    fallen: bool,
     odometry_error: OdometryErrorEstimator,
     team: TeamFusion,
     team_objects: Vec<TeamObject>,
@@ -294,6 +296,7 @@ impl WorldModel {
             kidnap: KidnapDetector::default(),
             disagreed: false,
             lifted: false,
+            fallen: false,
             team_objects: Vec::new(),
             diagnostics: WorldDiagnostics::default(),
             scratch: Scratch::default(),
@@ -435,6 +438,7 @@ impl WorldModel {
     pub fn process(&mut self, odometry: Odometry, percepts: &Percepts) {
         self.check_lift(&percepts.foot_contact);
         self.predict(odometry);
+        self.check_fall(&percepts.inertial);
         let stamp = percepts.camera.as_ref().map_or(percepts.stamp, |c| c.stamp);
         self.advance_to(stamp);
         if percepts.placed {
@@ -452,6 +456,7 @@ impl WorldModel {
     /// a placed frame, so that the odometry before it is applied first).
     pub fn note_frame_without_image(&mut self, percepts: &Percepts) {
         self.check_lift(&percepts.foot_contact);
+        self.check_fall(&percepts.inertial);
         if percepts.placed {
             self.declare_placed();
         }

@@ -1,11 +1,12 @@
 //! The robot's pose: its correction with what the landmark filters gained, kidnap detection
 //! and relabelling, and recovery when lost.
 
+use nalgebra::{Matrix3, Vector3};
 use strata_runtime::Time;
 
 use super::{FrameGain, Slot, Track, WorldModel};
 use crate::geometry::Odometry;
-use crate::platform::FootContact;
+use crate::platform::{FootContact, InertialData};
 use crate::world::config::{PoseFeed, PosePrior, SymmetryHint};
 use crate::world::object::GainedInformation;
 use crate::world::pose::PoseFilter;
@@ -62,6 +63,41 @@ impl WorldModel {
         } else if self.lifted {
             self.lifted = false;
             self.declare_kidnapped();
+        }
+    }
+
+    /// A fall and the stand-up after it move the robot by what no odometry measured: once the
+    /// torso is upright again, the pose and every tracked object (kept in the robot's frame)
+    /// grow uncertain by `pose.fall_sigma`.
+    pub(super) fn check_fall(&mut self, inertial: &InertialData) {
+        let Some(threshold) = self.config.pose.fall_tilt else { return };
+        let [roll, pitch] = inertial.body_angles;
+        let tilt = roll.abs().max(pitch.abs());
+        if !tilt.is_finite() {
+            return;
+        }
+        if tilt > threshold {
+            self.fallen = true;
+        } else if self.fallen && tilt < threshold / 2.0 {
+            self.fallen = false;
+            let [sx, sy, st] = self.config.pose.fall_sigma;
+            self.unmeasured_motion(&Matrix3::from_diagonal(&Vector3::new(
+                sx * sx,
+                sy * sy,
+                st * st,
+            )));
+        }
+    }
+
+    /// Motion with no measured increment and error covariance `q` (robot frame).
+    fn unmeasured_motion(&mut self, q: &Matrix3<f64>) {
+        if let Some(pose) = &mut self.pose {
+            pose.predict(&Odometry::ZERO, q);
+        }
+        for slot in &mut self.slots {
+            if let Some(track) = &mut slot.track {
+                track.filter.predict_odometry_with(&Odometry::ZERO, (0.0, 1.0), q);
+            }
         }
     }
 
