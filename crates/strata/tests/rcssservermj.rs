@@ -201,10 +201,12 @@ fn self_localization_holds_while_the_t1_walks() {
     assert!(mean < 0.3, "mean localization error {mean:.3} m while walking");
 }
 
-/// The keeper covers its goal. Against MuJoCo in another process no two runs are the same, and
-/// now and then the keeper loses its pose for some 20 s after turning at the goal's corner
-/// (error 1.5-3.5 m, 2026-11-29: once in a CI run) and walks out of its goal; a second run with
-/// another seed tells that from a keeper that no longer covers its goal, which fails both.
+/// The keeper covers its goal. Against MuJoCo in another process no two runs are the same (the
+/// robot's threads and the server's cycles interleave as the machine's load has them), so a
+/// failed run is tried once more with another seed, and a keeper that no longer covers its goal
+/// fails both. Two causes of such failures on a loaded machine are fixed, and tested where they
+/// are deterministic: a head path that stopped for good (actuation) and a fall that left the
+/// pose 1-2 m off and too sure of itself (world modeling).
 #[test]
 fn the_goalkeeper_covers_its_goal_from_where_the_ball_is() {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(PoisonError::into_inner);
@@ -264,11 +266,12 @@ fn keeper_covers_its_goal(seed: u64) -> Result<(), String> {
     println!("game states: {}; localization: {}", report["game_states"], report["localization"]);
     for status in robot.json_of("status").iter().step_by(5) {
         println!(
-            "{:5.1} s {} {}: pose {}",
+            "{:5.1} s {} {}: pose {}, ball {}",
             figure(status, "/t"),
             status["game_state"],
             status["mission"],
-            status["pose"]
+            status["pose"],
+            status["ball"]
         );
     }
     for ((_, y), keeper) in &settled {
