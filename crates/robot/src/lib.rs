@@ -15,6 +15,7 @@ pub mod geometry;
 pub mod percept;
 pub mod perception;
 pub mod platform;
+pub mod weights;
 pub mod world;
 
 pub use geometry::{Global, Odometry, Point, Pose, Robot, Vector, Velocity, normalize_angle};

@@ -14,7 +14,7 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector};
-use safetensors::{Dtype, SafeTensors};
+use safetensors::SafeTensors;
 
 use crate::gaze_override::GazeChoice;
 
@@ -228,27 +228,8 @@ fn read_tensor(
     shape: &[usize],
     origin: &str,
 ) -> Result<Vec<f32>, GazePolicyError> {
-    let view = tensors.tensor(name).map_err(|_| tensor_error(origin, name, "is missing"))?;
-    if view.dtype() != Dtype::F32 {
-        return Err(tensor_error(
-            origin,
-            name,
-            &format!("has dtype {:?}, expected F32", view.dtype()),
-        ));
-    }
-    if view.shape() != shape {
-        return Err(tensor_error(
-            origin,
-            name,
-            &format!("has shape {:?}, expected {shape:?}", view.shape()),
-        ));
-    }
-    let values: Vec<f32> =
-        view.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-    if values.iter().any(|v| !v.is_finite()) {
-        return Err(tensor_error(origin, name, "holds a value that is not finite"));
-    }
-    Ok(values)
+    strata_robot::weights::read_f32(tensors, name, shape)
+        .map_err(|e| tensor_error(origin, &e.tensor, &e.reason))
 }
 
 #[cfg(test)]
@@ -268,8 +249,12 @@ mod tests {
         let views: Vec<(String, safetensors::tensor::TensorView<'_>)> = data
             .iter()
             .map(|(name, shape, bytes)| {
-                let view = safetensors::tensor::TensorView::new(Dtype::F32, shape.clone(), bytes)
-                    .expect("a consistent test tensor");
+                let view = safetensors::tensor::TensorView::new(
+                    safetensors::Dtype::F32,
+                    shape.clone(),
+                    bytes,
+                )
+                .expect("a consistent test tensor");
                 (name.clone(), view)
             })
             .collect();
@@ -380,7 +365,7 @@ mod tests {
             .map(|(n, s, b)| {
                 (
                     n.clone(),
-                    safetensors::tensor::TensorView::new(Dtype::F32, s.clone(), b)
+                    safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), b)
                         .expect("a tensor"),
                 )
             })

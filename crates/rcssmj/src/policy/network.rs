@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use safetensors::{Dtype, SafeTensors};
+use safetensors::SafeTensors;
 
 use super::{OBSERVATION_LEN, PolicyError};
 
@@ -160,27 +160,8 @@ fn read_tensor(
     shape: &[usize],
     origin: &str,
 ) -> Result<Vec<f32>, PolicyError> {
-    let view = tensors.tensor(name).map_err(|_| tensor_error(origin, name, "is missing"))?;
-    if view.dtype() != Dtype::F32 {
-        return Err(tensor_error(
-            origin,
-            name,
-            &format!("has dtype {:?}, expected F32", view.dtype()),
-        ));
-    }
-    if view.shape() != shape {
-        return Err(tensor_error(
-            origin,
-            name,
-            &format!("has shape {:?}, expected {shape:?}", view.shape()),
-        ));
-    }
-    let values: Vec<f32> =
-        view.data().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-    if values.iter().any(|v| !v.is_finite()) {
-        return Err(tensor_error(origin, name, "holds a value that is not finite"));
-    }
-    Ok(values)
+    strata_robot::weights::read_f32(tensors, name, shape)
+        .map_err(|e| tensor_error(origin, &e.tensor, &e.reason))
 }
 
 #[cfg(test)]
