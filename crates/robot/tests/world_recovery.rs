@@ -5,7 +5,9 @@ mod world_support;
 
 use strata_robot::geometry::{Odometry, Pose};
 use strata_robot::platform::FootContact;
-use strata_robot::world::{LostReason, PosePrior, Region, SymmetryHint, WorldCommand, WorldModel};
+use strata_robot::world::{
+    LostReason, PosePrior, Region, SymmetryHint, WorldCommand, WorldModel, WorldModelConfig,
+};
 use world_support::{DT, Sim, config, nees3, own_half, patrol_step, pose_error};
 
 /// A normalized pose error (3 dof) that a consistent filter exceeds with probability below
@@ -173,20 +175,30 @@ fn being_carried_is_a_kidnapping() {
     assert_eq!(world.diagnostics().kidnaps, 1);
 }
 
-/// A pose gone wrong without the robot being moved (odometry through a fall): 0.9 rad and
-/// 0.5 m off. On a symmetric field without hints only `pose.disagreement_prior` tells the
-/// robot from its mirror image.
-fn gone_wrong(seed: u64, prior: Option<[f64; 3]>) -> (WorldModel, Sim, usize) {
-    let start = Pose::new(-3.0, 1.2, 0.3);
-    let mut sim = Sim::new(500 + seed, start);
+/// A robot started at `start` (known to 5 cm) that patrols for 3 s and is then localized.
+fn localized(
+    sim_seed: u64,
+    start: Pose,
+    configure: impl FnOnce(&mut WorldModelConfig),
+) -> (WorldModel, Sim) {
+    let mut sim = Sim::new(sim_seed, start);
     let mut cfg = config(Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.02] }));
-    cfg.pose.disagreement_prior = prior;
+    configure(&mut cfg);
     let mut world = WorldModel::new(cfg).expect("valid config");
     for _ in 0..(3.0 / DT) as usize {
         let (odometry, percepts) = sim.frame(patrol_step(&sim));
         world.process(odometry, &percepts);
     }
-    assert!(good(&world.state().pose.pose, &sim.truth), "seed {seed}: not localized");
+    assert!(good(&world.state().pose.pose, &sim.truth), "sim seed {sim_seed}: not localized");
+    (world, sim)
+}
+
+/// A pose gone wrong without the robot being moved (odometry through a fall): 0.9 rad and
+/// 0.5 m off. On a symmetric field without hints only `pose.disagreement_prior` tells the
+/// robot from its mirror image.
+fn gone_wrong(seed: u64, prior: Option<[f64; 3]>) -> (WorldModel, Sim, usize) {
+    let (mut world, mut sim) =
+        localized(500 + seed, Pose::new(-3.0, 1.2, 0.3), |c| c.pose.disagreement_prior = prior);
     let t = sim.truth;
     sim.truth = Pose::new(t.x + 0.5, t.y, t.theta + 0.9);
     let mut mirrored = 0;
@@ -422,20 +434,12 @@ fn a_robot_the_platform_saw_placed_is_kidnapped_at_once_and_found_at_the_spot() 
     }
 }
 
-/// A fall: the torso tilted for `lying` frames, during which the robot ends up `shift` away
-/// from where odometry puts it; then it patrols upright again. Returns the world model and the
+/// A fall: the torso tilted for 1.5 s, during which the robot ends up 0.54 m and 0.3 rad
+/// away from where odometry puts it; then it patrols upright again. Returns the world model and the
 /// frames after the stand-up until the pose was within 0.3 m and 10 degrees to stay.
 fn fall(seed: u64, fall_tilt: Option<f64>) -> (WorldModel, Option<usize>) {
-    let start = Pose::new(-2.5, 1.0, 0.4);
-    let mut sim = Sim::new(700 + seed, start);
-    let mut cfg = config(Some(PosePrior { pose: start, sigma: [0.05, 0.05, 0.02] }));
-    cfg.pose.fall_tilt = fall_tilt;
-    let mut world = WorldModel::new(cfg).expect("valid config");
-    for _ in 0..(3.0 / DT) as usize {
-        let (odometry, percepts) = sim.frame(patrol_step(&sim));
-        world.process(odometry, &percepts);
-    }
-    assert!(good(&world.state().pose.pose, &sim.truth), "seed {seed}: not localized");
+    let (mut world, mut sim) =
+        localized(700 + seed, Pose::new(-2.5, 1.0, 0.4), |c| c.pose.fall_tilt = fall_tilt);
     let t = sim.truth;
     sim.truth = Pose::new(t.x + 0.45, t.y - 0.3, t.theta + 0.3);
     for _ in 0..(1.5 / DT) as usize {
