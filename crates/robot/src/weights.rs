@@ -40,3 +40,11 @@ pub fn read_f32(
     }
     Ok(values)
 }
+
+/// The first tensor (in name order) whose name is not in `expected`: a file of another network
+/// is refused by name rather than half read.
+pub fn first_unexpected<'a>(tensors: &'a SafeTensors<'_>, expected: &[String]) -> Option<&'a str> {
+    let mut names = tensors.names();
+    names.sort();
+    names.into_iter().find(|name| !expected.iter().any(|e| e.as_str() == *name))
+}

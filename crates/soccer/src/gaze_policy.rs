@@ -104,9 +104,7 @@ impl GazePolicy {
             expected.push(format!("hidden.{k}.weight"));
             expected.push(format!("hidden.{k}.bias"));
         }
-        let mut sorted = names.clone();
-        sorted.sort();
-        if let Some(extra) = sorted.iter().find(|n| !expected.iter().any(|e| e == **n)) {
+        if let Some(extra) = strata_robot::weights::first_unexpected(&tensors, &expected) {
             return Err(tensor_error(
                 origin,
                 extra,

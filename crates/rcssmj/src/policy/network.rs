@@ -100,9 +100,7 @@ impl WalkNetwork {
             .iter()
             .flat_map(|layer| [format!("{layer}.weight"), format!("{layer}.bias")])
             .collect();
-        let mut names = tensors.names();
-        names.sort();
-        if let Some(extra) = names.iter().find(|name| !expected.iter().any(|e| e == **name)) {
+        if let Some(extra) = strata_robot::weights::first_unexpected(&tensors, &expected) {
             return Err(tensor_error(
                 origin,
                 extra,
