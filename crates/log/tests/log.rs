@@ -767,3 +767,38 @@ fn a_chunk_whose_records_overrun_it_is_refused_not_a_panic() {
     }
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
+
+#[test]
+fn a_summary_chunk_running_past_the_end_of_the_file_is_refused_not_a_panic() {
+    // Found by the `log_reader` fuzz target: the footer points at a chunk whose record claims
+    // 4 bytes more than the file holds; inside it, 5 bytes of uncompressed records whose first
+    // record claims 40. mcap's summary reader streamed it and panicked (overflow check) taking
+    // 49 bytes off 5; the chunk check passed it over, having no whole record to check.
+    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+    let mut chunk = Vec::new();
+    chunk.extend_from_slice(&[0u8; 8 + 8 + 8 + 4]); // times, uncompressed size and CRC
+    chunk.extend_from_slice(&0u32.to_le_bytes()); // compression "": none
+    chunk.extend_from_slice(&5u64.to_le_bytes()); // records: 5 bytes
+    chunk.push(0x05); // a message...
+    chunk.extend_from_slice(&40u64.to_le_bytes()); // ...of 40 bytes
+    chunk.extend_from_slice(&[0u8; 60]);
+    let mut file = MAGIC.to_vec();
+    file.push(0x06);
+    file.extend_from_slice(&150u64.to_le_bytes()); // 4 bytes past the end of the file
+    file.extend_from_slice(&chunk);
+    file.push(0x02); // footer: summary at byte 8, no summary offsets, no CRC
+    file.extend_from_slice(&20u64.to_le_bytes());
+    file.extend_from_slice(&8u64.to_le_bytes());
+    file.extend_from_slice(&0u64.to_le_bytes());
+    file.extend_from_slice(&0u32.to_le_bytes());
+    file.extend_from_slice(MAGIC);
+
+    let dir = scratch("summary-past-end");
+    let path = dir.join("past-end.mcap");
+    std::fs::write(&path, &file).expect("write");
+    let reader = LogReader::open(&path).expect("scanned like a file without a summary");
+    let recovery = reader.recovery().expect("read by scanning");
+    assert!(recovery.stopped.contains("runs past the footer"), "{}", recovery.stopped);
+    assert_eq!(reader.message_count(), 0);
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}

@@ -56,7 +56,9 @@ impl LogReader {
     /// mcap's summary reader reads whatever records the footer points at, chunks included, with
     /// the streaming reader that trusts an uncompressed chunk's records to fit
     /// ([`check_chunk_records`]); a footer pointing at such a chunk is refused here (and the
-    /// file then scanned like one without a summary).
+    /// file then scanned like one without a summary). So is a summary record that does not end
+    /// before the footer: the streaming reader would take a chunk's records from whatever
+    /// follows it in the file, unchecked.
     fn check_summary_chunks(records: &mut RecordFile) -> Result<(), LogError> {
         // The footer record: opcode, length, summary_start, summary_offset_start, summary_crc.
         const FOOTER_BODY: u64 = 8 + 8 + 4;
@@ -72,7 +74,15 @@ impl LogReader {
         };
         let mut offset = start;
         while offset != 0 && offset < footer {
-            let Some((opcode, body)) = records.record_at(offset)? else { return Ok(()) };
+            let record = records.record_at(offset)?.filter(|(_, body)| {
+                offset.saturating_add(RECORD_HEADER + body.len() as u64) <= footer
+            });
+            let Some((opcode, body)) = record else {
+                return Err(LogError::Invalid {
+                    path: records.path.clone(),
+                    what: format!("the summary record at byte {offset} runs past the footer"),
+                });
+            };
             if opcode == op::CHUNK {
                 check_chunk_records(&body).map_err(|what| LogError::Invalid {
                     path: records.path.clone(),
