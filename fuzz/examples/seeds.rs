@@ -33,7 +33,7 @@ type Seeds = BTreeMap<String, Vec<u8>>;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let fuzz_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
     let root = fuzz_dir.join("seeds");
-    let targets: [(&str, Seeds); 10] = [
+    let targets: [(&str, Seeds); 11] = [
         ("control_packet", control_packets()),
         ("return_packet", return_packets()?),
         ("team_message", team_messages()?),
@@ -44,6 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("cdr", cdr_payloads()?),
         ("view_request", view_requests()),
         ("gaze_policy", gaze_policies(&fuzz_dir.join("../crates/experiments/data"))?),
+        ("walk_policy", walk_policies(&fuzz_dir.join("../crates/rcssmj/assets/t1"))?),
     ];
     for (target, seeds) in targets {
         let dir = root.join(target);
@@ -77,6 +78,12 @@ fn with_near_misses(valid: Seeds) -> Seeds {
 /// near misses.
 fn gaze_policies(data: &Path) -> Result<Seeds, Box<dyn std::error::Error>> {
     let shipped = std::fs::read(data.join("gaze-policy.safetensors"))?;
+    Ok(with_near_misses(Seeds::from([("shipped".into(), shipped)])))
+}
+
+/// The shipped T1 walking network and its near misses.
+fn walk_policies(assets: &Path) -> Result<Seeds, Box<dyn std::error::Error>> {
+    let shipped = std::fs::read(assets.join("t1.safetensors"))?;
     Ok(with_near_misses(Seeds::from([("shipped".into(), shipped)])))
 }
 
