@@ -916,14 +916,15 @@ fn goal_covering(ctx: &mut Ctx, depth: f64) -> Status {
 /// a goal whose worth is what its pose lacks, `1 - confidence`, so that it wins the head only
 /// when the pose has grown unsure (after a dive, a push) and the value functions' looks are
 /// worth less. The baselines keep their own gaze; a gaze chosen from outside (a learned
-/// policy) is not second-guessed; a body that does not see lines (the T1 in rcssservermj) has
-/// nothing to gain from the look.
+/// policy) is not second-guessed; a robot whose world model has never corrected its pose with
+/// a line (perception that reports none, as the T1's in rcssservermj, or lines configured off)
+/// has nothing to gain from the look.
 fn relocalize_on_area_line(ctx: &mut Ctx) {
     let value_functions =
         matches!(ctx.config.gaze, GazeStrategy::ActiveVision | GazeStrategy::ActiveVisionTaskValue);
     let overridden = ctx.gaze_override.as_ref().is_some_and(|o| o.get().is_some());
     let Some(world) = ctx.world.as_ref().filter(|w| !w.pose.lost) else { return };
-    if !value_functions || overridden || !ctx.motion.sees_field_lines {
+    if !value_functions || overridden || world.diagnostics.line_corrections == 0 {
         return;
     }
     let need = (1.0 - world.pose.confidence).clamp(0.0, 1.0);
@@ -1845,7 +1846,8 @@ mod tests {
 
     /// Sure of its pose, the keeper looks where its value function says; unsure, the line in
     /// front of its goal is among its best looks (the activation function averages S_d and S_r;
-    /// for the line both are what the pose lacks).
+    /// for the line both are what the pose lacks). A keeper whose world model has never
+    /// corrected its pose with a line does not ask for one.
     #[test]
     fn an_unsure_keeper_relocalizes_on_the_line_in_front_of_its_goal() {
         use strata_robot::control::deliberative::{DeliberativeInput, DeliberativePolicy};
@@ -1855,15 +1857,37 @@ mod tests {
         use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
         let field = TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0);
         let line = own_area_line(&field).expect("a goal area");
-        let head_of_keeper = |sigma: [f64; 3]| {
+        let head_of_keeper = |sigma: [f64; 3], sees_lines: bool| {
             let mut b = behavior(GOALKEEPER_NUMBER);
             let mut model =
                 WorldModel::new(crate::world_config::world_config(&field)).expect("valid");
+            let view = ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 };
+            let frame = |model: &mut WorldModel, at: f64, observations: Vec<Observation>| {
+                let stamp = Time::from_secs_f64(at);
+                let camera = CameraPercepts { stamp, view, observations };
+                let percepts = Percepts { stamp, camera: Some(camera), ..Percepts::default() };
+                model.process(strata_robot::geometry::Odometry::default(), &percepts);
+            };
+            if sees_lines {
+                // Sure of its pose, the keeper saw the touchline on its left (y = 3 m, along
+                // its heading) before its pose got as unsure as `sigma`.
+                let sure = PosePrior { pose: Pose::new(-4.0, 0.0, 0.0), sigma: [0.02; 3] };
+                model.command(WorldCommand::SetPose { prior: sure }).expect("pose");
+                let touchline = Observation {
+                    class: ObjectClass(strata_spl::ObjectKind::FieldLine.code()),
+                    variant: None,
+                    range: 3.0,
+                    bearing: std::f64::consts::FRAC_PI_2,
+                    orientation: Some(0.0),
+                    range_sigma: 0.1,
+                    bearing_sigma: 0.03,
+                };
+                frame(&mut model, 0.45, vec![touchline]);
+            }
             let prior = PosePrior { pose: Pose::new(-4.0, 0.0, 0.0), sigma };
             model.command(WorldCommand::SetPose { prior }).expect("pose");
             // The ball 2 m ahead, seen in a few images.
             for k in 1..=5 {
-                let stamp = Time::from_secs_f64(0.5 + 0.03 * f64::from(k));
                 let ball = Observation {
                     class: ObjectClass(strata_spl::ObjectKind::Ball.code()),
                     variant: None,
@@ -1873,12 +1897,10 @@ mod tests {
                     range_sigma: 0.1,
                     bearing_sigma: 0.03,
                 };
-                let view = ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 };
-                let camera = CameraPercepts { stamp, view, observations: vec![ball] };
-                let percepts = Percepts { stamp, camera: Some(camera), ..Percepts::default() };
-                model.process(strata_robot::geometry::Odometry::default(), &percepts);
+                frame(&mut model, 0.5 + 0.03 * f64::from(k), vec![ball]);
             }
             let world = model.state();
+            assert_eq!(world.diagnostics.line_corrections > 0, sees_lines);
             let decision = Decision {
                 assignment: strata_robot::control::planning::Assignment {
                     mission: Mission::DefendTheGoal,
@@ -1913,19 +1935,26 @@ mod tests {
             let total_of =
                 |goal: &HeadGoal| out.head.goals.iter().find(|g| &g.goal == goal).map(&total);
             let best = out.head.goals.iter().map(&total).fold(0.0, f64::max);
-            let line_total = total_of(&HeadGoal::ObserveFieldLine { line }).expect("line goal");
+            let line_total = total_of(&HeadGoal::ObserveFieldLine { line });
             let ball_total = total_of(&HeadGoal::ObserveBall).unwrap_or(0.0);
             (line_total, ball_total, best, world.pose.confidence)
         };
-        let (line_total, _, best, confidence) = head_of_keeper([0.02, 0.02, 0.02]);
+        let (line_total, _, best, confidence) = head_of_keeper([0.02, 0.02, 0.02], true);
+        let line_total = line_total.expect("line goal");
         assert!(confidence > 0.8, "{confidence}");
         assert!(line_total < 0.5 * best, "sure ({confidence}): line {line_total}, best {best}");
         // Unsure, the line beats looking at the ball alone; a look at a landmark the pose
         // cannot place (need 1) may still beat it: both localize.
-        let (line_total, ball_total, best, confidence) = head_of_keeper([0.5, 0.5, 0.4]);
+        let (line_total, ball_total, best, confidence) = head_of_keeper([0.5, 0.5, 0.4], true);
+        let line_total = line_total.expect("line goal");
         assert!(confidence < 0.2, "{confidence}");
         assert!(line_total > ball_total, "unsure: line {line_total}, ball {ball_total}");
         assert!(line_total > 0.9 * best, "unsure: line {line_total}, best {best}");
+        // Without a line ever fused, unsure or not, the look would only take the head off the
+        // ball.
+        let (line_total, _, _, confidence) = head_of_keeper([0.5, 0.5, 0.4], false);
+        assert!(confidence < 0.2, "{confidence}");
+        assert_eq!(line_total, None);
     }
 
     /// The candidates as made before their storage was reused: each with a new label and a

@@ -117,9 +117,6 @@ pub struct MotionModel {
     /// ground a gaze shows ([`MotionModel::footprint`]). 0: not modelled (the 2D simulator's
     /// camera sees everything within its range).
     pub vertical_fov: f64,
-    /// Whether the body's perception reports the painted lines (the 2D simulator's camera
-    /// does, rcssservermj's does not): a look at a line helps only a robot that sees it.
-    pub sees_field_lines: bool,
 }
 
 impl Default for MotionModel {
@@ -147,7 +144,6 @@ impl Default for MotionModel {
             head_pitch_limits: [-0.6, 0.5],
             ball_search_pitch: [0.15, 0.2],
             vertical_fov: 0.0,
-            sees_field_lines: true,
         }
     }
 }

@@ -367,6 +367,10 @@ pub struct WorldDiagnostics {
     pub reinitialized: u64,
     /// Landmark estimates the pose filter rejected.
     pub pose_rejections: u64,
+    /// Field-line observations that corrected the pose (also counted in `associated`): none
+    /// while the robot's perception reports no lines or the model is configured without them.
+    #[serde(default)]
+    pub line_corrections: u64,
     /// Landmark instances relabelled to another map instance.
     pub relabels: u64,
     pub kidnaps: u64,

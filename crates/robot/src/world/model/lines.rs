@@ -85,6 +85,7 @@ impl WorldModel {
                 && pose.update_line_with(&line, measured).is_some()
             {
                 self.diagnostics.associated += 1;
+                self.diagnostics.line_corrections += 1;
                 self.last_pose_correction = Some(now);
             }
         }
