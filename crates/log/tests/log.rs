@@ -802,3 +802,22 @@ fn a_summary_chunk_running_past_the_end_of_the_file_is_refused_not_a_panic() {
     assert_eq!(reader.message_count(), 0);
     std::fs::remove_dir_all(&dir).unwrap_or_default();
 }
+
+#[test]
+fn a_footer_with_a_wrong_length_still_has_its_summary_checked() {
+    // Found by the `log_reader` fuzz target: the footer's length field says 2068 bytes, more
+    // than the file holds, and its summary is an uncompressed chunk whose only record overruns
+    // it. mcap reads a footer's fixed 20 bytes whatever the length says, followed the summary
+    // offset and panicked (overflow check) in that chunk; the check of summary chunks had
+    // passed over a footer it could not read whole.
+    let dir = scratch("long-footer");
+    let path = dir.join("long-footer.mcap");
+    std::fs::write(&path, include_bytes!("data/summary_behind_a_long_footer.bin")).expect("write");
+    let reader = LogReader::open(&path).expect("scanned like a file without a summary");
+    let recovery = reader.recovery().expect("read by scanning");
+    assert!(recovery.stopped.contains("overruns"), "{}", recovery.stopped);
+    for message in reader.messages() {
+        let _ = message.map(|m| m.json());
+    }
+    std::fs::remove_dir_all(&dir).unwrap_or_default();
+}

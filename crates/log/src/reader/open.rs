@@ -67,11 +67,16 @@ impl LogReader {
         else {
             return Ok(());
         };
-        let Some((op::FOOTER, body)) = records.record_at(footer)? else { return Ok(()) };
-        let Some(start) = body.get(..8).and_then(|b| b.try_into().ok()).map(u64::from_le_bytes)
-        else {
+        // Read as mcap reads it: a fixed-size body whatever its length field says (a footer
+        // whose length field is wrong still points mcap at a summary).
+        let mut head = [0u8; (RECORD_HEADER + 8) as usize];
+        records.read_exact_at(footer, &mut head)?;
+        if head[0] != op::FOOTER {
             return Ok(());
-        };
+        }
+        let mut start = [0u8; 8];
+        start.copy_from_slice(&head[RECORD_HEADER as usize..]);
+        let start = u64::from_le_bytes(start);
         let mut offset = start;
         while offset != 0 && offset < footer {
             let record = records.record_at(offset)?.filter(|(_, body)| {

@@ -79,8 +79,13 @@ pub(super) fn check_chunk_records(body: &[u8]) -> Result<(), String> {
     let mut position = 0u64;
     while position < records_len {
         let header = records_at as u64 + 8 + position;
+        // A record header the chunk's body cuts: mcap would read the rest from whatever
+        // follows the chunk in the file.
         let Some(len) = usize::try_from(header).ok().and_then(|at| u64_at(at + 1)) else {
-            return Ok(());
+            return Err(format!(
+                "its record at offset {position} is cut by the end of its {records_len} bytes \
+                 of records"
+            ));
         };
         let end = position.checked_add(RECORD_HEADER).and_then(|p| p.checked_add(len));
         match end {
@@ -281,6 +286,10 @@ mod tests {
         // A length near u64::MAX must not wrap around into "fits".
         let huge = [vec![op::MESSAGE], u64::MAX.to_le_bytes().to_vec()].concat();
         assert!(check_chunk_records(&chunk_body(&huge, 9)).is_err());
+        // Records that end with the body, the last one's header cut.
+        let cut = [record(op::MESSAGE, 4), vec![op::MESSAGE, 1, 0]].concat();
+        let error = check_chunk_records(&chunk_body(&cut, cut.len() as u64)).expect_err("cut");
+        assert!(error.contains("offset 13 is cut"), "{error}");
     }
 
     #[test]
