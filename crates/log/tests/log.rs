@@ -756,16 +756,24 @@ fn a_chunk_whose_records_overrun_it_is_refused_not_a_panic() {
     // Found by the `log_reader` fuzz target: a footer whose summary offset points at an
     // uncompressed chunk whose last record runs past the chunk's end. mcap's reader panicked
     // on it (overflow check) before the reader checked the chunk itself.
-    let dir = scratch("chunk-overrun");
-    let path = dir.join("overrun.mcap");
-    std::fs::write(&path, include_bytes!("data/chunk_overrun_in_summary.bin")).expect("write");
+    let (stopped, _) =
+        open_damaged("chunk-overrun", include_bytes!("data/chunk_overrun_in_summary.bin"));
+    assert!(stopped.contains("overruns"), "{stopped}");
+}
+
+/// Opens a damaged log written from `bytes`, which must be read by scanning, and reads every
+/// message's JSON: why the scan stopped, and how many messages the log holds.
+fn open_damaged(name: &str, bytes: &[u8]) -> (String, u64) {
+    let dir = scratch(name);
+    let path = dir.join("damaged.mcap");
+    std::fs::write(&path, bytes).expect("write");
     let reader = LogReader::open(&path).expect("scanned like a file without a summary");
-    let recovery = reader.recovery().expect("read by scanning");
-    assert!(recovery.stopped.contains("overruns"), "{}", recovery.stopped);
+    let stopped = reader.recovery().expect("read by scanning").stopped.clone();
     for message in reader.messages() {
         let _ = message.map(|m| m.json());
     }
     std::fs::remove_dir_all(&dir).unwrap_or_default();
+    (stopped, reader.message_count())
 }
 
 #[test]
@@ -793,14 +801,9 @@ fn a_summary_chunk_running_past_the_end_of_the_file_is_refused_not_a_panic() {
     file.extend_from_slice(&0u32.to_le_bytes());
     file.extend_from_slice(MAGIC);
 
-    let dir = scratch("summary-past-end");
-    let path = dir.join("past-end.mcap");
-    std::fs::write(&path, &file).expect("write");
-    let reader = LogReader::open(&path).expect("scanned like a file without a summary");
-    let recovery = reader.recovery().expect("read by scanning");
-    assert!(recovery.stopped.contains("runs past the footer"), "{}", recovery.stopped);
-    assert_eq!(reader.message_count(), 0);
-    std::fs::remove_dir_all(&dir).unwrap_or_default();
+    let (stopped, messages) = open_damaged("summary-past-end", &file);
+    assert!(stopped.contains("runs past the footer"), "{stopped}");
+    assert_eq!(messages, 0);
 }
 
 #[test]
@@ -810,14 +813,7 @@ fn a_footer_with_a_wrong_length_still_has_its_summary_checked() {
     // it. mcap reads a footer's fixed 20 bytes whatever the length says, followed the summary
     // offset and panicked (overflow check) in that chunk; the check of summary chunks had
     // passed over a footer it could not read whole.
-    let dir = scratch("long-footer");
-    let path = dir.join("long-footer.mcap");
-    std::fs::write(&path, include_bytes!("data/summary_behind_a_long_footer.bin")).expect("write");
-    let reader = LogReader::open(&path).expect("scanned like a file without a summary");
-    let recovery = reader.recovery().expect("read by scanning");
-    assert!(recovery.stopped.contains("overruns"), "{}", recovery.stopped);
-    for message in reader.messages() {
-        let _ = message.map(|m| m.json());
-    }
-    std::fs::remove_dir_all(&dir).unwrap_or_default();
+    let bytes = include_bytes!("data/summary_behind_a_long_footer.bin");
+    let (stopped, _) = open_damaged("long-footer", bytes);
+    assert!(stopped.contains("overruns"), "{stopped}");
 }
