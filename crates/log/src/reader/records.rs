@@ -61,7 +61,8 @@ impl RecordFile {
 /// each record of an uncompressed chunk off the chunk's remaining length without checking that
 /// the record fits (`sans_io/linear_reader.rs`): with overflow checks on (debug builds, the fuzz
 /// targets) that panics, without them the length wraps and the reader runs on past the chunk.
-/// `body` is a chunk record's body. A header cut short passes: the reader reports it.
+/// `body` is a chunk record's body. A chunk header cut short passes (the reader reports it); a
+/// record header cut by the end of the body does not (the reader would read on past it).
 pub(super) fn check_chunk_records(body: &[u8]) -> Result<(), String> {
     // message_start_time, message_end_time, uncompressed_size, uncompressed_crc.
     const FIXED: usize = 8 + 8 + 8 + 4;
