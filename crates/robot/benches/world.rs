@@ -157,6 +157,7 @@ fn bench(c: &mut Criterion) {
                 detection_probability: 0.8,
             })
             .collect(),
+        lines: Vec::new(),
     };
     let mut out = ExpectedBelief::default();
     c.bench_function("world/expected_update_one_candidate", |b| {

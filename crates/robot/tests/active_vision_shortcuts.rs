@@ -17,15 +17,24 @@ use strata_robot::world::{
     ExpectedBelief, ObjectId, ObservationPrior, PoseFilter, PosePrior, SensingCandidate,
     WorldModel, WorldState,
 };
-use world_support::{Sim, config, patrol_step, plain_sensing_candidate};
+use world_support::{Sim, config, config_with_lines, patrol_step, plain_sensing_candidate};
 
 /// World states along a patrol: landmarks tracked and untracked, a ball, the pose localized;
-/// the last one also with the pose lost.
+/// the last one also with the pose lost. Then the same with the painted lines seen and fused.
 fn states() -> Vec<WorldState> {
+    let mut out = patrol(false);
+    out.extend(patrol(true));
+    assert!(out.iter().any(|w| w.expects_lines()));
+    out
+}
+
+fn patrol(lines: bool) -> Vec<WorldState> {
     let start = Pose::new(-1.0, 0.5, 0.3);
     let prior = PosePrior { pose: start, sigma: [0.1, 0.1, 0.05] };
-    let mut world = WorldModel::new(config(Some(prior))).expect("valid config");
+    let config = if lines { config_with_lines(Some(prior)) } else { config(Some(prior)) };
+    let mut world = WorldModel::new(config).expect("valid config");
     let mut sim = Sim::new(7, start);
+    sim.see_lines = lines;
     let mut out = Vec::new();
     for frame in 1..=240 {
         let (odometry, percepts) = sim.frame(patrol_step(&sim));

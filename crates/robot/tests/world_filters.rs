@@ -12,7 +12,7 @@ use strata_robot::world::{
     RangeBearing, SensingCandidate, WorldModel,
 };
 use strata_runtime::Time;
-use world_support::{BALL, POST, config};
+use world_support::{BALL, LINE, POST, config, config_with_lines};
 
 #[test]
 fn object_prediction_with_a_turn_matches_hand_computation() {
@@ -123,6 +123,7 @@ fn expected_update_equals_the_real_update_when_the_measurement_arrives() {
                 detection_probability: 1.0,
             },
         ],
+        lines: Vec::new(),
     };
     let before = world.state();
     let expected = world.expected_update(&candidate);
@@ -158,6 +159,65 @@ fn expected_update_equals_the_real_update_when_the_measurement_arrives() {
     assert!(expected.pose.trace() < before.pose.covariance.trace());
 }
 
+/// A line the view would show corrects the pose's covariance as the world model's own
+/// correction with that observation does, weighed by the detection probability; a world model
+/// that has never fused a line expects none.
+#[test]
+fn the_expected_line_update_is_the_real_one() {
+    let truth = Pose::new(-2.6, 0.4, 0.2);
+    let prior = PosePrior { pose: truth, sigma: [0.2, 0.2, 0.1] };
+    let mut world = WorldModel::new(config_with_lines(Some(prior))).expect("valid config");
+    let view = ViewCone { direction: 0.0, fov: 1.0, range: 6.0, near: 0.0 };
+    let camera = world.state().camera;
+    let line = |p: Point<strata_robot::geometry::Robot>, direction: f64| {
+        let (range_sigma, bearing_sigma) = camera.sigmas(p.range());
+        Observation {
+            class: LINE,
+            variant: None,
+            range: p.range(),
+            bearing: p.bearing(),
+            orientation: Some(direction),
+            range_sigma,
+            bearing_sigma,
+        }
+    };
+    assert!(world.state().sensing_candidate(&view, 0.05).lines.is_empty(), "none fused yet");
+    // The halfway line (x = 0), seen at the foot of the perpendicular from the robot.
+    let foot = truth.to_robot(Point::new(0.0, truth.y));
+    let across = std::f64::consts::FRAC_PI_2 - truth.theta;
+    world.update(&frame(Time::from_secs_f64(0.1), 0.0, vec![line(foot, across)]));
+    let state = world.state();
+    assert_eq!(state.diagnostics.line_corrections, 1);
+    let predicted = state.sensing_candidate(&view, 0.05).lines;
+    let halfway = predicted.iter().find(|l| l.line == 4).copied().expect("the halfway line");
+    assert!(predicted.iter().all(|l| l.line == 4), "only the halfway line: {predicted:?}");
+
+    let mut sure = halfway;
+    sure.detection_probability = 1.0;
+    let expected =
+        state.expected_update(&SensingCandidate { observations: Vec::new(), lines: vec![sure] });
+    let mut real = world.clone();
+    real.update(&frame(
+        Time::from_secs_f64(0.1),
+        0.0,
+        vec![line(halfway.point, halfway.direction)],
+    ));
+    assert_eq!(real.state().diagnostics.line_corrections, 2);
+    let after = real.pose_filter().expect("localized").covariance();
+    assert_relative_eq!(expected.pose, after, epsilon = 1e-12);
+    assert!(after[(0, 0)] < state.pose.covariance[(0, 0)], "across the line: narrower");
+
+    let pd = halfway.detection_probability;
+    assert!(pd > 0.0 && pd < 1.0, "{pd}");
+    let weighed =
+        state.expected_update(&SensingCandidate { observations: Vec::new(), lines: vec![halfway] });
+    assert_relative_eq!(
+        weighed.pose,
+        after * pd + state.pose.covariance * (1.0 - pd),
+        epsilon = 1e-12
+    );
+}
+
 #[test]
 fn expected_update_weighs_the_detection_probability() {
     let (world, _) = tracked_world();
@@ -170,6 +230,7 @@ fn expected_update_weighs_the_detection_probability() {
             bearing_sigma: 0.035,
             detection_probability: p,
         }],
+        lines: Vec::new(),
     };
     let never = world.expected_update(&candidate(0.0));
     assert_relative_eq!(*never.object(ball).expect("simulated"), prior, epsilon = 1e-15);

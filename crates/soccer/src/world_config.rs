@@ -171,6 +171,8 @@ pub fn world_config(field: &TeamField) -> WorldModelConfig {
             end_margin: 0.1,
             // Beyond it a line is seen too flat for its direction to tell much.
             max_range: 5.0,
+            // The simulator's camera (strata_sim's `min_line_length`).
+            min_length: 0.15,
         },
         pose: PoseConfig {
             bounds: Some(Region {

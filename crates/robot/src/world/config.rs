@@ -422,6 +422,9 @@ pub struct FieldLinesConfig {
     /// Lines observed farther than this are not used, m (far lines are seen at a grazing
     /// angle, their direction barely measured).
     pub max_range: f64,
+    /// The shortest piece of a line the camera reports, m: active vision predicts no
+    /// observation of a line of which a view would show less.
+    pub min_length: f64,
 }
 
 impl FieldLinesConfig {

@@ -7,6 +7,7 @@
 use nalgebra::{Matrix2, Matrix3, SMatrix, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 
+use super::expected_lines::ExpectedLineObservation;
 use super::math::{MIN_RANGE, RangeBearing, polar, posterior_covariance, symmetrize2};
 use super::pose::landmark_measurement;
 use super::state::{ObjectId, WorldState};
@@ -28,6 +29,9 @@ pub struct ExpectedObservation {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SensingCandidate {
     pub observations: Vec<ExpectedObservation>,
+    /// The painted lines the action would show ([`WorldState::expected_lines_into`]).
+    #[serde(default)]
+    pub lines: Vec<ExpectedLineObservation>,
 }
 
 /// The expected posterior covariance of one object filter (position, robot frame).
@@ -252,6 +256,11 @@ pub(crate) fn expected_update_into(
         let at = (z.x, bearing_sin_cos(&h));
         Correction::of(&prior, at, pose.as_ref(), obs.range_sigma, obs.bearing_sigma)
             .fold(obs, previous, out);
+    }
+    if pose.is_some() {
+        for line in &candidate.lines {
+            line.fold(out);
+        }
     }
 }
 
@@ -492,6 +501,7 @@ impl WorldState {
                 out.observations.push(self.expected_observation(prior, visibility));
             }
         }
+        self.expected_lines_into(view, &mut out.lines);
     }
 
     fn expected_observation(
@@ -612,6 +622,11 @@ impl WorldState {
                     }
                 }
             }
+        }
+        // The lines after the objects, as the generic update folds them.
+        self.expected_lines_into(view, &mut sensing.lines);
+        for line in &sensing.lines {
+            line.fold(out);
         }
     }
 }

@@ -21,6 +21,7 @@
 
 mod config;
 mod expected;
+mod expected_lines;
 mod math;
 mod model;
 mod module;
@@ -42,6 +43,7 @@ pub use expected::{
     ExpectedBelief, ExpectedObject, ExpectedObservation, ObservationPrior, PredictedObservation,
     SensingCandidate, predicted_measurement,
 };
+pub use expected_lines::ExpectedLineObservation;
 pub use math::{Innovation, RangeBearing, chi2_2dof_quantile};
 pub use model::{WorldCommand, WorldModel};
 pub use module::{PERCEPT_QUEUE, WorldModule, WorldPorts, add_world_module};

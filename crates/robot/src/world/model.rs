@@ -263,26 +263,29 @@ impl WorldModel {
             hints: config.pose.hints.clone(),
             odometry_error: OdometryErrorEstimator::new(config.pose.correct_odometry),
             team: TeamFusion::new(config.team),
-            layout: Shared::new(WorldLayout::new(
-                slots
-                    .iter()
-                    .map(|slot| {
-                        let group = &groups[slot.group];
-                        ObjectInfo {
-                            name: slot.name.clone(),
-                            group: group.name.clone(),
-                            class: group.class,
-                            variant: group.variant,
-                            category: group.category,
-                            map_position: slot.map_position,
-                        }
-                    })
-                    .collect(),
-                config.camera,
-                config.confidence.detection_probability,
-                config.confidence.view_margin,
-                config.confidence.unknown_threshold,
-            )),
+            layout: Shared::new(
+                WorldLayout::new(
+                    slots
+                        .iter()
+                        .map(|slot| {
+                            let group = &groups[slot.group];
+                            ObjectInfo {
+                                name: slot.name.clone(),
+                                group: group.name.clone(),
+                                class: group.class,
+                                variant: group.variant,
+                                category: group.category,
+                                map_position: slot.map_position,
+                            }
+                        })
+                        .collect(),
+                    config.camera,
+                    config.confidence.detection_probability,
+                    config.confidence.view_margin,
+                    config.confidence.unknown_threshold,
+                )
+                .with_lines(config.lines.clone()),
+            ),
             groups,
             slots,
             pose,

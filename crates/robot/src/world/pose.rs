@@ -196,6 +196,16 @@ fn line_measurement(
     (h, jac, along)
 }
 
+/// The Jacobian of a line observation's measurement `(s, phi)` with respect to the pose, for
+/// the map line `line` (expected updates: it does not depend on the measured values).
+pub(crate) fn line_jacobian(
+    pose: &Vector3<f64>,
+    line: &MapLine,
+    observation: &LineObservation,
+) -> SMatrix<f64, 2, 3> {
+    line_measurement(pose, line, observation).1
+}
+
 impl PoseFilter {
     /// The innovation of a line observation against the map line `segment`, and where along
     /// the segment the observed point falls (m from its start; outside `[0, length]` it is off

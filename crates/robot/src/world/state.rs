@@ -6,7 +6,7 @@ use nalgebra::{Matrix2, Matrix3};
 use serde::{Deserialize, Serialize};
 use strata_runtime::{Shared, Time};
 
-use super::config::CameraNoise;
+use super::config::{CameraNoise, FieldLinesConfig};
 use super::team::{SharedObject, TeamObject, TeammateEstimate};
 use crate::geometry::{Global, Odometry, Point, Pose, Robot, Vector};
 use crate::platform::ObjectClass;
@@ -408,6 +408,10 @@ pub struct WorldLayout {
     pub view_margin: f64,
     /// Confidence from which a tracked object is known.
     pub unknown_threshold: f64,
+    /// The map's lines and how the model fuses them, for predicted line observations (active
+    /// vision); no class: the model does not fuse lines. Logs written before it have none.
+    #[serde(default)]
+    pub lines: FieldLinesConfig,
     /// The objects by name, made once per layout.
     #[serde(skip)]
     index: std::sync::OnceLock<ObjectIndex>,
@@ -427,8 +431,15 @@ impl WorldLayout {
             detection_probability,
             view_margin,
             unknown_threshold,
+            lines: FieldLinesConfig::default(),
             index: std::sync::OnceLock::new(),
         }
+    }
+
+    /// The layout with the map's lines, for predicted line observations.
+    pub fn with_lines(mut self, lines: FieldLinesConfig) -> WorldLayout {
+        self.lines = lines;
+        self
     }
 
     /// The objects by name.

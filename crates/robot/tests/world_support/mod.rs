@@ -78,6 +78,7 @@ pub fn config_with_lines(initial: Option<PosePrior>) -> WorldModelConfig {
             direction_sigma: LINE_DIRECTION_SIGMA,
             end_margin: 0.1,
             max_range: 4.0,
+            min_length: 0.15,
         },
         ..config(initial)
     }
@@ -410,7 +411,9 @@ pub fn plain_sensing_candidate(
             detection_probability: p.visibility * world.detection_probability,
         })
         .collect();
-    SensingCandidate { observations }
+    let mut lines = Vec::new();
+    world.expected_lines_into(view, &mut lines);
+    SensingCandidate { observations, lines }
 }
 
 /// [`config`] with obstacle tracks too (never observed by [`Sim`]: untracked objects without a
