@@ -69,6 +69,8 @@ pub(crate) enum Kind {
     Ball,
     Landmark,
     Together,
+    /// A goal, a line, a rival: not among a policy's choices.
+    Other,
 }
 
 /// Keeps only the chosen candidate of `vector` (scored 1, so the multiplexer's average with

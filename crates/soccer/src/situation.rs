@@ -62,12 +62,31 @@ pub fn obstacles(world: &WorldState) -> impl Iterator<Item = &ObjectEstimate> {
         .filter(|o| o.category == ObjectCategory::Obstacle && o.known && o.group == OBSTACLE)
 }
 
+/// The rival robot the world model tracks as obstacle track `track` (the `k` of
+/// `obstacle#k`: robots are seen, not identified by their numbers), when known.
+pub fn rival(world: &WorldState, track: u8) -> Option<&ObjectEstimate> {
+    world.group(OBSTACLE).nth(usize::from(track)).filter(|o| o.known)
+}
+
+/// The obstacle track number of `object` (see [`rival`]).
+pub fn rival_track(world: &WorldState, object: &ObjectEstimate) -> Option<u8> {
+    let k = world.group(OBSTACLE).position(|o| o.id == object.id)?;
+    u8::try_from(k).ok()
+}
+
 /// The nearest obstacle ahead within `range`, if any.
 pub fn obstacle_ahead(world: &WorldState, range: f64, half_angle: f64) -> Option<Point<Robot>> {
+    rival_ahead(world, range, half_angle).map(|o| o.position)
+}
+
+/// The estimate of [`obstacle_ahead`]'s obstacle.
+pub fn rival_ahead(world: &WorldState, range: f64, half_angle: f64) -> Option<&ObjectEstimate> {
     obstacles(world)
-        .map(|o| o.position)
-        .filter(|p| p.range() < range && p.bearing().abs() < half_angle && p.x > 0.0)
-        .min_by(|a, b| a.range().total_cmp(&b.range()))
+        .filter(|o| {
+            let p = o.position;
+            p.range() < range && p.bearing().abs() < half_angle && p.x > 0.0
+        })
+        .min_by(|a, b| a.position.range().total_cmp(&b.position.range()))
 }
 
 /// The best-placed instance of a landmark group: the most confident, then the nearest.
@@ -162,7 +181,7 @@ pub fn head_goal_objects<'a>(world: &'a WorldState, goal: &'a HeadGoal) -> GoalO
                 objects.iter().filter_map(|n| world.object(n).or_else(|| best_instance(world, n))),
             );
         }
-        HeadGoal::ObserveRival { player } => obstacles(world).nth(usize::from(*player)),
+        HeadGoal::ObserveRival { player } => rival(world, *player),
         HeadGoal::ObservePartner { .. }
         | HeadGoal::ObserveFieldLine { .. }
         | HeadGoal::ObserveReferee { .. }

@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use strata_robot::control::active_vision::{ValueFunction, ValueState};
-use strata_robot::geometry::{Global as FieldFrame, Point, normalize_angle};
+use strata_robot::geometry::{Global as FieldFrame, Point, Segment, normalize_angle};
 use strata_robot::world::ObjectId;
 
 use crate::field::TeamField;
@@ -119,6 +119,37 @@ impl ValueFunction for PositionValue {
     }
 }
 
+/// V of avoiding an obstacle: reaching the waypoint beside the rival in the way, with room to
+/// pass it. The waypoint is a field position and the rival is seen relative to the robot, so
+/// both the pose and the rival's estimate matter: a look at the rival tells how much room
+/// there is, a look at a landmark or a line where the waypoint is.
+#[derive(Debug, Clone)]
+pub struct AvoidingValue {
+    pub waypoint: Point<FieldFrame>,
+    pub rival: ObjectId,
+    /// The room wanted between the path and the rival, m.
+    pub clearance: f64,
+}
+
+impl ValueFunction for AvoidingValue {
+    fn name(&self) -> &str {
+        "avoiding obstacle"
+    }
+
+    fn objects(&self) -> Vec<ObjectId> {
+        vec![self.rival]
+    }
+
+    fn value(&self, state: &ValueState<'_>) -> f64 {
+        let Some(rival) = state.object_field(self.rival) else { return 0.0 };
+        let robot = state.pose.position();
+        let reach = (-0.5 * robot.distance(self.waypoint)).exp();
+        let room = Segment::new(robot, self.waypoint).distance_to(rival) / self.clearance.max(1e-3);
+        // Smooth, so that the rival's uncertainty has a gradient to act on.
+        reach * (1.0 - (-0.5 * room * room).exp())
+    }
+}
+
 /// V of waiting for the referee's Ready gesture (Standby): how centred the referee would be
 /// in the image with the head turned to `gaze`, where the robot believes the referee stands.
 /// A gesture detector is surest near the image's centre and blind beyond its edge; a heading
@@ -181,6 +212,32 @@ mod tests {
         // Hand check: from 1.7 m the keeper's 0.3 m half-width hides asin(0.3/1.7) ~ 0.177 rad
         // each side; the goal spans 2 atan(0.75/2.0) ~ 0.72 rad: about 49%.
         assert!((centred - 0.49).abs() < 0.05, "{centred}");
+    }
+
+    /// Passing a rival is worth more the farther it stands from the path to the waypoint.
+    #[test]
+    fn a_rival_on_the_path_costs_value_and_one_aside_does_not() {
+        use strata_robot::geometry::Pose;
+        use strata_robot::world::WorldModel;
+        let f = field();
+        let mut world =
+            WorldModel::new(crate::world_config::world_config(&f)).expect("valid").state();
+        world.pose.pose = Pose::new(0.0, 0.0, 0.0);
+        let rival = world.group(crate::world_config::OBSTACLE).next().expect("a track").id;
+        let v = |world: &mut strata_robot::world::WorldState, y: f64| {
+            let mut objects = world.objects.to_vec();
+            objects[rival.index()].position = Point::new(0.8, y);
+            world.objects = objects.into();
+            let vf = AvoidingValue { waypoint: Point::new(1.6, 0.0), rival, clearance: 0.4 };
+            vf.value(&ValueState::of(world))
+        };
+        let on_path = v(&mut world, 0.0);
+        let near = v(&mut world, 0.3);
+        let aside = v(&mut world, 1.5);
+        assert!(on_path < 1e-9, "{on_path}");
+        assert!(on_path < near && near < aside, "{on_path} {near} {aside}");
+        // Far aside, only the distance to the waypoint counts: exp(-0.5 * 1.6).
+        assert!((aside - (-0.8f64).exp()).abs() < 1e-3, "{aside}");
     }
 
     #[test]

@@ -217,6 +217,11 @@ pub struct ActiveVisionConfig {
     /// Finite-difference steps: metres for positions, radians for the heading.
     pub position_step: f64,
     pub heading_step: f64,
+    /// How long the chosen look holds, s (the deliberative period): an object of V the look
+    /// does not observe is judged with the uncertainty its motion adds by then, `P + T² P_v`
+    /// (constant velocity), one it observes with its posterior (kept by looking). 0: the belief
+    /// right after the look.
+    pub horizon: f64,
 }
 
 impl Default for ActiveVisionConfig {
@@ -229,6 +234,7 @@ impl Default for ActiveVisionConfig {
             min_visibility: 0.05,
             position_step: 0.01,
             heading_step: 0.01,
+            horizon: 0.0,
         }
     }
 }
@@ -418,7 +424,15 @@ impl ActiveVision {
             (Some(m), Some(o)) => m.object_covariance(o.position, &p),
             _ => p,
         };
-        let prior_object = |id: ObjectId| world.get(id).map(|o| o.covariance);
+        // Unobserved for the horizon, an object's estimate spreads with its velocity's
+        // uncertainty.
+        let horizon = self.config.horizon.max(0.0);
+        let prior_object = |id: ObjectId| {
+            world.get(id).map(|o| match o.velocity_covariance {
+                Some(v) if horizon > 0.0 => o.covariance + v * (horizon * horizon),
+                _ => o.covariance,
+            })
+        };
         let (prior_variance, prior_expected_value) =
             Self::moments(&d, &moved_pose(&world.pose.covariance), |id| {
                 prior_object(id).map(|p| moved_object(id, p))
