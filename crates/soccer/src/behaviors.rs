@@ -41,7 +41,9 @@ use crate::game::{GameDirective, Kicking};
 use crate::gaze_override::{self, GazeOverride, Kind};
 use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
 use crate::predicted_motion::predicted_motion;
-use crate::primitives::{BodyPrimitive, MotionModel, TOGETHER_RANGE, facing};
+use crate::primitives::{
+    BodyPrimitive, MotionModel, TOGETHER_RANGE, facing, nearest_point_of_line,
+};
 use crate::situation::{ball, best_instance, obstacle_ahead, rival, rival_ahead, rival_track};
 use crate::value::{
     AvoidingValue, GoToBallValue, GoalCoveringValue, PositionValue, RefereeVisibilityValue,
@@ -464,11 +466,7 @@ impl Looks {
         match self {
             Looks::Ball => HeadGoal::ObserveBall,
             Looks::Landmark => HeadGoal::ObserveLandmark { name: label.to_owned() },
-            Looks::Together => {
-                let landmark = label.strip_prefix(BALL).and_then(|l| l.strip_prefix('+'));
-                let landmark = landmark.unwrap_or_default().to_owned();
-                HeadGoal::ObserveTogether { objects: vec![BALL.to_owned(), landmark] }
-            }
+            Looks::Together => HeadGoal::ObserveTogether { objects: self.objects_of(label) },
             Looks::Line(line) => HeadGoal::ObserveFieldLine { line },
             Looks::Rival(player) => HeadGoal::ObserveRival { player },
         }
@@ -477,16 +475,23 @@ impl Looks {
     /// The objects a candidate with this `label` looks at (the head goal's objects).
     fn objects(self, label: &str, world: &WorldState) -> Vec<String> {
         match self {
+            Looks::Rival(track) => {
+                rival(world, track).map(|o| o.name.to_string()).into_iter().collect()
+            }
+            _ => self.objects_of(label),
+        }
+    }
+
+    /// [`Looks::objects`] for the looks whose label names them.
+    fn objects_of(self, label: &str) -> Vec<String> {
+        match self {
             Looks::Ball => vec![BALL.to_owned()],
             Looks::Landmark => vec![label.to_owned()],
             Looks::Together => {
                 let landmark = label.strip_prefix(BALL).and_then(|l| l.strip_prefix('+'));
                 vec![BALL.to_owned(), landmark.unwrap_or_default().to_owned()]
             }
-            Looks::Line(_) => Vec::new(),
-            Looks::Rival(track) => {
-                rival(world, track).map(|o| o.name.to_string()).into_iter().collect()
-            }
+            Looks::Line(_) | Looks::Rival(_) => Vec::new(),
         }
     }
 }
@@ -560,18 +565,9 @@ fn gaze_candidates(
         let pose = world.pose.pose;
         let (lo, hi) = ctx.vision.config.yaw_limits;
         let reach = world.layout.lines.max_range;
-        let mut near: Vec<(f64, f64, u8)> = ctx
-            .field
-            .field
-            .lines()
-            .iter()
-            .enumerate()
-            .filter_map(|(k, l)| {
-                let (a, b) =
-                    (ctx.field.to_team(l.start.x, l.start.y), ctx.field.to_team(l.end.x, l.end.y));
-                let closest =
-                    strata_robot::geometry::Segment::new(a, b).closest_point(pose.position());
-                let seen = pose.to_robot(closest);
+        let mut near: Vec<(f64, f64, u8)> = (0..ctx.field.field.lines().len())
+            .filter_map(|k| {
+                let seen = nearest_point_of_line(&ctx.field, k, pose)?;
                 let (range, bearing) = (seen.range(), seen.bearing());
                 let usable = range >= LINE_MIN_DISTANCE
                     && range <= reach

@@ -365,6 +365,16 @@ impl LookAtTarget {
 /// head's pitch).
 pub const TOGETHER_RANGE: f64 = 2.0;
 
+/// The point of the field's line `line` (index in [`strata_spl::Field::lines`]) nearest a robot
+/// at `pose` (team frame), in the robot frame: where a look at the line aims.
+pub fn nearest_point_of_line(field: &TeamField, line: usize, pose: Pose) -> Option<Point<Robot>> {
+    let segment = field.field.lines().get(line)?;
+    let a = field.to_team(segment.start.x, segment.start.y);
+    let b = field.to_team(segment.end.x, segment.end.y);
+    let closest = strata_robot::geometry::Segment::new(a, b).closest_point(pose.position());
+    Some(pose.to_robot(closest))
+}
+
 /// Where a head goal that is about a place rather than a tracked object looks.
 pub fn look_target(
     field: &TeamField,
@@ -386,11 +396,7 @@ pub fn look_target(
             Some(pose.to_robot(*position))
         }
         HeadGoal::ObserveFieldLine { line } => {
-            let segment = field.field.lines().get(usize::from(*line))?;
-            let a = field.to_team(segment.start.x, segment.start.y);
-            let b = field.to_team(segment.end.x, segment.end.y);
-            let closest = strata_robot::geometry::Segment::new(a, b).closest_point(pose.position());
-            Some(pose.to_robot(closest))
+            nearest_point_of_line(field, usize::from(*line), pose)
         }
         _ => head_goal_objects(world, goal).first().map(|o| o.position),
     }

@@ -79,23 +79,24 @@ impl WorldState {
         let reach = view.range.min(lines.max_range);
         let axis = pose.theta + view.direction;
         let state = Vector3::new(pose.x, pose.y, pose.theta);
+        let tan_half = half.tan();
+        // The camera's frame: x along the optical axis.
+        let (sa, ca) = axis.sin_cos();
+        let local = |p: &Point<crate::geometry::Global>| {
+            let (dx, dy) = (p.x - pose.x, p.y - pose.y);
+            Vector2::new(ca * dx + sa * dy, -sa * dx + ca * dy)
+        };
+        let (sv, cv) = view.direction.sin_cos();
         for (k, segment) in lines.segments.iter().enumerate() {
             let Ok(line) = u16::try_from(k) else { break };
-            // The segment in the camera's frame: x along the optical axis.
-            let (sa, ca) = axis.sin_cos();
-            let local = |p: &Point<crate::geometry::Global>| {
-                let (dx, dy) = (p.x - pose.x, p.y - pose.y);
-                Vector2::new(ca * dx + sa * dy, -sa * dx + ca * dy)
-            };
             let (a, b) = (local(&segment[0]), local(&segment[1]));
-            let Some(closest) = visible_piece_closest(a, b, half.tan(), lines.min_length) else {
+            let Some(closest) = visible_piece_closest(a, b, tan_half, lines.min_length) else {
                 continue;
             };
             if closest.norm() > reach {
                 continue;
             }
             // Back into the robot frame, as the camera's observation would be.
-            let (sv, cv) = view.direction.sin_cos();
             let point =
                 Vector2::new(cv * closest.x - sv * closest.y, sv * closest.x + cv * closest.y);
             let map_direction = (segment[1].y - segment[0].y).atan2(segment[1].x - segment[0].x);
