@@ -302,7 +302,7 @@ fn learned_choice(
 // The experiment.
 
 /// Aggregated metrics of one (method, rate).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct Condition {
     pub method: String,
     pub deliberative_hz: f64,
@@ -441,55 +441,7 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         ));
         for baseline in scenario.methods.iter().filter(|m| m.name != scenario.reference) {
             let Some(b) = condition(&baseline.name, *hz) else { continue };
-            targets.push(Target {
-                what: format!(
-                    "ball unknown at {hz} Hz: {} vs {}",
-                    scenario.reference, baseline.name
-                ),
-                required: "at least as low".into(),
-                measured: format!(
-                    "{} vs {} %",
-                    reference.ball_unknown.show(100.0, 1),
-                    b.ball_unknown.show(100.0, 1)
-                ),
-                met: reference.ball_unknown.mean <= b.ball_unknown.mean,
-            });
-            targets.push(Target {
-                what: format!("pose error at {hz} Hz: {} vs {}", scenario.reference, baseline.name),
-                required: "at least as low".into(),
-                measured: format!(
-                    "{} vs {} cm",
-                    reference.pose_error_mean.show(100.0, 1),
-                    b.pose_error_mean.show(100.0, 1)
-                ),
-                met: reference.pose_error_mean.mean <= b.pose_error_mean.mean,
-            });
-            let dominated = b.ball_unknown.mean < reference.ball_unknown.mean
-                && b.pose_error_mean.mean < reference.pose_error_mean.mean;
-            targets.push(Target {
-                what: format!(
-                    "{} better on both ball unknown and pose error than {} at {hz} Hz",
-                    baseline.name, scenario.reference
-                ),
-                required: "no".into(),
-                measured: if dominated { "yes".into() } else { "no".into() },
-                met: !dominated,
-            });
-            targets.push(Target {
-                what: format!(
-                    "goal coverage at {hz} Hz: {} vs {}",
-                    scenario.reference, baseline.name
-                ),
-                required: "at least as high (the baseline's mean within the reference's CI or \
-                           below)"
-                    .into(),
-                measured: format!(
-                    "{} vs {} %",
-                    reference.coverage.show(100.0, 1),
-                    b.coverage.show(100.0, 1)
-                ),
-                met: reference.coverage.high() >= b.coverage.mean,
-            });
+            targets.extend(comparison_targets(&scenario.reference, reference, b));
         }
     }
     targets.extend(band_targets(scenario, &speed_bands));
@@ -507,6 +459,61 @@ pub fn run(scenario: &Scenario, ctx: &mut Ctx<'_>) -> Result<Summary> {
         targets,
         all_targets_met,
     })
+}
+
+/// The reference method against one baseline at one rate. A baseline is better on a measure
+/// only when its mean lies beyond the reference's 95% interval on the better side: a
+/// difference inside the interval is not one the runs can tell (the same rule for every
+/// measure).
+fn comparison_targets(reference_name: &str, reference: &Condition, b: &Condition) -> Vec<Target> {
+    let hz = reference.deliberative_hz;
+    let (name, baseline) = (reference_name, &b.method);
+    let lower = |r: &Estimate, b: &Estimate| b.mean < r.low();
+    let ball_better = lower(&reference.ball_unknown, &b.ball_unknown);
+    let pose_better = lower(&reference.pose_error_mean, &b.pose_error_mean);
+    let dominated = ball_better && pose_better;
+    let as_low = "at least as low (the baseline's mean within the reference's CI or above)";
+    vec![
+        Target {
+            what: format!("ball unknown at {hz} Hz: {name} vs {baseline}"),
+            required: as_low.into(),
+            measured: format!(
+                "{} vs {} %",
+                reference.ball_unknown.show(100.0, 1),
+                b.ball_unknown.show(100.0, 1)
+            ),
+            met: !ball_better,
+        },
+        Target {
+            what: format!("pose error at {hz} Hz: {name} vs {baseline}"),
+            required: as_low.into(),
+            measured: format!(
+                "{} vs {} cm",
+                reference.pose_error_mean.show(100.0, 1),
+                b.pose_error_mean.show(100.0, 1)
+            ),
+            met: !pose_better,
+        },
+        Target {
+            what: format!(
+                "{baseline} better on both ball unknown and pose error than {name} at {hz} Hz"
+            ),
+            required: "no (better: the baseline's mean beyond the reference's CI)".into(),
+            measured: if dominated { "yes".into() } else { "no".into() },
+            met: !dominated,
+        },
+        Target {
+            what: format!("goal coverage at {hz} Hz: {name} vs {baseline}"),
+            required: "at least as high (the baseline's mean within the reference's CI or below)"
+                .into(),
+            measured: format!(
+                "{} vs {} %",
+                reference.coverage.show(100.0, 1),
+                b.coverage.show(100.0, 1)
+            ),
+            met: reference.coverage.high() >= b.coverage.mean,
+        },
+    ]
 }
 
 /// Every (method, rate, speed band) over the runs of the paths in the band.

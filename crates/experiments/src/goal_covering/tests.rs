@@ -300,3 +300,36 @@ fn the_learned_method_loads_the_shipped_policy_and_refuses_a_bad_one() {
     let text = validated(&no_candidates).map(|_| ()).expect_err("always-ball").to_string();
     assert!(text.contains("no gaze candidates"), "{text}");
 }
+
+fn measured(method: &str, ball_unknown: (f64, f64), pose: (f64, f64), coverage: f64) -> Condition {
+    let e = |(mean, ci95): (f64, f64)| Estimate { mean, ci95, n: 60 };
+    Condition {
+        method: method.into(),
+        deliberative_hz: 1.0,
+        ball_unknown: e(ball_unknown),
+        pose_error_mean: e(pose),
+        coverage: e((coverage, 0.01)),
+        ..Condition::default()
+    }
+}
+
+/// A baseline is better on a measure only beyond the reference's interval: a tie the runs
+/// cannot tell apart does not fail the reference, a clear lead on both does.
+#[test]
+fn a_baseline_dominates_only_beyond_the_references_interval_on_both_measures() {
+    let reference = measured("value-function", (0.020, 0.007), (0.020, 0.001), 0.68);
+    let met = |b: &Condition| -> Vec<bool> {
+        comparison_targets("value-function", &reference, b).iter().map(|t| t.met).collect()
+    };
+    // Lower means, inside the interval: a tie.
+    let tie = measured("always-ball", (0.019, 0.007), (0.0199, 0.001), 0.68);
+    assert_eq!(met(&tie), [true, true, true, true]);
+    // Better pose beyond the interval, ball unknown tied: not better on both.
+    let scan = measured("fixed-scan", (0.018, 0.007), (0.013, 0.001), 0.63);
+    assert_eq!(met(&scan), [true, false, true, true]);
+    // Beyond the interval on both, and more coverage than the reference's interval allows.
+    let clear = measured("entropy", (0.005, 0.003), (0.015, 0.001), 0.75);
+    assert_eq!(met(&clear), [false, false, false, false]);
+    let targets = comparison_targets("value-function", &reference, &clear);
+    assert!(targets[2].what.starts_with("entropy better on both"), "{}", targets[2].what);
+}
