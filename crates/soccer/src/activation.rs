@@ -254,16 +254,19 @@ fn head_primitives<'a>(
             &[HeadPrimitive::LookAtTarget, HeadPrimitive::SearchObjectEllipse]
         }
         HeadGoal::Scan => &[HeadPrimitive::SearchObjectEllipse],
+        // A goal is looked at between its posts, which tracking one post would not do.
         HeadGoal::ObservePartner { .. }
         | HeadGoal::ObserveFieldLine { .. }
         | HeadGoal::ObserveReferee { .. }
+        | HeadGoal::ObserveGoal { .. }
             if !world.pose.lost =>
         {
             &[HeadPrimitive::LookAtTarget]
         }
         HeadGoal::ObservePartner { .. }
         | HeadGoal::ObserveFieldLine { .. }
-        | HeadGoal::ObserveReferee { .. } => &[HeadPrimitive::SearchObjectEllipse],
+        | HeadGoal::ObserveReferee { .. }
+        | HeadGoal::ObserveGoal { .. } => &[HeadPrimitive::SearchObjectEllipse],
         _ => {
             // Tracking needs a position worth pointing at: a tracked object, or a landmark
             // predicted from a pose that is not lost. A track not yet confident enough to be

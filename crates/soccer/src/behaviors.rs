@@ -31,7 +31,7 @@ use strata_robot::control::planning_module::PlanningDecision;
 use strata_robot::control::reactive::Stability;
 use strata_robot::control::scores::{GoalScore, ScoreVector};
 use strata_robot::geometry::{Global as FieldFrame, Point, Pose};
-use strata_robot::world::{ObjectCategory, ObjectId, OdometryNoise, WorldState};
+use strata_robot::world::{ObjectCategory, ObjectEstimate, ObjectId, OdometryNoise, WorldState};
 use strata_runtime::Time;
 use strata_spl::gamecontroller::{GameState, SetPlay};
 
@@ -39,12 +39,14 @@ use crate::catalog::{GOALKEEPER_NUMBER, Mission, Role};
 use crate::field::TeamField;
 use crate::game::{GameDirective, Kicking};
 use crate::gaze_override::{self, GazeOverride, Kind};
-use crate::goals::{BodyGoal, HeadGoal, Kick, WholeBodyGoal};
+use crate::goals::{BodyGoal, GoalSide, HeadGoal, Kick, WholeBodyGoal};
 use crate::predicted_motion::predicted_motion;
 use crate::primitives::{
     BodyPrimitive, MotionModel, TOGETHER_RANGE, facing, nearest_point_of_line,
 };
-use crate::situation::{ball, best_instance, obstacle_ahead, rival, rival_ahead, rival_track};
+use crate::situation::{
+    ball, best_instance, goal_posts, goal_side_of, obstacle_ahead, rival, rival_ahead, rival_track,
+};
 use crate::value::{
     AvoidingValue, GoToBallValue, GoalCoveringValue, PositionValue, RefereeVisibilityValue,
 };
@@ -118,6 +120,10 @@ pub struct BehaviorConfig {
     /// until (an object it does not observe spreads for the deliberative period,
     /// `ActiveVisionConfig::horizon`); false: by the belief right after the look (to compare).
     pub look_held_for_period: bool,
+    /// The keeper may look at a goal, both posts in one image, in place of a post's look
+    /// (Table 3's "observe goal"). Off: measured in games, it cost the team more goals than
+    /// it saved (docs/results.md, "The keeper's goal looks").
+    pub keeper_goal_looks: bool,
 }
 
 impl Default for BehaviorConfig {
@@ -136,6 +142,7 @@ impl Default for BehaviorConfig {
             referee_range: 10.0,
             task_value_after_motion: true,
             look_held_for_period: true,
+            keeper_goal_looks: false,
         }
     }
 }
@@ -438,13 +445,16 @@ const PLAYING_ENTRIES: [S; 6] = [
 // The head: gaze strategies.
 
 /// What a gaze candidate looks at: the ball, a landmark (the label is its name), the ball and
-/// a landmark together (the label is `ball+` and its name), and two more of Table 3's
-/// observation goals: a painted line, a rival robot.
+/// a landmark together (the label is `ball+` and its name), and three more of Table 3's
+/// observation goals: a goal (both posts), a painted line, a rival robot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Looks {
     Ball,
     Landmark,
     Together,
+    /// The goal a landmark group's best post belongs to, both posts in one image: the
+    /// group's look wherever they fit in one.
+    Goal(GoalSide),
     /// By index in the field's lines.
     Line(u8),
     /// By obstacle track ([`crate::situation::rival`]).
@@ -455,7 +465,8 @@ impl Looks {
     fn kind(self) -> Kind {
         match self {
             Looks::Ball => Kind::Ball,
-            Looks::Landmark => Kind::Landmark,
+            // A policy's k-th landmark look: the goal replaces its post.
+            Looks::Landmark | Looks::Goal(_) => Kind::Landmark,
             Looks::Together => Kind::Together,
             Looks::Line(_) | Looks::Rival(_) => Kind::Other,
         }
@@ -467,6 +478,7 @@ impl Looks {
             Looks::Ball => HeadGoal::ObserveBall,
             Looks::Landmark => HeadGoal::ObserveLandmark { name: label.to_owned() },
             Looks::Together => HeadGoal::ObserveTogether { objects: self.objects_of(label) },
+            Looks::Goal(side) => HeadGoal::ObserveGoal { side },
             Looks::Line(line) => HeadGoal::ObserveFieldLine { line },
             Looks::Rival(player) => HeadGoal::ObserveRival { player },
         }
@@ -477,6 +489,9 @@ impl Looks {
         match self {
             Looks::Rival(track) => {
                 rival(world, track).map(|o| o.name.to_string()).into_iter().collect()
+            }
+            Looks::Goal(side) => {
+                goal_posts(world, side).iter().map(|o| o.name.to_string()).collect()
             }
             _ => self.objects_of(label),
         }
@@ -491,7 +506,7 @@ impl Looks {
                 let landmark = label.strip_prefix(BALL).and_then(|l| l.strip_prefix('+'));
                 vec![BALL.to_owned(), landmark.unwrap_or_default().to_owned()]
             }
-            Looks::Line(_) | Looks::Rival(_) => Vec::new(),
+            Looks::Goal(_) | Looks::Line(_) | Looks::Rival(_) => Vec::new(),
         }
     }
 }
@@ -545,9 +560,19 @@ fn gaze_candidates(
         .filter(|o| o.category == ObjectCategory::Landmark)
         .collect();
     landmarks.sort_by(|a, b| a.position.range().total_cmp(&b.position.range()));
+    // The keeper's alone: offered to field players, goal looks slowed the team's role
+    // changes past what its scenario tests allow (docs/hybrid-control.md).
+    let goals = ctx.config.keeper_goal_looks && ctx.role() == Role::Goalie;
     for landmark in landmarks.iter().take(6) {
         let range = landmark.position.range();
-        if let Some(direction) = GazeCandidate::toward_direction(world, landmark.id) {
+        let goal = goals.then(|| whole_goal(world, landmark, ctx.config.fov)).flatten();
+        if let Some((side, direction)) = goal {
+            let label = match side {
+                GoalSide::Own => "own goal",
+                GoalSide::Opponent => "opponent goal",
+            };
+            out(direction, range, &[label], Looks::Goal(side));
+        } else if let Some(direction) = GazeCandidate::toward_direction(world, landmark.id) {
             out(direction, range, &[landmark.name.as_str()], Looks::Landmark);
         }
         if let Some(ball) = ball
@@ -593,6 +618,20 @@ fn gaze_candidates(
         );
     }
     gazes.truncate(n);
+}
+
+/// The goal `post` belongs to and the direction that shows all its posts, when they fit in one
+/// image (Table 3's "observe goal"): two posts seen together give the heading and the
+/// position where one gives a bearing and a range.
+fn whole_goal(world: &WorldState, post: &ObjectEstimate, fov: f64) -> Option<(GoalSide, f64)> {
+    let side = goal_side_of(post)?;
+    let posts = goal_posts(world, side);
+    if posts.len() < 2 {
+        return None;
+    }
+    let direction =
+        GazeCandidate::covering_direction(world, posts.iter().map(|o| o.id), fov * 0.8)?;
+    Some((side, direction))
 }
 
 /// The head's score vector for a behavior whose value function is `value`.
@@ -2000,7 +2039,16 @@ mod tests {
             .collect();
         landmarks.sort_by(|a, b| a.position.range().total_cmp(&b.position.range()));
         for landmark in landmarks.iter().take(6) {
-            if let Some(c) = GazeCandidate::toward(world, landmark.id, landmark.name.clone()) {
+            let side = crate::situation::goal_side_of(landmark)
+                .filter(|_| ctx.config.keeper_goal_looks && ctx.role() == Role::Goalie);
+            let posts: Vec<_> = side.map(|s| goal_posts(world, s)).unwrap_or_default();
+            let ids: Vec<_> = posts.iter().map(|o| o.id).collect();
+            let label = if side == Some(GoalSide::Own) { "own goal" } else { "opponent goal" };
+            let goal = GazeCandidate::covering(world, &ids, ctx.config.fov * 0.8, label);
+            if let Some(c) = goal.filter(|_| ids.len() >= 2) {
+                out.push((c, posts.iter().map(|o| o.name.to_string()).collect()));
+            } else if let Some(c) = GazeCandidate::toward(world, landmark.id, landmark.name.clone())
+            {
                 out.push((c, vec![landmark.name.to_string()]));
             }
             if let Some(ball) = ball_id {
@@ -2020,9 +2068,9 @@ mod tests {
         let field =
             Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
         let behavior = SoccerBehavior::new(
-            2,
+            GOALKEEPER_NUMBER,
             Arc::clone(&field),
-            BehaviorConfig::default(),
+            BehaviorConfig { keeper_goal_looks: true, ..BehaviorConfig::default() },
             ActiveVisionConfig::default(),
             Arc::new(MotionModel::default()),
         )
@@ -2031,6 +2079,7 @@ mod tests {
             WorldModel::new(crate::world_config::world_config(&field)).expect("valid config");
         let (mut gazes, mut looks) = (Vec::new(), Vec::new());
         let mut lengths = std::collections::BTreeSet::new();
+        let mut goal_looks = 0;
         for k in 0..60 {
             let t = f64::from(k);
             let pose = Pose::new(-4.0 + 0.14 * t, 2.5 * (0.3 * t).sin(), 0.37 * t);
@@ -2047,9 +2096,77 @@ mod tests {
                 assert_eq!(&what.objects(&gaze.label, &world), objects);
             }
             lengths.insert(plain.len());
+            goal_looks += looks.iter().filter(|l| matches!(l, Looks::Goal(_))).count();
         }
-        // Longer and shorter lists followed one another.
+        // Longer and shorter lists followed one another, goals among them.
         assert!(lengths.len() > 2, "{lengths:?}");
+        assert!(goal_looks > 0);
+    }
+
+    /// Facing a goal from afar, the post's look is the goal's, centred between the posts, and
+    /// the head looks there; near the goal, where both posts do not fit in one image, it is
+    /// the post's.
+    #[test]
+    fn a_goal_whose_posts_fit_in_one_image_is_looked_at_between_them() {
+        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+        let field =
+            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
+        let behavior = SoccerBehavior::new(
+            GOALKEEPER_NUMBER,
+            Arc::clone(&field),
+            BehaviorConfig { keeper_goal_looks: true, ..BehaviorConfig::default() },
+            ActiveVisionConfig::default(),
+            Arc::new(MotionModel::default()),
+        )
+        .expect("behavior");
+        let mut model =
+            WorldModel::new(crate::world_config::world_config(&field)).expect("valid config");
+        let (mut gazes, mut looks) = (Vec::new(), Vec::new());
+        let goal_line = field.field.dimensions().field_length / 2.0;
+        let mut looks_at = |x: f64| {
+            let prior = PosePrior { pose: Pose::new(x, 0.3, 0.1), sigma: [0.05, 0.05, 0.02] };
+            let _ = model.command(WorldCommand::SetPose { prior });
+            let world = model.state();
+            gaze_candidates(&behavior.ctx, &world, &[], &mut gazes, &mut looks);
+            let goal = looks.iter().position(|l| *l == Looks::Goal(GoalSide::Opponent));
+            (world, goal.map(|i| gazes[i].direction))
+        };
+        let (world, direction) = looks_at(0.0);
+        let direction = direction.expect("a look at the opponent goal");
+        let head = HeadGoal::ObserveGoal { side: GoalSide::Opponent };
+        let target = crate::primitives::look_target(&field, &world, &head, 1.06).expect("target");
+        let bearings: Vec<f64> = crate::situation::goal_posts(&world, GoalSide::Opponent)
+            .iter()
+            .map(|o| o.position.bearing())
+            .collect();
+        assert_eq!(bearings.len(), 2);
+        let (lo, hi) = (bearings[0].min(bearings[1]), bearings[0].max(bearings[1]));
+        assert!((target.bearing() - direction).abs() < 1e-9, "{target:?} {direction}");
+        assert!(lo < direction && direction < hi, "{lo} < {direction} < {hi}");
+        assert!((direction - (lo + hi) / 2.0).abs() < 1e-9);
+        // A step in front of the goal, the posts are farther apart than the image.
+        let (_, near) = looks_at(goal_line - 0.5);
+        assert_eq!(near, None);
+        assert!(looks.contains(&Looks::Landmark));
+        // A field player looks at the post, wherever it stands, and so does a keeper whose
+        // team leaves the goal looks off (the default).
+        let prior = PosePrior { pose: Pose::new(0.0, 0.3, 0.1), sigma: [0.05, 0.05, 0.02] };
+        let _ = model.command(WorldCommand::SetPose { prior });
+        let world = model.state();
+        let on = BehaviorConfig { keeper_goal_looks: true, ..BehaviorConfig::default() };
+        for (player, config) in [(2, on), (GOALKEEPER_NUMBER, BehaviorConfig::default())] {
+            let other = SoccerBehavior::new(
+                player,
+                Arc::clone(&field),
+                config,
+                ActiveVisionConfig::default(),
+                Arc::new(MotionModel::default()),
+            )
+            .expect("behavior");
+            gaze_candidates(&other.ctx, &world, &[], &mut gazes, &mut looks);
+            assert!(!looks.iter().any(|l| matches!(l, Looks::Goal(_))), "player {player}");
+            assert!(looks.contains(&Looks::Landmark));
+        }
     }
 
     #[test]

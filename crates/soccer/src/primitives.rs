@@ -398,6 +398,19 @@ pub fn look_target(
         HeadGoal::ObserveFieldLine { line } => {
             nearest_point_of_line(field, usize::from(*line), pose)
         }
+        HeadGoal::ObserveGoal { .. } => {
+            let posts = head_goal_objects(world, goal);
+            let n = posts.len() as f64;
+            let (x, y) =
+                posts.iter().fold((0.0, 0.0), |(x, y), o| (x + o.position.x, y + o.position.y));
+            let middle = (n > 0.0).then(|| Point::<Robot>::new(x / n, y / n))?;
+            // Centred on the posts' bearings where they fit in one image (as the gaze
+            // candidate was judged), else between them.
+            let direction =
+                GazeCandidate::covering_direction(world, posts.iter().map(|o| o.id), fov * 0.8)
+                    .unwrap_or_else(|| middle.bearing());
+            Some(Point::from_polar(middle.range(), direction))
+        }
         _ => head_goal_objects(world, goal).first().map(|o| o.position),
     }
 }

@@ -114,6 +114,20 @@ pub fn goal_posts(world: &WorldState, side: GoalSide) -> Vec<&ObjectEstimate> {
     world.group(GOAL_POST).filter(|o| o.map_position.is_some_and(|m| m.x * sign > 0.0)).collect()
 }
 
+/// Which goal a goal post belongs to: by its group where the posts are coloured, by the side
+/// of the field its map position is on where they are not.
+pub fn goal_side_of(post: &ObjectEstimate) -> Option<GoalSide> {
+    match post.group.as_str() {
+        OWN_GOAL_POST => Some(GoalSide::Own),
+        OPPONENT_GOAL_POST => Some(GoalSide::Opponent),
+        GOAL_POST => {
+            let x = post.map_position?.x;
+            Some(if x < 0.0 { GoalSide::Own } else { GoalSide::Opponent })
+        }
+        _ => None,
+    }
+}
+
 pub fn side_of(side: GoalSide) -> Side {
     match side {
         GoalSide::Own => Side::Own,
@@ -170,9 +184,10 @@ impl<'a> std::ops::Deref for GoalObjects<'a> {
 pub fn head_goal_objects<'a>(world: &'a WorldState, goal: &'a HeadGoal) -> GoalObjects<'a> {
     let one = match goal {
         HeadGoal::ObserveBall => world.object(BALL),
-        HeadGoal::ObserveGoal { side } => goal_posts(world, *side)
-            .into_iter()
-            .max_by(|a, b| a.confidence.total_cmp(&b.confidence)),
+        // The goal is its posts, seen together.
+        HeadGoal::ObserveGoal { side } => {
+            return GoalObjects::collect(goal_posts(world, *side).into_iter());
+        }
         HeadGoal::ObserveLandmark { name } => {
             world.object(name).or_else(|| best_instance(world, name))
         }
