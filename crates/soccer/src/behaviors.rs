@@ -2062,9 +2062,9 @@ mod tests {
         out
     }
 
-    #[test]
-    fn gaze_candidates_in_reused_storage_are_the_plain_ones() {
-        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
+    /// A keeper with the goal looks on, on the SPL field, and a world model of that field.
+    fn keeper_with_goal_looks() -> (Arc<TeamField>, SoccerBehavior, strata_robot::world::WorldModel)
+    {
         let field =
             Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
         let behavior = SoccerBehavior::new(
@@ -2075,8 +2075,15 @@ mod tests {
             Arc::new(MotionModel::default()),
         )
         .expect("behavior");
-        let mut model =
-            WorldModel::new(crate::world_config::world_config(&field)).expect("valid config");
+        let model = strata_robot::world::WorldModel::new(crate::world_config::world_config(&field))
+            .expect("valid config");
+        (field, behavior, model)
+    }
+
+    #[test]
+    fn gaze_candidates_in_reused_storage_are_the_plain_ones() {
+        use strata_robot::world::{PosePrior, WorldCommand};
+        let (_, behavior, mut model) = keeper_with_goal_looks();
         let (mut gazes, mut looks) = (Vec::new(), Vec::new());
         let mut lengths = std::collections::BTreeSet::new();
         let mut goal_looks = 0;
@@ -2108,19 +2115,8 @@ mod tests {
     /// the post's.
     #[test]
     fn a_goal_whose_posts_fit_in_one_image_is_looked_at_between_them() {
-        use strata_robot::world::{PosePrior, WorldCommand, WorldModel};
-        let field =
-            Arc::new(TeamField::new(strata_spl::Field::preset("spl").expect("preset"), 1.0));
-        let behavior = SoccerBehavior::new(
-            GOALKEEPER_NUMBER,
-            Arc::clone(&field),
-            BehaviorConfig { keeper_goal_looks: true, ..BehaviorConfig::default() },
-            ActiveVisionConfig::default(),
-            Arc::new(MotionModel::default()),
-        )
-        .expect("behavior");
-        let mut model =
-            WorldModel::new(crate::world_config::world_config(&field)).expect("valid config");
+        use strata_robot::world::{PosePrior, WorldCommand};
+        let (field, behavior, mut model) = keeper_with_goal_looks();
         let (mut gazes, mut looks) = (Vec::new(), Vec::new());
         let goal_line = field.field.dimensions().field_length / 2.0;
         let mut looks_at = |x: f64| {

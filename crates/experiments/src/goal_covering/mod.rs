@@ -472,28 +472,16 @@ fn comparison_targets(reference_name: &str, reference: &Condition, b: &Condition
     let ball_better = lower(&reference.ball_unknown, &b.ball_unknown);
     let pose_better = lower(&reference.pose_error_mean, &b.pose_error_mean);
     let dominated = ball_better && pose_better;
-    let as_low = "at least as low (the baseline's mean within the reference's CI or above)";
+    // A measure where lower is better, in `unit` (values scaled by 100).
+    let as_low = |measure: &str, r: &Estimate, e: &Estimate, unit: &str, better: bool| Target {
+        what: format!("{measure} at {hz} Hz: {name} vs {baseline}"),
+        required: "at least as low (the baseline's mean within the reference's CI or above)".into(),
+        measured: format!("{} vs {} {unit}", r.show(100.0, 1), e.show(100.0, 1)),
+        met: !better,
+    };
     vec![
-        Target {
-            what: format!("ball unknown at {hz} Hz: {name} vs {baseline}"),
-            required: as_low.into(),
-            measured: format!(
-                "{} vs {} %",
-                reference.ball_unknown.show(100.0, 1),
-                b.ball_unknown.show(100.0, 1)
-            ),
-            met: !ball_better,
-        },
-        Target {
-            what: format!("pose error at {hz} Hz: {name} vs {baseline}"),
-            required: as_low.into(),
-            measured: format!(
-                "{} vs {} cm",
-                reference.pose_error_mean.show(100.0, 1),
-                b.pose_error_mean.show(100.0, 1)
-            ),
-            met: !pose_better,
-        },
+        as_low("ball unknown", &reference.ball_unknown, &b.ball_unknown, "%", ball_better),
+        as_low("pose error", &reference.pose_error_mean, &b.pose_error_mean, "cm", pose_better),
         Target {
             what: format!(
                 "{baseline} better on both ball unknown and pose error than {name} at {hz} Hz"
