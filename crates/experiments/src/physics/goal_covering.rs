@@ -777,8 +777,8 @@ fn report_tables(md: &mut Markdown, scenario: &Scenario, summary: &Summary) {
             .collect::<Vec<_>>(),
     );
     md.paragraph(
-        "The 2D figures are from docs/experiments.md (`strata experiment goal-covering`, 15 runs \
-         per condition on the paper's 6 x 4 m field, 2026-11-23). Ball unknown: the fraction of \
+        "The 2D figures are the scenario's `figures_2d`, measured with `strata experiment \
+         goal-covering` on the paper's 6 x 4 m field (docs/experiments.md says when). Ball unknown: the fraction of \
          samples whose world model does not know the ball, over the samples with the server's \
          ball within the camera model's ball range of the keeper (the paper's condition: its \
          ball was always within sight; the targets compare this one) and over all samples; \
